@@ -1,0 +1,14 @@
+//! The formats v2x-fusion speaks.
+//!
+//! Everything that crosses a process boundary is defined here, once: the domain types
+//! ([`Class`], [`Detection`], [`Uncertainty`], [`Frame`]), the compact quantized wire encoding of a
+//! frame ([`wire`]), the Zenoh key expressions ([`keys`]) and the nuScenes detection-results JSON
+//! files with their uncertainty extension fields ([`nuscenes_json`]). This crate has no network,
+//! clock or file dependencies beyond reading and writing JSON files.
+
+pub mod keys;
+pub mod nuscenes_json;
+mod types;
+pub mod wire;
+
+pub use types::*;

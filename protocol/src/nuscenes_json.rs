@@ -1,0 +1,603 @@
+//! nuScenes detection-results JSON files, in and out.
+//!
+//! The format is `{"meta": {...}, "results": {SAMPLE_TOKEN: [BOX, ...]}}` with each box holding
+//! `sample_token`, `translation` [x, y, z], `size` **[w, l, h]**, `rotation` **[w, x, y, z]**,
+//! `velocity`, `detection_name`, `detection_score` and `attribute_name`. v2x-fusion adds optional
+//! extension fields: `translation_std` [3], `size_std` [3] (w, l, h order), `yaw_std` (rad),
+//! `translation_cov` [9] (row-major 3x3, m^2) and `instance_token` (the ground-truth object).
+//! Errors name the file, the sample token, the box index and the field.
+
+use crate::{wrap_angle, Class, Detection, Uncertainty, NO_ID};
+use serde_json::{json, Map, Value};
+use std::collections::{BTreeMap, HashMap};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A problem with a results file, located as precisely as possible.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JsonError {
+    /// The file (empty when parsing from memory).
+    pub file: PathBuf,
+    /// The sample token of the offending box, if any.
+    pub sample: Option<String>,
+    /// The offending box's index within its sample, if any.
+    pub index: Option<usize>,
+    /// The field, if any.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for JsonError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(s) = &self.sample {
+            write!(f, ": sample '{s}'")?;
+        }
+        if let Some(i) = self.index {
+            write!(f, ", box {i}")?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, ", field '{field}'")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for JsonError {}
+
+/// Maps instance tokens (strings) to the compact `u32` object ids detections carry.
+#[derive(Debug, Clone, Default)]
+pub struct TokenTable {
+    ids: HashMap<String, u32>,
+    names: Vec<String>,
+}
+
+impl TokenTable {
+    /// An empty table.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The id of a token, assigning the next free one to a new token.
+    pub fn intern(&mut self, token: &str) -> u32 {
+        if let Some(&id) = self.ids.get(token) {
+            return id;
+        }
+        let id = self.names.len() as u32;
+        self.names.push(token.to_string());
+        self.ids.insert(token.to_string(), id);
+        id
+    }
+
+    /// The id of a known token.
+    pub fn get(&self, token: &str) -> Option<u32> {
+        self.ids.get(token).copied()
+    }
+
+    /// The token of an id, if the id was interned.
+    pub fn name(&self, id: u32) -> Option<&str> {
+        self.names.get(id as usize).map(String::as_str)
+    }
+
+    /// Number of tokens.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// True when no token was interned.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+}
+
+/// A parsed results file: detections grouped by sample token.
+#[derive(Debug, Clone, Default)]
+pub struct Results {
+    /// The `meta` object, kept as it was.
+    pub meta: Value,
+    /// Detections per sample token, in file order within a sample.
+    pub samples: BTreeMap<String, Vec<Detection>>,
+}
+
+/// How to fill in stds a box does not give.
+#[derive(Debug, Clone, Copy)]
+pub enum MissingStd {
+    /// A missing std field is an error.
+    Error,
+    /// Missing std fields take these values.
+    Default(Uncertainty),
+}
+
+struct Ctx<'a> {
+    file: &'a Path,
+    sample: Option<&'a str>,
+    index: Option<usize>,
+}
+
+impl Ctx<'_> {
+    fn err(&self, field: Option<&str>, message: impl Into<String>) -> JsonError {
+        JsonError {
+            file: self.file.to_path_buf(),
+            sample: self.sample.map(str::to_string),
+            index: self.index,
+            field: field.map(str::to_string),
+            message: message.into(),
+        }
+    }
+
+    fn numbers<const N: usize>(
+        &self,
+        obj: &Map<String, Value>,
+        field: &str,
+    ) -> Result<Option<[f64; N]>, JsonError> {
+        let Some(v) = obj.get(field) else {
+            return Ok(None);
+        };
+        let arr = v
+            .as_array()
+            .ok_or_else(|| self.err(Some(field), format!("expected an array of {N} numbers")))?;
+        if arr.len() != N {
+            return Err(self.err(
+                Some(field),
+                format!("expected {N} numbers, found {}", arr.len()),
+            ));
+        }
+        let mut out = [0.0; N];
+        for (k, x) in arr.iter().enumerate() {
+            out[k] = x.as_f64().filter(|f| f.is_finite()).ok_or_else(|| {
+                self.err(Some(field), format!("element {k} is not a finite number"))
+            })?;
+        }
+        Ok(Some(out))
+    }
+
+    fn required<const N: usize>(
+        &self,
+        obj: &Map<String, Value>,
+        field: &str,
+    ) -> Result<[f64; N], JsonError> {
+        self.numbers(obj, field)?
+            .ok_or_else(|| self.err(Some(field), "missing"))
+    }
+}
+
+/// Yaw (rad) of a nuScenes quaternion [w, x, y, z].
+pub fn quaternion_yaw(q: [f64; 4]) -> f64 {
+    let [w, x, y, z] = q;
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+}
+
+/// The nuScenes quaternion [w, x, y, z] of a rotation by `yaw` about +z.
+pub fn yaw_quaternion(yaw: f64) -> [f64; 4] {
+    let (s, c) = (yaw / 2.0).sin_cos();
+    [c, 0.0, 0.0, s]
+}
+
+/// Reads a results file from disk.
+pub fn read_results(
+    path: &Path,
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Results, JsonError> {
+    let ctx = Ctx {
+        file: path,
+        sample: None,
+        index: None,
+    };
+    let text =
+        std::fs::read_to_string(path).map_err(|e| ctx.err(None, format!("cannot read: {e}")))?;
+    parse_results(path, &text, tokens, missing)
+}
+
+/// Parses results JSON text; `path` only names the source in errors.
+pub fn parse_results(
+    path: &Path,
+    text: &str,
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Results, JsonError> {
+    let ctx = Ctx {
+        file: path,
+        sample: None,
+        index: None,
+    };
+    let root: Value =
+        serde_json::from_str(text).map_err(|e| ctx.err(None, format!("not valid JSON: {e}")))?;
+    let root = root
+        .as_object()
+        .ok_or_else(|| ctx.err(None, "expected a JSON object with 'meta' and 'results'"))?;
+    let meta = root.get("meta").cloned().unwrap_or(Value::Null);
+    let results = root
+        .get("results")
+        .ok_or_else(|| ctx.err(Some("results"), "missing"))?
+        .as_object()
+        .ok_or_else(|| ctx.err(Some("results"), "expected an object keyed by sample token"))?;
+    let mut samples = BTreeMap::new();
+    for (token, boxes) in results {
+        let sctx = Ctx {
+            file: path,
+            sample: Some(token),
+            index: None,
+        };
+        let boxes = boxes
+            .as_array()
+            .ok_or_else(|| sctx.err(None, "expected an array of boxes"))?;
+        let mut dets = Vec::with_capacity(boxes.len());
+        for (i, b) in boxes.iter().enumerate() {
+            let bctx = Ctx {
+                file: path,
+                sample: Some(token),
+                index: Some(i),
+            };
+            dets.push(parse_box(&bctx, b, tokens, missing)?);
+        }
+        samples.insert(token.clone(), dets);
+    }
+    Ok(Results { meta, samples })
+}
+
+fn parse_box(
+    ctx: &Ctx,
+    b: &Value,
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Detection, JsonError> {
+    let obj = b
+        .as_object()
+        .ok_or_else(|| ctx.err(None, "expected a box object"))?;
+    if let Some(st) = obj.get("sample_token") {
+        if st.as_str() != ctx.sample {
+            return Err(ctx.err(
+                Some("sample_token"),
+                "does not match the sample it is listed under",
+            ));
+        }
+    }
+    let center = ctx.required::<3>(obj, "translation")?;
+    let [w, l, h] = ctx.required::<3>(obj, "size")?;
+    if [w, l, h].iter().any(|s| *s <= 0.0) {
+        return Err(ctx.err(Some("size"), "sizes must be positive"));
+    }
+    let q = ctx.required::<4>(obj, "rotation")?;
+    if q.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
+        return Err(ctx.err(Some("rotation"), "zero quaternion"));
+    }
+    let name = obj
+        .get("detection_name")
+        .ok_or_else(|| ctx.err(Some("detection_name"), "missing"))?
+        .as_str()
+        .ok_or_else(|| ctx.err(Some("detection_name"), "expected a string"))?;
+    let class = Class::from_name(name).ok_or_else(|| {
+        ctx.err(
+            Some("detection_name"),
+            format!("unknown class '{name}' (expected a nuScenes detection class such as 'car')"),
+        )
+    })?;
+    let score = match obj.get("detection_score") {
+        None => return Err(ctx.err(Some("detection_score"), "missing")),
+        Some(v) => v
+            .as_f64()
+            .filter(|s| (0.0..=1.0).contains(s))
+            .ok_or_else(|| ctx.err(Some("detection_score"), "expected a number in [0, 1]"))?,
+    };
+    let default = match missing {
+        MissingStd::Default(u) => Some(u),
+        MissingStd::Error => None,
+    };
+    let need = |field: &str| {
+        ctx.err(
+            Some(field),
+            "missing (give the detector's stds, or a default with --default-std mild|moderate|large)",
+        )
+    };
+    let pos = match ctx.numbers::<3>(obj, "translation_std")? {
+        Some(p) => p,
+        None => default.ok_or_else(|| need("translation_std"))?.pos,
+    };
+    let size = match ctx.numbers::<3>(obj, "size_std")? {
+        Some([sw, sl, sh]) => [sl, sw, sh],
+        None => default.ok_or_else(|| need("size_std"))?.size,
+    };
+    let yaw_std = match obj.get("yaw_std") {
+        Some(v) => v
+            .as_f64()
+            .filter(|f| f.is_finite())
+            .ok_or_else(|| ctx.err(Some("yaw_std"), "expected a number"))?,
+        None => default.ok_or_else(|| need("yaw_std"))?.yaw,
+    };
+    let std = Uncertainty {
+        pos,
+        size,
+        yaw: yaw_std,
+    };
+    if let Some(k) = std.as_array().iter().position(|s| *s <= 0.0) {
+        let field = [
+            "translation_std",
+            "translation_std",
+            "translation_std",
+            "size_std",
+            "size_std",
+            "size_std",
+            "yaw_std",
+        ][k];
+        return Err(ctx.err(Some(field), "standard deviations must be positive"));
+    }
+    let pos_cov = match ctx.numbers::<9>(obj, "translation_cov")? {
+        None => None,
+        Some(c) => {
+            let m = [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]];
+            let sym = (0..3)
+                .all(|i| (0..3).all(|j| (m[i][j] - m[j][i]).abs() <= 1e-9 * (1.0 + m[i][j].abs())));
+            if !sym || m[0][0] <= 0.0 || m[1][1] <= 0.0 || m[2][2] <= 0.0 {
+                return Err(ctx.err(
+                    Some("translation_cov"),
+                    "expected a symmetric covariance with a positive diagonal",
+                ));
+            }
+            Some(m)
+        }
+    };
+    let id = match obj.get("instance_token") {
+        None | Some(Value::Null) => NO_ID,
+        Some(v) => tokens.intern(
+            v.as_str()
+                .ok_or_else(|| ctx.err(Some("instance_token"), "expected a string"))?,
+        ),
+    };
+    Ok(Detection {
+        class,
+        center,
+        size: [l, w, h],
+        yaw: wrap_angle(quaternion_yaw(q)),
+        score,
+        std,
+        pos_cov,
+        id,
+    })
+}
+
+/// One box in nuScenes results form, with the extension fields.
+pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
+    let [l, w, h] = d.size;
+    let [sl, sw, sh] = d.std.size;
+    let mut b = json!({
+        "sample_token": sample,
+        "translation": d.center,
+        "size": [w, l, h],
+        "rotation": yaw_quaternion(d.yaw),
+        "velocity": [0.0, 0.0],
+        "detection_name": d.class.name(),
+        "detection_score": d.score,
+        "attribute_name": "",
+        "translation_std": d.std.pos,
+        "size_std": [sw, sl, sh],
+        "yaw_std": d.std.yaw,
+    });
+    let m = b.as_object_mut().expect("built as an object");
+    if let Some(c) = d.pos_cov {
+        m.insert("translation_cov".into(), json!(c.concat()));
+    }
+    if let Some(t) = tokens.name(d.id) {
+        m.insert("instance_token".into(), json!(t));
+    }
+    b
+}
+
+/// The whole results document.
+pub fn results_json(results: &Results, tokens: &TokenTable) -> Value {
+    let mut map = Map::new();
+    for (sample, dets) in &results.samples {
+        map.insert(
+            sample.clone(),
+            Value::Array(dets.iter().map(|d| box_json(sample, d, tokens)).collect()),
+        );
+    }
+    let meta = if results.meta.is_null() {
+        default_meta()
+    } else {
+        results.meta.clone()
+    };
+    json!({ "meta": meta, "results": map })
+}
+
+/// The `meta` block v2x-fusion writes when it has none to keep.
+pub fn default_meta() -> Value {
+    json!({
+        "use_camera": false, "use_lidar": true, "use_radar": false,
+        "use_map": false, "use_external": false
+    })
+}
+
+/// Writes a results file.
+pub fn write_results(path: &Path, results: &Results, tokens: &TokenTable) -> Result<(), JsonError> {
+    let text = serde_json::to_string(&results_json(results, tokens))
+        .expect("JSON values always serialize");
+    std::fs::write(path, text).map_err(|e| JsonError {
+        file: path.to_path_buf(),
+        sample: None,
+        index: None,
+        field: None,
+        message: format!("cannot write: {e}"),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p() -> &'static Path {
+        Path::new("agent1.json")
+    }
+
+    const GOOD: &str = r#"{"meta": {"use_lidar": true}, "results": {
+        "s1": [{"sample_token": "s1", "translation": [10.0, 20.0, 1.0], "size": [2.0, 4.5, 1.6],
+                "rotation": [0.7071067811865476, 0.0, 0.0, 0.7071067811865476], "velocity": [0, 0],
+                "detection_name": "car", "detection_score": 0.8, "attribute_name": "",
+                "translation_std": [0.5, 0.6, 0.7], "size_std": [0.1, 0.2, 0.3], "yaw_std": 0.05,
+                "instance_token": "abc"}],
+        "s2": []}}"#;
+
+    #[test]
+    fn parses_conventions() {
+        let mut t = TokenTable::new();
+        let r = parse_results(p(), GOOD, &mut t, MissingStd::Error).unwrap();
+        let d = &r.samples["s1"][0];
+        assert_eq!(d.size, [4.5, 2.0, 1.6]);
+        assert!((d.yaw - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert_eq!(d.std.size, [0.2, 0.1, 0.3]);
+        assert_eq!(d.std.pos, [0.5, 0.6, 0.7]);
+        assert_eq!(t.name(d.id), Some("abc"));
+        assert!(r.samples["s2"].is_empty());
+    }
+
+    #[test]
+    fn round_trip() {
+        let mut t = TokenTable::new();
+        let r = parse_results(p(), GOOD, &mut t, MissingStd::Error).unwrap();
+        let text = results_json(&r, &t).to_string();
+        let mut t2 = TokenTable::new();
+        let r2 = parse_results(p(), &text, &mut t2, MissingStd::Error).unwrap();
+        assert_eq!(r.samples.len(), r2.samples.len());
+        let (a, b) = (&r.samples["s1"][0], &r2.samples["s1"][0]);
+        assert_eq!(a.class, b.class);
+        assert_eq!(a.center, b.center);
+        assert_eq!(a.size, b.size);
+        assert!((a.yaw - b.yaw).abs() < 1e-12);
+        assert_eq!(a.std, b.std);
+        assert_eq!(t2.name(b.id), Some("abc"));
+        assert_eq!(r2.meta, r.meta);
+    }
+
+    #[test]
+    fn yaw_of_quaternion_matches_design() {
+        for yaw in [-3.0, -1.0, 0.0, 0.4, 3.1] {
+            assert!((quaternion_yaw(yaw_quaternion(yaw)) - yaw).abs() < 1e-12);
+        }
+    }
+
+    fn err_of(text: &str, missing: MissingStd) -> JsonError {
+        parse_results(p(), text, &mut TokenTable::new(), missing).unwrap_err()
+    }
+
+    fn replaced(from: &str, to: &str) -> String {
+        assert!(GOOD.contains(from), "{from}");
+        GOOD.replace(from, to)
+    }
+
+    #[test]
+    fn malformed_cases_name_file_sample_and_field() {
+        let cases: Vec<(String, Option<&str>, &str)> = vec![
+            (
+                replaced(
+                    r#""translation": [10.0, 20.0, 1.0]"#,
+                    r#""translation": [10.0, 20.0]"#,
+                ),
+                Some("translation"),
+                "expected 3 numbers",
+            ),
+            (
+                replaced(r#""translation": [10.0, 20.0, 1.0], "#, ""),
+                Some("translation"),
+                "missing",
+            ),
+            (
+                replaced(r#""size": [2.0, 4.5, 1.6]"#, r#""size": [2.0, -4.5, 1.6]"#),
+                Some("size"),
+                "positive",
+            ),
+            (
+                replaced(r#""size": [2.0, 4.5, 1.6]"#, r#""size": [2.0, "x", 1.6]"#),
+                Some("size"),
+                "element 1",
+            ),
+            (
+                replaced(r#""detection_name": "car""#, r#""detection_name": "lorry""#),
+                Some("detection_name"),
+                "unknown class 'lorry'",
+            ),
+            (
+                replaced(r#""detection_score": 0.8"#, r#""detection_score": 1.8"#),
+                Some("detection_score"),
+                "[0, 1]",
+            ),
+            (
+                replaced(
+                    r#""rotation": [0.7071067811865476, 0.0, 0.0, 0.7071067811865476]"#,
+                    r#""rotation": [0, 0, 0, 0]"#,
+                ),
+                Some("rotation"),
+                "zero",
+            ),
+            (
+                replaced(r#""yaw_std": 0.05"#, r#""yaw_std": -1"#),
+                Some("yaw_std"),
+                "positive",
+            ),
+            (
+                replaced(r#""sample_token": "s1""#, r#""sample_token": "s9""#),
+                Some("sample_token"),
+                "does not match",
+            ),
+            (
+                replaced(r#""instance_token": "abc""#, r#""instance_token": 5"#),
+                Some("instance_token"),
+                "string",
+            ),
+        ];
+        for (text, field, msg) in cases {
+            let e = err_of(&text, MissingStd::Error);
+            assert_eq!(e.field.as_deref(), field, "{e}");
+            assert_eq!(e.sample.as_deref(), Some("s1"), "{e}");
+            assert_eq!(e.index, Some(0));
+            let shown = e.to_string();
+            assert!(shown.contains(msg), "{shown}");
+            assert!(
+                shown.starts_with("agent1.json: sample 's1', box 0"),
+                "{shown}"
+            );
+        }
+    }
+
+    #[test]
+    fn missing_stds_need_a_default() {
+        let text = replaced(r#""yaw_std": 0.05,"#, "");
+        let e = err_of(&text, MissingStd::Error);
+        assert_eq!(e.field.as_deref(), Some("yaw_std"));
+        assert!(e.to_string().contains("--default-std"));
+        let r = parse_results(
+            p(),
+            &text,
+            &mut TokenTable::new(),
+            MissingStd::Default(Uncertainty::uniform(1.0, 2.0, 3.0)),
+        )
+        .unwrap();
+        assert_eq!(r.samples["s1"][0].std.yaw, 3.0);
+        assert_eq!(r.samples["s1"][0].std.pos, [0.5, 0.6, 0.7]);
+    }
+
+    #[test]
+    fn document_level_errors() {
+        assert!(err_of("{", MissingStd::Error)
+            .message
+            .contains("not valid JSON"));
+        assert_eq!(
+            err_of(r#"{"meta": {}}"#, MissingStd::Error)
+                .field
+                .as_deref(),
+            Some("results")
+        );
+        assert!(err_of(r#"{"results": {"s": 3}}"#, MissingStd::Error)
+            .message
+            .contains("array of boxes"));
+        let e = read_results(
+            Path::new("/nonexistent/x.json"),
+            &mut TokenTable::new(),
+            MissingStd::Error,
+        )
+        .unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("/nonexistent/x.json: cannot read"));
+    }
+}
