@@ -1,1 +1,14 @@
-//! placeholder
+//! Late fusion of 3D boxes from several V2X agents.
+//!
+//! The sans-IO core: [`association`] (CSBA-3D), [`fusion`] (WLS-3D), [`geometry`] and
+//! [`baselines`] (the comparison methods), [`method`] (the `Fuser` API: a [`Method`] value fuses
+//! one time step) and [`window`] (time alignment of frames). [`offline`] fuses nuScenes results
+//! files, and [`node`] is the thin Zenoh shell the `v2x-fuser` binary runs.
+
+pub mod association;
+pub mod baselines;
+pub mod fusion;
+pub mod geometry;
+pub mod method;
+
+pub use method::{Method, METHODS};

@@ -1,0 +1,360 @@
+//! CSBA-3D: cost-based association of two lists of 3D detections (paper §3.2, DESIGN §3).
+//!
+//! For a pair (a, b) of the same class the method scores
+//! - the **dimension score** DS from the volume ratio and its propagated uncertainty,
+//! - the **centre score** CS from the Mahalanobis distance of the centres,
+//! - the **orientation score** OS from the yaws and their stds,
+//!
+//! combines them into the weighted cost C, gates (same class and CS > 0), and solves the
+//! rectangular minimum-cost assignment. Unmatched detections stay unmatched: the caller keeps
+//! them. The solve is split into independent connected components of the gated pair graph, so
+//! well-separated scenes cost near-linear time; a component is solved exactly with a
+//! Jonker-Volgenant shortest-augmenting-path solver (the scipy algorithm).
+
+use v2x_protocol::{wrap_angle, Class, Detection};
+
+/// How the centre-score scale lambda_max is chosen.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Gate {
+    /// The paper's: lambda_max = `factor` x the position std (m) of the noisier detection.
+    Paper {
+        /// The multiplier (6 in the paper).
+        factor: f64,
+    },
+    /// Scale-consistent: lambda_max is a fixed Mahalanobis distance (unitless), e.g. a
+    /// chi-square quantile with 3 degrees of freedom.
+    Mahalanobis {
+        /// The gate on the Mahalanobis distance.
+        lambda: f64,
+    },
+}
+
+/// Which orientation score to use.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Orientation {
+    /// The paper's: alpha = theta / sigma; OS = (1 + cos(alpha_a - alpha_b)) / 2.
+    Paper,
+    /// Wrapped Gaussian: d = wrap(theta_a - theta_b) (period pi for barriers);
+    /// OS = exp(-d^2 / (2 (sa^2 + sb^2))).
+    Wrapped,
+}
+
+/// Which dimension score to use.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Dimension {
+    /// The paper's volume-ratio form (not symmetric in a and b).
+    Paper,
+    /// The log volume ratio, symmetric in a and b.
+    LogRatio,
+}
+
+/// Parameters of CSBA-3D.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct CsbaParams {
+    /// Weights of (1 - DS), (1 - CS), (1 - OS): 0.2 / 0.5 / 0.3 by default.
+    pub weights: [f64; 3],
+    /// How lambda_max is chosen.
+    pub gate: Gate,
+    /// Which orientation score.
+    pub orientation: Orientation,
+    /// Which dimension score.
+    pub dimension: Dimension,
+}
+
+impl CsbaParams {
+    /// The method exactly as the paper prints it.
+    pub const PAPER: CsbaParams = CsbaParams {
+        weights: [0.2, 0.5, 0.3],
+        gate: Gate::Paper { factor: 6.0 },
+        orientation: Orientation::Paper,
+        dimension: Dimension::Paper,
+    };
+    /// The improved variant `csba-wls+`: a scale-consistent gate, the wrapped orientation
+    /// score and the symmetric dimension score (README, "csba-wls+").
+    pub const PLUS: CsbaParams = CsbaParams {
+        weights: [0.2, 0.5, 0.3],
+        gate: Gate::Mahalanobis {
+            lambda: CHI3_GATE_99_99,
+        },
+        orientation: Orientation::Wrapped,
+        dimension: Dimension::LogRatio,
+    };
+}
+
+impl Default for CsbaParams {
+    fn default() -> Self {
+        CsbaParams::PAPER
+    }
+}
+
+/// sqrt of the 99.99% quantile of the chi-square distribution with 3 degrees of freedom: a true
+/// pair's Mahalanobis distance exceeds it once in 10,000.
+pub const CHI3_GATE_99_99: f64 = 4.594_291;
+
+// ---------------------------------------------------------------------------------------------
+// The three scores
+// ---------------------------------------------------------------------------------------------
+
+/// Volume V = l w h and its std sigma_V = V sqrt((sl/l)^2 + (sw/w)^2 + (sh/h)^2).
+pub fn volume_with_std(d: &Detection) -> (f64, f64) {
+    let [l, w, h] = d.size;
+    let [sl, sw, sh] = d.std.size;
+    let v = l * w * h;
+    (
+        v,
+        v * ((sl / l).powi(2) + (sw / w).powi(2) + (sh / h).powi(2)).sqrt(),
+    )
+}
+
+/// Dimension score DS = exp(-min(Z_r^2, Z_inv^2) / 2), with r = Va / Vb,
+/// sigma_r = r sqrt((sVa/Va)^2 + (sVb/Vb)^2), Z_r = (r - 1)/sigma_r, Z_inv = (1/r - 1)/sigma_r.
+pub fn dimension_score(a: &Detection, b: &Detection) -> f64 {
+    let (va, sva) = volume_with_std(a);
+    let (vb, svb) = volume_with_std(b);
+    let r = va / vb;
+    let sigma_r = r * ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
+    let z_r = (r - 1.0) / sigma_r;
+    let z_inv = (1.0 / r - 1.0) / sigma_r;
+    (-(z_r * z_r).min(z_inv * z_inv) / 2.0).exp()
+}
+
+/// **[ours]** Symmetric dimension score on the log volume ratio:
+/// Z = ln(Va / Vb) / sqrt((sVa/Va)^2 + (sVb/Vb)^2), DS = exp(-Z^2 / 2).
+pub fn dimension_score_log(a: &Detection, b: &Detection) -> f64 {
+    let (va, sva) = volume_with_std(a);
+    let (vb, svb) = volume_with_std(b);
+    let z = (va / vb).ln() / ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
+    (-z * z / 2.0).exp()
+}
+
+/// Inverse of a symmetric positive-definite 3x3 matrix (None if singular).
+fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let m = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
+    let inv = m.try_inverse()?;
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| inv[(i, j)])
+    }))
+}
+
+/// Mahalanobis distance d_M = sqrt(dp^T (Sa + Sb)^-1 dp) of the two centres.
+pub fn mahalanobis(a: &Detection, b: &Detection) -> f64 {
+    let dp: [f64; 3] = std::array::from_fn(|k| a.center[k] - b.center[k]);
+    if a.pos_cov.is_none() && b.pos_cov.is_none() {
+        // Diagonal covariances: the common case, no inverse needed.
+        return (0..3)
+            .map(|k| dp[k] * dp[k] / (a.std.pos[k].powi(2) + b.std.pos[k].powi(2)))
+            .sum::<f64>()
+            .sqrt();
+    }
+    let (ca, cb) = (a.position_covariance(), b.position_covariance());
+    let s: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| ca[i][j] + cb[i][j]));
+    match inverse3(&s) {
+        Some(inv) => (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| dp[i] * inv[i][j] * dp[j])
+            .sum::<f64>()
+            .max(0.0)
+            .sqrt(),
+        None => f64::INFINITY,
+    }
+}
+
+/// Position std (m) of a detection: the root mean of its three centre variances.
+pub fn position_std(d: &Detection) -> f64 {
+    let c = d.position_covariance();
+    ((c[0][0] + c[1][1] + c[2][2]) / 3.0).sqrt()
+}
+
+/// lambda_max for a pair under the chosen gate.
+pub fn lambda_max(gate: Gate, a: &Detection, b: &Detection) -> f64 {
+    match gate {
+        Gate::Paper { factor } => factor * position_std(a).max(position_std(b)),
+        Gate::Mahalanobis { lambda } => lambda,
+    }
+}
+
+/// Centre score CS = 1 - d_M / lambda_max, clamped to [0, 1].
+pub fn centre_score(d_m: f64, lambda_max: f64) -> f64 {
+    (1.0 - d_m / lambda_max).clamp(0.0, 1.0)
+}
+
+/// Orientation score in the chosen form.
+pub fn orientation_score(form: Orientation, a: &Detection, b: &Detection) -> f64 {
+    match form {
+        Orientation::Paper => {
+            let alpha_a = a.yaw / a.std.yaw;
+            let alpha_b = b.yaw / b.std.yaw;
+            (1.0 + (alpha_a - alpha_b).cos()) / 2.0
+        }
+        Orientation::Wrapped => {
+            let d = yaw_difference(a.class, a.yaw, b.yaw);
+            (-d * d / (2.0 * (a.std.yaw.powi(2) + b.std.yaw.powi(2)))).exp()
+        }
+    }
+}
+
+/// Smallest absolute yaw difference, with period pi for barriers and 2 pi otherwise.
+pub fn yaw_difference(class: Class, ya: f64, yb: f64) -> f64 {
+    let d = wrap_angle(ya - yb).abs();
+    if class == Class::Barrier {
+        d.min(std::f64::consts::PI - d)
+    } else {
+        d
+    }
+}
+
+/// The weighted cost C = (w_ds (1-DS) + w_cs (1-CS) + w_os (1-OS)) / (w_ds + w_cs + w_os).
+pub fn cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
+    let [w_ds, w_cs, w_os] = weights;
+    (w_ds * (1.0 - ds) + w_cs * (1.0 - cs) + w_os * (1.0 - os)) / (w_ds + w_cs + w_os)
+}
+
+/// The cost of a pair, or `None` when the gate rejects it (classes differ or CS = 0).
+pub fn pair_cost(p: &CsbaParams, a: &Detection, b: &Detection) -> Option<f64> {
+    if a.class != b.class {
+        return None;
+    }
+    let cs = centre_score(mahalanobis(a, b), lambda_max(p.gate, a, b));
+    if cs <= 0.0 {
+        return None;
+    }
+    let ds = match p.dimension {
+        Dimension::Paper => dimension_score(a, b),
+        Dimension::LogRatio => dimension_score_log(a, b),
+    };
+    let os = orientation_score(p.orientation, a, b);
+    Some(cost(p.weights, ds, cs, os))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Gating and assignment
+// ---------------------------------------------------------------------------------------------
+
+/// An eligible pair: indices into the two lists and its cost.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Edge {
+    /// Index in the first list.
+    pub a: usize,
+    /// Index in the second list.
+    pub b: usize,
+    /// The pair's cost.
+    pub cost: f64,
+}
+
+/// All eligible pairs. Candidates are found by a sorted sweep along x with a bound that no
+/// eligible pair can exceed (|dx| <= lambda_max sqrt(Sa_xx + Sb_xx)), then scored exactly.
+pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<Edge> {
+    let mut edges = Vec::new();
+    // b sorted by (class, x)
+    let mut order: Vec<usize> = (0..b.len()).collect();
+    order.sort_by(|&i, &j| {
+        (b[i].class, b[i].center[0])
+            .partial_cmp(&(b[j].class, b[j].center[0]))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let keys: Vec<(Class, f64)> = order
+        .iter()
+        .map(|&i| (b[i].class, b[i].center[0]))
+        .collect();
+    let max_var_x_b = b
+        .iter()
+        .map(|d| d.position_covariance()[0][0])
+        .fold(0.0, f64::max);
+    let max_std_b = b.iter().map(position_std).fold(0.0, f64::max);
+    for (ia, da) in a.iter().enumerate() {
+        let lambda_bound = match p.gate {
+            Gate::Paper { factor } => factor * position_std(da).max(max_std_b),
+            Gate::Mahalanobis { lambda } => lambda,
+        };
+        let radius = lambda_bound * (da.position_covariance()[0][0] + max_var_x_b).sqrt();
+        let lo = da.center[0] - radius;
+        let hi = da.center[0] + radius;
+        let start = keys.partition_point(|&(c, x)| c < da.class || (c == da.class && x < lo));
+        for (k, &(c, x)) in keys.iter().enumerate().skip(start) {
+            if c != da.class || x > hi {
+                break;
+            }
+            let ib = order[k];
+            if let Some(cost) = pair_cost(p, da, &b[ib]) {
+                edges.push(Edge { a: ia, b: ib, cost });
+            }
+        }
+    }
+    edges
+}
+
+/// Minimum-cost assignment restricted to the given eligible edges: among the matchings of
+/// largest size, the one of least total cost. Returns the matched (a, b) pairs sorted by a.
+pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
+    // Connected components of the bipartite edge graph (union-find over a's then b's).
+    let mut parent: Vec<usize> = (0..n_a + n_b).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    for e in edges {
+        let (ra, rb) = (find(&mut parent, e.a), find(&mut parent, n_a + e.b));
+        if ra != rb {
+            parent[ra] = rb;
+        }
+    }
+    // Group edges by component root.
+    let mut comp_of_root: Vec<usize> = vec![usize::MAX; n_a + n_b];
+    let mut comps: Vec<Vec<Edge>> = Vec::new();
+    for e in edges {
+        let r = find(&mut parent, e.a);
+        if comp_of_root[r] == usize::MAX {
+            comp_of_root[r] = comps.len();
+            comps.push(Vec::new());
+        }
+        comps[comp_of_root[r]].push(*e);
+    }
+    let mut pairs = Vec::new();
+    for comp in comps {
+        if comp.len() == 1 {
+            pairs.push((comp[0].a, comp[0].b));
+            continue;
+        }
+        solve_component(&comp, &mut pairs);
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Solves one component densely: rows are its a's, columns its b's, absent edges cost more
+/// than any complete set of present ones (so the matching is as large as possible first).
+fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
+    let mut rows: Vec<usize> = comp.iter().map(|e| e.a).collect();
+    let mut cols: Vec<usize> = comp.iter().map(|e| e.b).collect();
+    rows.sort_unstable();
+    rows.dedup();
+    cols.sort_unstable();
+    cols.dedup();
+    let (nr, nc) = (rows.len(), cols.len());
+    // Each present cost is at most 1, so (min(nr, nc) + 1) outweighs any set of them.
+    let absent = (nr.min(nc) + 1) as f64;
+    let mut m = vec![absent; nr * nc];
+    for e in comp {
+        let r = rows.binary_search(&e.a).expect("row of an edge");
+        let c = cols.binary_search(&e.b).expect("column of an edge");
+        m[r * nc + c] = e.cost;
+    }
+    let (rr, cc) = lsap::solve(nr, nc, &m, false).expect("finite cost matrix has an assignment");
+    for (r, c) in rr.into_iter().zip(cc) {
+        if m[r * nc + c] < absent {
+            pairs.push((rows[r], cols[c]));
+        }
+    }
+}
+
+/// CSBA-3D on two lists: the matched (index in `a`, index in `b`) pairs.
+pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize)> {
+    let edges = eligible_pairs(p, a, b);
+    assign(a.len(), b.len(), &edges)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,261 @@
+use super::*;
+use proptest::prelude::*;
+use v2x_protocol::Uncertainty;
+
+fn det(
+    center: [f64; 3],
+    size: [f64; 3],
+    yaw: f64,
+    pos_std: f64,
+    size_std: f64,
+    yaw_std: f64,
+) -> Detection {
+    Detection {
+        class: Class::Car,
+        center,
+        size,
+        yaw,
+        score: 0.8,
+        std: Uncertainty {
+            pos: [pos_std; 3],
+            size: [size_std; 3],
+            yaw: yaw_std,
+        },
+        pos_cov: None,
+        id: 0,
+    }
+}
+
+fn close(a: f64, b: f64) {
+    assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+}
+
+#[test]
+fn dimension_score_hand_computed() {
+    // V_a = 8, sigma = 8 sqrt(3 * 0.05^2); V_b = 4, sigma = 4 sqrt(0.05^2 + 0.05^2 + 0.1^2)
+    // r = 2, sigma_r = 2 sqrt(0.0075 + 0.015) = 0.3; Z_r = 3.33, Z_inv = -1.67 -> DS = exp(-25/18)
+    let a = det([0.0; 3], [2.0, 2.0, 2.0], 0.0, 1.0, 0.1, 0.1);
+    let b = det([0.0; 3], [2.0, 2.0, 1.0], 0.0, 1.0, 0.1, 0.1);
+    close(dimension_score(&a, &b), (-25.0f64 / 18.0).exp());
+    // The printed form is not symmetric: with r = 1/2, sigma_r = 0.075, Z_r = -6.67, Z_inv = 13.3
+    close(dimension_score(&b, &a), (-200.0f64 / 9.0).exp());
+    // The log-ratio form is: Z = ln 2 / 0.15
+    let z = 2f64.ln() / 0.15;
+    close(dimension_score_log(&a, &b), (-z * z / 2.0).exp());
+    close(dimension_score_log(&b, &a), (-z * z / 2.0).exp());
+    close(dimension_score(&a, &a), 1.0);
+}
+
+#[test]
+fn centre_score_hand_computed() {
+    let a = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    let b = det([3.0, 4.0, 0.0], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    // S = 2 I -> d_M = 5 / sqrt(2); lambda = 6 x 1
+    close(mahalanobis(&a, &b), 5.0 / 2f64.sqrt());
+    close(lambda_max(CsbaParams::PAPER.gate, &a, &b), 6.0);
+    close(
+        centre_score(5.0 / 2f64.sqrt(), 6.0),
+        1.0 - 5.0 / (6.0 * 2f64.sqrt()),
+    );
+    close(centre_score(7.0, 6.0), 0.0);
+    // the noisier detection sets lambda
+    let c = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 3.0, 0.1, 0.1);
+    close(lambda_max(CsbaParams::PAPER.gate, &a, &c), 18.0);
+    close(lambda_max(CsbaParams::PLUS.gate, &a, &c), CHI3_GATE_99_99);
+}
+
+#[test]
+fn mahalanobis_with_full_covariance() {
+    // Sa + Sb = [[2, 1, 0], [1, 2, 0], [0, 0, 2]], dp = (1, 1, 0): inv applied gives 2/3
+    let mut a = det([1.0, 1.0, 0.0], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    a.pos_cov = Some([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    let b = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    close(mahalanobis(&a, &b), (2.0f64 / 3.0).sqrt());
+}
+
+#[test]
+fn orientation_scores_hand_computed() {
+    // paper form: alpha = yaw / sigma
+    let a = det([0.0; 3], [4.0, 2.0, 1.5], 0.5, 1.0, 0.1, 0.25);
+    let b = det([0.0; 3], [4.0, 2.0, 1.5], 0.2, 1.0, 0.1, 0.1);
+    close(orientation_score(Orientation::Paper, &a, &b), 1.0); // alpha 2 and 2
+    let c = det(
+        [0.0; 3],
+        [4.0, 2.0, 1.5],
+        std::f64::consts::FRAC_PI_2,
+        1.0,
+        0.1,
+        1.0,
+    );
+    let d = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 1.0);
+    close(orientation_score(Orientation::Paper, &c, &d), 0.5);
+    // wrapped: 179 and -179 deg are 2 deg apart
+    let s = 2f64.to_radians();
+    let e = det([0.0; 3], [4.0, 2.0, 1.5], 179f64.to_radians(), 1.0, 0.1, s);
+    let f = det([0.0; 3], [4.0, 2.0, 1.5], -179f64.to_radians(), 1.0, 0.1, s);
+    close(
+        orientation_score(Orientation::Wrapped, &e, &f),
+        (-0.25f64).exp(),
+    );
+    // barriers have period pi
+    let mut g = e.clone();
+    let mut h = f.clone();
+    g.class = Class::Barrier;
+    h.class = Class::Barrier;
+    g.yaw = 0.0;
+    h.yaw = std::f64::consts::PI - s;
+    close(
+        orientation_score(Orientation::Wrapped, &g, &h),
+        (-0.25f64).exp(),
+    );
+}
+
+#[test]
+fn weighted_cost() {
+    close(cost([0.2, 0.5, 0.3], 0.5, 0.5, 0.5), 0.5);
+    close(cost([0.2, 0.5, 0.3], 1.0, 0.4, 0.0), 0.6);
+    close(cost([1.0, 1.0, 2.0], 0.0, 1.0, 1.0), 0.25);
+}
+
+#[test]
+fn gate_rejects_other_classes_and_far_pairs() {
+    let a = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1);
+    let mut b = a.clone();
+    b.class = Class::Truck;
+    assert_eq!(pair_cost(&CsbaParams::PAPER, &a, &b), None);
+    let far = det([2.2, 0.0, 0.0], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1);
+    // d_M = 2.2 / sqrt(0.5) = 3.11 > lambda = 3
+    assert_eq!(pair_cost(&CsbaParams::PAPER, &a, &far), None);
+    assert!(pair_cost(&CsbaParams::PLUS, &a, &far).is_some());
+}
+
+fn e(a: usize, b: usize, cost: f64) -> Edge {
+    Edge { a, b, cost }
+}
+
+#[test]
+fn assignment_2x2_known_optimum() {
+    let edges = [e(0, 0, 0.1), e(0, 1, 0.2), e(1, 0, 0.2), e(1, 1, 0.9)];
+    assert_eq!(assign(2, 2, &edges), vec![(0, 1), (1, 0)]);
+}
+
+#[test]
+fn assignment_3x3_known_optimum() {
+    // [[4,1,3],[2,0,5],[3,2,2]] / 10: optimum 0.5 with (0,1), (1,0), (2,2)
+    let m = [[0.4, 0.1, 0.3], [0.2, 0.0, 0.5], [0.3, 0.2, 0.2]];
+    let edges: Vec<Edge> = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| e(i, j, m[i][j]))
+        .collect();
+    assert_eq!(assign(3, 3, &edges), vec![(0, 1), (1, 0), (2, 2)]);
+}
+
+#[test]
+fn assignment_prefers_more_matches_and_keeps_components_apart() {
+    // a1 could take b0 cheaply, but then a0 would stay unmatched.
+    let edges = [e(0, 0, 0.9), e(1, 0, 0.1), e(1, 1, 0.8), e(2, 3, 0.3)];
+    assert_eq!(assign(3, 4, &edges), vec![(0, 0), (1, 1), (2, 3)]);
+    assert_eq!(assign(5, 5, &[]), vec![]);
+}
+
+#[test]
+fn associate_matches_noisy_copies() {
+    let a: Vec<Detection> = (0..20)
+        .map(|i| {
+            det(
+                [i as f64 * 5.0, (i % 3) as f64 * 4.0, 0.0],
+                [4.0, 2.0, 1.5],
+                0.1 * i as f64,
+                0.5,
+                0.1,
+                0.1,
+            )
+        })
+        .collect();
+    // b: the same objects in reverse order, shifted 0.3 m
+    let b: Vec<Detection> = a
+        .iter()
+        .rev()
+        .map(|d| {
+            let mut d = d.clone();
+            d.center[0] += 0.3;
+            d
+        })
+        .collect();
+    for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
+        let pairs = associate(&p, &a, &b);
+        assert_eq!(pairs.len(), 20);
+        for (i, j) in pairs {
+            assert_eq!(j, 19 - i);
+        }
+    }
+}
+
+/// Brute force: among all matchings using allowed edges, the largest, then the cheapest.
+fn brute(nr: usize, nc: usize, m: &[Option<f64>]) -> (usize, f64) {
+    fn rec(
+        r: usize,
+        nr: usize,
+        nc: usize,
+        m: &[Option<f64>],
+        used: &mut Vec<bool>,
+    ) -> (usize, f64) {
+        if r == nr {
+            return (0, 0.0);
+        }
+        let mut best = rec(r + 1, nr, nc, m, used);
+        for c in 0..nc {
+            if let (false, Some(x)) = (used[c], m[r * nc + c]) {
+                used[c] = true;
+                let (k, s) = rec(r + 1, nr, nc, m, used);
+                used[c] = false;
+                let cand = (k + 1, s + x);
+                if cand.0 > best.0 || (cand.0 == best.0 && cand.1 < best.1 - 1e-12) {
+                    best = cand;
+                }
+            }
+        }
+        best
+    }
+    rec(0, nr, nc, m, &mut vec![false; nc])
+}
+
+proptest! {
+    #[test]
+    fn assignment_is_optimal(nr in 1usize..6, nc in 1usize..6, seed in prop::collection::vec((0.0f64..1.0, 0.0f64..1.0), 36)) {
+        let m: Vec<Option<f64>> = (0..nr * nc).map(|k| (seed[k].1 < 0.75).then_some(seed[k].0)).collect();
+        let edges: Vec<Edge> = (0..nr * nc).filter_map(|k| m[k].map(|c| e(k / nc, k % nc, c))).collect();
+        let pairs = assign(nr, nc, &edges);
+        let total: f64 = pairs.iter().map(|&(i, j)| m[i * nc + j].unwrap()).sum();
+        let (k, best) = brute(nr, nc, &m);
+        prop_assert_eq!(pairs.len(), k);
+        prop_assert!((total - best).abs() < 1e-9, "{} vs {}", total, best);
+        // a valid matching
+        let mut rows: Vec<_> = pairs.iter().map(|p| p.0).collect();
+        let mut cols: Vec<_> = pairs.iter().map(|p| p.1).collect();
+        rows.dedup(); cols.sort(); cols.dedup();
+        prop_assert_eq!(rows.len(), pairs.len());
+        prop_assert_eq!(cols.len(), pairs.len());
+    }
+
+    #[test]
+    fn sweep_finds_every_eligible_pair(pts in prop::collection::vec((-30.0f64..30.0, -30.0f64..30.0, 0.2f64..3.0, 0usize..2), 1..30)) {
+        let dets: Vec<Detection> = pts.iter().map(|&(x, y, s, c)| {
+            let mut d = det([x, y, 0.0], [4.0, 2.0, 1.5], 0.0, s, 0.1, 0.2);
+            d.class = [Class::Car, Class::Pedestrian][c];
+            d
+        }).collect();
+        let (a, b) = dets.split_at(dets.len() / 2);
+        for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
+            let mut fast: Vec<(usize, usize)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b)).collect();
+            fast.sort();
+            let mut slow = Vec::new();
+            for (i, da) in a.iter().enumerate() {
+                for (j, db) in b.iter().enumerate() {
+                    if pair_cost(&p, da, db).is_some() { slow.push((i, j)); }
+                }
+            }
+            prop_assert_eq!(fast, slow);
+        }
+    }
+}

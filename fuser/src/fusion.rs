@@ -1,0 +1,236 @@
+//! WLS-3D: weighted-least-squares fusion of a group of associated detections (paper §3.3,
+//! DESIGN §4).
+//!
+//! z = (sum R_n^-1)^-1 sum R_n^-1 y_n and P = (sum R_n^-1)^-1 over the M members, R_n being the
+//! member's covariance: a full 3x3 block for the centre when the member carries one, diagonal
+//! otherwise, and diagonal for size and yaw. Yaw is circular: each member's yaw is unwrapped
+//! against the most certain member's before the weighted sum, and the result is wrapped.
+//! The fused detection carries P's stds, the highest member score, and the id of the most
+//! certain member (smallest sum of variances; ties go to the earliest member).
+
+use nalgebra::{Matrix3, Vector3};
+use v2x_protocol::{wrap_angle, Detection, Uncertainty};
+
+/// Weighted mean and fused variance of scalars y_n with variances r_n:
+/// z = (sum 1/r_n)^-1 sum y_n / r_n, P = (sum 1/r_n)^-1.
+pub fn wls_scalar(values: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
+    let (mut info, mut eta) = (0.0, 0.0);
+    for (y, r) in values {
+        info += 1.0 / r;
+        eta += y / r;
+    }
+    (eta / info, 1.0 / info)
+}
+
+/// Index of the most certain member: smallest sum of variances, the earliest on ties.
+pub fn most_certain(members: &[&Detection]) -> usize {
+    let mut best = 0;
+    for (i, m) in members.iter().enumerate().skip(1) {
+        if m.total_variance() < members[best].total_variance() {
+            best = i;
+        }
+    }
+    best
+}
+
+/// Fuses a non-empty group of detections of one object with WLS-3D.
+pub fn fuse_group(members: &[&Detection]) -> Detection {
+    assert!(!members.is_empty(), "a group has at least one member");
+    if members.len() == 1 {
+        return members[0].clone();
+    }
+    let best = most_certain(members);
+
+    // Centre: information form, full 3x3 when any member has a full covariance.
+    let (center, pos_cov) = if members.iter().all(|m| m.pos_cov.is_none()) {
+        let mut c = [0.0; 3];
+        let mut var = [0.0; 3];
+        for k in 0..3 {
+            (c[k], var[k]) = wls_scalar(
+                members
+                    .iter()
+                    .map(|m| (m.center[k], m.std.pos[k] * m.std.pos[k])),
+            );
+        }
+        (c, var.map(|v| v.sqrt()).map(Some))
+    } else {
+        let mut info = Matrix3::zeros();
+        let mut eta = Vector3::zeros();
+        for m in members {
+            let cov = m.position_covariance();
+            let r = Matrix3::from_fn(|i, j| cov[i][j]);
+            let r_inv = r
+                .try_inverse()
+                .unwrap_or_else(|| Matrix3::from_diagonal(&r.diagonal().map(|v| 1.0 / v)));
+            info += r_inv;
+            eta += r_inv * Vector3::from(m.center);
+        }
+        let p = info
+            .try_inverse()
+            .unwrap_or_else(|| Matrix3::from_diagonal(&info.diagonal().map(|v| 1.0 / v)));
+        let z = p * eta;
+        let full: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| p[(i, j)]));
+        return finish(members, best, [z[0], z[1], z[2]], Some(full));
+    };
+    let pos_std = pos_cov.map(|s| s.expect("set above"));
+    let mut d = finish(members, best, center, None);
+    d.std.pos = pos_std;
+    d
+}
+
+fn finish(
+    members: &[&Detection],
+    best: usize,
+    center: [f64; 3],
+    full: Option<[[f64; 3]; 3]>,
+) -> Detection {
+    let mut size = [0.0; 3];
+    let mut size_std = [0.0; 3];
+    for k in 0..3 {
+        let (z, p) = wls_scalar(
+            members
+                .iter()
+                .map(|m| (m.size[k], m.std.size[k] * m.std.size[k])),
+        );
+        size[k] = z;
+        size_std[k] = p.sqrt();
+    }
+    // Yaw: unwrap against the member with the smallest yaw std.
+    let reference = members
+        .iter()
+        .enumerate()
+        .min_by(|(i, a), (j, b)| a.std.yaw.total_cmp(&b.std.yaw).then(i.cmp(j)))
+        .map(|(_, m)| m.yaw)
+        .expect("non-empty group");
+    let (yaw, yaw_var) = wls_scalar(members.iter().map(|m| {
+        (
+            reference + wrap_angle(m.yaw - reference),
+            m.std.yaw * m.std.yaw,
+        )
+    }));
+    let pos = match full {
+        Some(p) => [p[0][0].sqrt(), p[1][1].sqrt(), p[2][2].sqrt()],
+        None => [0.0; 3],
+    };
+    Detection {
+        class: members[best].class,
+        center,
+        size,
+        yaw: wrap_angle(yaw),
+        score: members.iter().map(|m| m.score).fold(f64::MIN, f64::max),
+        std: Uncertainty {
+            pos,
+            size: size_std,
+            yaw: yaw_var.sqrt(),
+        },
+        pos_cov: full,
+        id: members[best].id,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+    use v2x_protocol::Class;
+
+    fn det(center: [f64; 3], yaw: f64, pos_std: f64, yaw_std: f64, id: u32) -> Detection {
+        Detection {
+            class: Class::Car,
+            center,
+            size: [4.0, 2.0, 1.5],
+            yaw,
+            score: 0.5,
+            std: Uncertainty {
+                pos: [pos_std; 3],
+                size: [0.1; 3],
+                yaw: yaw_std,
+            },
+            pos_cov: None,
+            id,
+        }
+    }
+
+    #[test]
+    fn two_boxes_hand_computed() {
+        // sigma 1 and 2: weights 1 and 1/4 -> z = (0*1 + 5*0.25)/1.25 = 1, P = 1/1.25 = 0.8
+        let a = det([0.0, 0.0, 0.0], 0.1, 1.0, 0.1, 7);
+        let mut b = det([5.0, 10.0, 2.5], 0.3, 2.0, 0.2, 9);
+        b.score = 0.9;
+        let f = fuse_group(&[&a, &b]);
+        assert!((f.center[0] - 1.0).abs() < 1e-12);
+        assert!((f.center[1] - 2.0).abs() < 1e-12);
+        assert!((f.center[2] - 0.5).abs() < 1e-12);
+        assert!((f.std.pos[0] - 0.8f64.sqrt()).abs() < 1e-12);
+        // yaw: (0.1/0.01 + 0.3/0.04) / (1/0.01 + 1/0.04) = (10 + 7.5)/125 = 0.14
+        assert!((f.yaw - 0.14).abs() < 1e-12);
+        assert_eq!(f.score, 0.9);
+        assert_eq!(f.id, 7, "id of the most certain member");
+        assert!(f.pos_cov.is_none());
+    }
+
+    #[test]
+    fn yaws_across_pi() {
+        // 179 deg and -179 deg, equal weights: the mean is 180 deg, not 0.
+        let a = det([0.0; 3], 179f64.to_radians(), 1.0, 0.1, 1);
+        let b = det([0.0; 3], -179f64.to_radians(), 1.0, 0.1, 2);
+        let f = fuse_group(&[&a, &b]);
+        assert!((f.yaw.abs() - PI).abs() < 1e-9, "{}", f.yaw);
+        // 170 and -176 (= 184) with weights 1 : 3 -> 170*0.25 + 184*0.75 = 180.5 -> -179.5
+        let a = det([0.0; 3], 170f64.to_radians(), 1.0, 0.2, 1);
+        let b = det([0.0; 3], -176f64.to_radians(), 1.0, 0.2 / 3f64.sqrt(), 2);
+        let f = fuse_group(&[&a, &b]);
+        assert!(
+            (f.yaw.to_degrees() + 179.5).abs() < 1e-9,
+            "{}",
+            f.yaw.to_degrees()
+        );
+    }
+
+    #[test]
+    fn fusing_a_box_with_itself_halves_variance() {
+        let a = det([3.0, 4.0, 5.0], 1.0, 1.5, 0.3, 1);
+        let f = fuse_group(&[&a, &a]);
+        for k in 0..3 {
+            assert!((f.center[k] - a.center[k]).abs() < 1e-12);
+        }
+        for (s, t) in a.std.as_array().iter().zip(f.std.as_array()) {
+            assert!((t * t - s * s / 2.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn ties_go_to_the_earliest_member() {
+        let a = det([0.0; 3], 0.0, 1.0, 0.1, 11);
+        let b = det([1.0; 3], 0.0, 1.0, 0.1, 22);
+        assert_eq!(fuse_group(&[&a, &b]).id, 11);
+        assert_eq!(fuse_group(&[&b, &a]).id, 22);
+    }
+
+    #[test]
+    fn full_covariance() {
+        // a: cov diag(1, 1, 1); b: cov [[2, 1, 0], [1, 2, 0], [0, 0, 1]] at (3, 0, 0).
+        // info = I + inv(b) with inv(b) = [[2/3, -1/3, 0], [-1/3, 2/3, 0], [0, 0, 1]]
+        // P = inv([[5/3, -1/3, 0], [-1/3, 5/3, 0], [0, 0, 2]]) = [[5/8, 1/8, 0], [1/8, 5/8, 0], [0,0,1/2]]
+        // eta = inv(b) (3,0,0) = (2, -1, 0); z = P eta = (10/8 - 1/8, 2/8 - 5/8, 0) = (9/8, -3/8, 0)
+        let a = det([0.0; 3], 0.0, 1.0, 0.1, 1);
+        let mut b = det([3.0, 0.0, 0.0], 0.0, 1.0, 0.1, 2);
+        b.pos_cov = Some([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 1.0]]);
+        let f = fuse_group(&[&a, &b]);
+        assert!((f.center[0] - 9.0 / 8.0).abs() < 1e-12);
+        assert!((f.center[1] + 3.0 / 8.0).abs() < 1e-12);
+        let p = f.pos_cov.unwrap();
+        assert!((p[0][1] - 1.0 / 8.0).abs() < 1e-12);
+        assert!((f.std.pos[0] - (5.0f64 / 8.0).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn three_members() {
+        let a = det([0.0; 3], 0.0, 1.0, 0.1, 1);
+        let b = det([3.0; 3], 0.0, 1.0, 0.1, 2);
+        let c = det([6.0; 3], 0.0, 1.0, 0.1, 3);
+        let f = fuse_group(&[&a, &b, &c]);
+        assert!((f.center[0] - 3.0).abs() < 1e-12);
+        assert!((f.std.pos[0] - (1.0f64 / 3.0).sqrt()).abs() < 1e-12);
+    }
+}
