@@ -46,6 +46,26 @@ pub enum Dimension {
     Paper,
     /// The log volume ratio, symmetric in a and b.
     LogRatio,
+    /// Per-axis Gaussian on (l, w, h): Z^2 = sum_k (a_k - b_k)^2 / (s_a,k^2 + s_b,k^2).
+    Axes,
+}
+
+/// How the centre score depends on the Mahalanobis distance.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Centre {
+    /// The paper's: CS = 1 - d_M / lambda_max.
+    Linear,
+    /// Gaussian likelihood: CS = exp(-d_M^2 / 2) inside the gate d_M < lambda_max.
+    Gaussian,
+}
+
+/// How the three scores combine into a cost.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Combine {
+    /// The paper's weighted mean of (1 - score).
+    Sum,
+    /// Weighted negative log of the scores: with Gaussian scores, a weighted log-likelihood.
+    LogProduct,
 }
 
 /// Parameters of CSBA-3D.
@@ -59,6 +79,10 @@ pub struct CsbaParams {
     pub orientation: Orientation,
     /// Which dimension score.
     pub dimension: Dimension,
+    /// Which centre score.
+    pub centre: Centre,
+    /// How scores combine.
+    pub combine: Combine,
 }
 
 impl CsbaParams {
@@ -68,16 +92,20 @@ impl CsbaParams {
         gate: Gate::Paper { factor: 6.0 },
         orientation: Orientation::Paper,
         dimension: Dimension::Paper,
+        centre: Centre::Linear,
+        combine: Combine::Sum,
     };
     /// The improved variant `csba-wls+`: a scale-consistent gate, the wrapped orientation
     /// score and the symmetric dimension score (README, "csba-wls+").
     pub const PLUS: CsbaParams = CsbaParams {
         weights: [0.2, 0.5, 0.3],
         gate: Gate::Mahalanobis {
-            lambda: CHI3_GATE_99_99,
+            lambda: MAHALANOBIS_GATE,
         },
         orientation: Orientation::Wrapped,
         dimension: Dimension::LogRatio,
+        centre: Centre::Gaussian,
+        combine: Combine::LogProduct,
     };
 }
 
@@ -87,9 +115,10 @@ impl Default for CsbaParams {
     }
 }
 
-/// sqrt of the 99.99% quantile of the chi-square distribution with 3 degrees of freedom: a true
-/// pair's Mahalanobis distance exceeds it once in 10,000.
-pub const CHI3_GATE_99_99: f64 = 4.594_291;
+/// The gate of `csba-wls+` on the (unitless) Mahalanobis distance: the paper's factor 6 read in
+/// standard deviations. A true pair's 3D distance (chi, 3 degrees of freedom) exceeds it about
+/// once in 13 million, where the paper's 6 x sigma gate rejects 2.9% of true pairs at mild noise.
+pub const MAHALANOBIS_GATE: f64 = 6.0;
 
 // ---------------------------------------------------------------------------------------------
 // The three scores
@@ -125,6 +154,14 @@ pub fn dimension_score_log(a: &Detection, b: &Detection) -> f64 {
     let (vb, svb) = volume_with_std(b);
     let z = (va / vb).ln() / ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
     (-z * z / 2.0).exp()
+}
+
+/// **[ours]** Per-axis size score: DS = exp(-Z^2 / 2), Z^2 = sum_k (a_k - b_k)^2 / (s_a,k^2 + s_b,k^2).
+pub fn dimension_score_axes(a: &Detection, b: &Detection) -> f64 {
+    let z2: f64 = (0..3)
+        .map(|k| (a.size[k] - b.size[k]).powi(2) / (a.std.size[k].powi(2) + b.std.size[k].powi(2)))
+        .sum();
+    (-z2 / 2.0).exp()
 }
 
 /// Inverse of a symmetric positive-definite 3x3 matrix (None if singular).
@@ -214,16 +251,32 @@ pub fn pair_cost(p: &CsbaParams, a: &Detection, b: &Detection) -> Option<f64> {
     if a.class != b.class {
         return None;
     }
-    let cs = centre_score(mahalanobis(a, b), lambda_max(p.gate, a, b));
+    let d_m = mahalanobis(a, b);
+    let lambda = lambda_max(p.gate, a, b);
+    let mut cs = centre_score(d_m, lambda);
     if cs <= 0.0 {
         return None;
+    }
+    if p.centre == Centre::Gaussian {
+        cs = (-d_m * d_m / 2.0).exp();
     }
     let ds = match p.dimension {
         Dimension::Paper => dimension_score(a, b),
         Dimension::LogRatio => dimension_score_log(a, b),
+        Dimension::Axes => dimension_score_axes(a, b),
     };
     let os = orientation_score(p.orientation, a, b);
-    Some(cost(p.weights, ds, cs, os))
+    Some(match p.combine {
+        Combine::Sum => cost(p.weights, ds, cs, os),
+        Combine::LogProduct => log_cost(p.weights, ds, cs, os),
+    })
+}
+
+/// **[ours]** C = -(w_ds ln DS + w_cs ln CS + w_os ln OS) / (w_ds + w_cs + w_os).
+pub fn log_cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
+    let [w_ds, w_cs, w_os] = weights;
+    let ln = |s: f64| s.max(1e-300).ln();
+    -(w_ds * ln(ds) + w_cs * ln(cs) + w_os * ln(os)) / (w_ds + w_cs + w_os)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -334,8 +387,9 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     cols.sort_unstable();
     cols.dedup();
     let (nr, nc) = (rows.len(), cols.len());
-    // Each present cost is at most 1, so (min(nr, nc) + 1) outweighs any set of them.
-    let absent = (nr.min(nc) + 1) as f64;
+    // (min(nr, nc) + 1) x (largest cost + 1) outweighs any set of present costs.
+    let largest = comp.iter().map(|e| e.cost).fold(0.0, f64::max);
+    let absent = (nr.min(nc) + 1) as f64 * (largest + 1.0);
     let mut m = vec![absent; nr * nc];
     for e in comp {
         let r = rows.binary_search(&e.a).expect("row of an edge");

@@ -4,8 +4,8 @@
 //!   order, same class, suppressing when the rotated 3D IoU (or GIoU) exceeds 0.15; the top box is
 //!   kept as it is (the classic NMS of the detection literature).
 //! - `wbf-3d`: weighted boxes fusion (as in the public `ensemble-boxes` WBF) lifted to rotated 3D
-//!   boxes: boxes in score order join the cluster whose fused box they overlap most with 3D IoU
-//!   > 0.55 (same class); a cluster's box is the score-weighted mean of centre and size and the
+//!   boxes: boxes in score order join the cluster whose fused box they overlap most, with 3D
+//!   IoU above 0.55 (same class); a cluster's box is the score-weighted mean of centre and size and the
 //!   score-weighted circular mean of yaw; its score is the mean score x min(W, n) / W for W agents.
 //! - `psa`: one-hop clusters of boxes (same class) whose BEV IoU is > 0 and centres are < 10 m
 //!   apart; each box gets v_i = sum_j IoU_ij p_j over its cluster (itself included, IoU 1) and a

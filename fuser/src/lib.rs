@@ -10,5 +10,6 @@ pub mod baselines;
 pub mod fusion;
 pub mod geometry;
 pub mod method;
+pub mod offline;
 
 pub use method::{Method, METHODS};

@@ -49,6 +49,10 @@ pub const METHODS: &[(&str, &str)] = &[
         "ablation: csba-wls with only the wrapped orientation score of csba-wls+",
     ),
     (
+        "csba-wls+dim",
+        "ablation: csba-wls with only the symmetric dimension score of csba-wls+",
+    ),
+    (
         "nms-3d",
         "greedy NMS over all agents, rotated 3D IoU > 0.15 suppresses, keeps the top box",
     ),
@@ -151,7 +155,7 @@ impl FromStr for Method {
 }
 
 /// The named CSBA-3D parameter sets: the paper's, ours, and the one-change ablations.
-pub fn csba_variants() -> [(&'static str, CsbaParams); 5] {
+pub fn csba_variants() -> [(&'static str, CsbaParams); 6] {
     let paper = CsbaParams::PAPER;
     let plus = CsbaParams::PLUS;
     [
@@ -175,6 +179,14 @@ pub fn csba_variants() -> [(&'static str, CsbaParams); 5] {
             "csba-wls+dim",
             CsbaParams {
                 dimension: plus.dimension,
+                ..paper
+            },
+        ),
+        (
+            "csba-wls+loglik",
+            CsbaParams {
+                centre: plus.centre,
+                combine: plus.combine,
                 ..paper
             },
         ),

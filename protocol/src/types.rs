@@ -183,6 +183,93 @@ impl Uncertainty {
     }
 }
 
+/// The noise profiles of the paper's simulation (DESIGN §6).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NoiseProfile {
+    /// 0.5 m, 5 deg, 0.1 m.
+    Mild,
+    /// 1.5 m, 20 deg, 0.5 m.
+    Moderate,
+    /// 3.0 m, 60 deg, 1.0 m.
+    Large,
+}
+
+impl NoiseProfile {
+    /// All profiles, mildest first.
+    pub const ALL: [NoiseProfile; 3] = [
+        NoiseProfile::Mild,
+        NoiseProfile::Moderate,
+        NoiseProfile::Large,
+    ];
+
+    /// The profile's standard deviations.
+    pub fn std(self) -> Uncertainty {
+        let (pos, yaw_deg, size) = match self {
+            NoiseProfile::Mild => (0.5, 5.0, 0.1),
+            NoiseProfile::Moderate => (1.5, 20.0, 0.5),
+            NoiseProfile::Large => (3.0, 60.0, 1.0),
+        };
+        Uncertainty::uniform(pos, size, f64::to_radians(yaw_deg))
+    }
+
+    /// The profile's base confidence (0.9, 0.7, 0.5).
+    pub fn base_confidence(self) -> f64 {
+        match self {
+            NoiseProfile::Mild => 0.9,
+            NoiseProfile::Moderate => 0.7,
+            NoiseProfile::Large => 0.5,
+        }
+    }
+
+    /// The profile's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            NoiseProfile::Mild => "mild",
+            NoiseProfile::Moderate => "moderate",
+            NoiseProfile::Large => "large",
+        }
+    }
+}
+
+impl fmt::Display for NoiseProfile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for NoiseProfile {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        NoiseProfile::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                format!("unknown noise profile '{s}' (expected mild, moderate or large)")
+            })
+    }
+}
+
+/// Parses a std setting: a profile name, or `POS,SIZE,YAW_DEG` in metres and degrees.
+pub fn parse_std(s: &str) -> Result<Uncertainty, String> {
+    if let Ok(p) = s.parse::<NoiseProfile>() {
+        return Ok(p.std());
+    }
+    let parts: Vec<f64> = s
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            format!("invalid std '{s}': expected mild, moderate, large or POS,SIZE,YAW_DEG")
+        })?;
+    match parts[..] {
+        [pos, size, yaw] if pos > 0.0 && size > 0.0 && yaw > 0.0 && yaw.is_finite() && pos.is_finite() && size.is_finite() => {
+            Ok(Uncertainty::uniform(pos, size, yaw.to_radians()))
+        }
+        _ => Err(format!("invalid std '{s}': expected mild, moderate, large or three positive numbers POS,SIZE,YAW_DEG")),
+    }
+}
+
 /// Identifier of no object: a detection that carries no object id.
 pub const NO_ID: u32 = u32::MAX;
 

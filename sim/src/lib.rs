@@ -1,1 +1,14 @@
-//! placeholder
+//! The v2x-fusion simulator.
+//!
+//! Sans-IO cores: [`dataset`] (ground truth: nuScenes tables or the synthetic [`town`]),
+//! [`noise`] (agents' noisy detections), [`metrics`] (DESIGN §7) and [`bench`] (the paper's
+//! Table 2). [`plot`] draws a bird's-eye view; [`scenario`] and [`run`] drive whole scenarios
+//! over Zenoh.
+
+pub mod bench;
+pub mod cli;
+pub mod dataset;
+pub mod metrics;
+pub mod noise;
+pub mod plot;
+pub mod town;

@@ -1,1 +1,305 @@
-fn main() {}
+//! `v2x-sim`: generate noisy agents from ground truth, score results files, reproduce the
+//! paper's Table 2, draw a frame, and run scripted scenarios over Zenoh.
+
+use anyhow::{bail, Context};
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+use v2x_fuser::Method;
+use v2x_protocol::nuscenes_json::{write_results, Results};
+use v2x_sim::bench::{self, BenchConfig};
+use v2x_sim::cli::{evaluate_file, DataArgs};
+use v2x_sim::noise::{place_agents, NoiseSetting};
+
+#[derive(Parser)]
+#[command(
+    name = "v2x-sim",
+    version,
+    about = "Simulator for v2x-fusion: noisy agents from ground truth, metrics, the paper's comparison, scenario runs"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Copy, Clone, Debug, ValueEnum, PartialEq)]
+enum Format {
+    Table,
+    Json,
+    Csv,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write each agent's noisy detections as nuScenes results files (agent1.json, ...).
+    Gen {
+        #[command(flatten)]
+        data: DataArgs,
+        /// Noise: mild, moderate, large, a mix such as mild+large (one per agent), or POS,SIZE,YAW_DEG.
+        #[arg(long, default_value = "mild+large")]
+        noise: String,
+        /// Number of agents.
+        #[arg(long, default_value_t = 2)]
+        agents: usize,
+        /// Noise seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Sensing range of each agent in metres (default: every agent sees every object).
+        #[arg(long)]
+        range: Option<f64>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Score a results file against the ground truth.
+    Eval {
+        #[command(flatten)]
+        data: DataArgs,
+        /// Count ground-truth frames absent from the file as all missed (default: score only the
+        /// frames the file has).
+        #[arg(long)]
+        all_frames: bool,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: Format,
+        /// The results file to score.
+        pred: PathBuf,
+    },
+    /// Reproduce the paper's Table 2: every method under each noise setting, with the single
+    /// agents and the lower bound.
+    Bench {
+        #[command(flatten)]
+        data: DataArgs,
+        /// Noise settings, comma-separated, or 'all' (mild, moderate, large, mild+large).
+        #[arg(long, default_value = "all")]
+        noise: String,
+        /// Methods, comma-separated, or 'all' (see `v2x-fuser fuse --help`).
+        #[arg(long, default_value = "all")]
+        methods: String,
+        /// Noise seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Sensing range of each agent in metres (default: every agent sees every object).
+        #[arg(long)]
+        range: Option<f64>,
+        /// Output format.
+        #[arg(long, value_enum, default_value = "table")]
+        format: Format,
+        /// Also draw frame N (index over all frames) as an SVG into --out, for each noise setting.
+        #[arg(long, requires = "out")]
+        plot: Option<usize>,
+        /// Directory for --plot.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Draw one frame as an SVG: ground truth, each agent's boxes, the fused boxes.
+    Plot {
+        #[command(flatten)]
+        data: DataArgs,
+        /// Frame index over all frames.
+        #[arg(long, default_value_t = 0)]
+        frame: usize,
+        /// Noise setting.
+        #[arg(long, default_value = "mild+large")]
+        noise: String,
+        /// Method for the fused boxes.
+        #[arg(long, default_value = "csba-wls+")]
+        method: Method,
+        /// Noise seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn parse_list<T>(
+    s: &str,
+    all: Vec<T>,
+    parse: impl Fn(&str) -> Result<T, String>,
+) -> anyhow::Result<Vec<T>> {
+    if s == "all" {
+        return Ok(all);
+    }
+    s.split(',')
+        .map(|x| parse(x.trim()).map_err(anyhow::Error::msg))
+        .collect()
+}
+
+fn plot(
+    data: &v2x_sim::dataset::GroundTruth,
+    frame: usize,
+    setting: &NoiseSetting,
+    method: &Method,
+    seed: u64,
+    out: &std::path::Path,
+) -> anyhow::Result<PathBuf> {
+    let Some(f) = data.frames.get(frame) else {
+        bail!(
+            "--plot/--frame {frame} is out of range: the data has {} frames",
+            data.frames.len()
+        );
+    };
+    let agents = bench::agent_detections(data, frame, setting, seed, None);
+    let fused = method.fuse(&agents);
+    let places = place_agents(f, agents.len(), seed);
+    let title = format!(
+        "frame {frame} ({}), noise {setting}, {method}",
+        f.sample_token
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let path = out.join(format!(
+        "frame-{frame}-{}.svg",
+        setting.name.replace('+', "-")
+    ));
+    std::fs::write(
+        &path,
+        v2x_sim::plot::frame_svg(f, &agents, &fused, &places, &title),
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match cli.command {
+        Command::Gen {
+            data,
+            noise,
+            agents,
+            seed,
+            range,
+            out,
+        } => {
+            let gt = data.load()?;
+            let setting = NoiseSetting::parse(&noise, agents).map_err(anyhow::Error::msg)?;
+            std::fs::create_dir_all(&out)
+                .with_context(|| format!("cannot create {}", out.display()))?;
+            let mut files: Vec<Results> = vec![Results::default(); setting.agents.len()];
+            for i in 0..gt.frames.len() {
+                for (a, d) in bench::agent_detections(&gt, i, &setting, seed, range)
+                    .into_iter()
+                    .enumerate()
+                {
+                    files[a]
+                        .samples
+                        .insert(gt.frames[i].sample_token.clone(), d);
+                }
+            }
+            for (a, r) in files.iter().enumerate() {
+                let p = out.join(format!("agent{}.json", a + 1));
+                write_results(&p, r, &gt.tokens)?;
+                eprintln!("wrote {} ({} noise)", p.display(), setting.agents[a].label);
+            }
+            eprintln!("{}", data.describe(&gt));
+        }
+        Command::Eval {
+            data,
+            all_frames,
+            format,
+            pred,
+        } => {
+            let gt = data.load()?;
+            let (m, note) = evaluate_file(&gt, &pred, all_frames)?;
+            eprintln!("{note}");
+            match format {
+                Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
+                Format::Table | Format::Csv => {
+                    let rows = [bench::Row {
+                        noise: "-".into(),
+                        method: pred.display().to_string(),
+                        metrics: m,
+                    }];
+                    print!(
+                        "{}",
+                        if format == Format::Csv {
+                            bench::csv(&rows)
+                        } else {
+                            bench::table(&rows)
+                        }
+                    );
+                }
+            }
+        }
+        Command::Bench {
+            data,
+            noise,
+            methods,
+            seed,
+            range,
+            format,
+            plot: plot_frame,
+            out,
+        } => {
+            let gt = data.load()?;
+            let settings =
+                parse_list(&noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?;
+            let methods = parse_list(&methods, Method::all(), |s| s.parse())?;
+            let cfg = BenchConfig {
+                methods,
+                settings,
+                seed,
+                range,
+            };
+            let total = (gt.frames.len() * cfg.settings.len()) as u64;
+            let bar = if std::io::stderr().is_terminal() {
+                ProgressBar::new(total)
+            } else {
+                ProgressBar::hidden()
+            };
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{elapsed} [{bar:40}] {pos}/{len} frames x settings ({eta} left)",
+                )
+                .expect("valid template"),
+            );
+            let start = Instant::now();
+            let rows = bench::run(&gt, &cfg, &|| bar.inc(1));
+            bar.finish_and_clear();
+            let secs = start.elapsed().as_secs_f64();
+            match format {
+                Format::Table => {
+                    println!(
+                        "{} ; noise seed {seed}; {:.1} s\n",
+                        data.describe(&gt),
+                        secs
+                    );
+                    print!("{}", bench::table(&rows));
+                }
+                Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+                Format::Csv => print!("{}", bench::csv(&rows)),
+            }
+            if let (Some(frame), Some(out)) = (plot_frame, out) {
+                let best: Method = "csba-wls+".parse().map_err(anyhow::Error::msg)?;
+                for s in &cfg.settings {
+                    eprintln!("drew {}", plot(&gt, frame, s, &best, seed, &out)?.display());
+                }
+            }
+        }
+        Command::Plot {
+            data,
+            frame,
+            noise,
+            method,
+            seed,
+            out,
+        } => {
+            let gt = data.load()?;
+            let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;
+            eprintln!(
+                "drew {}",
+                plot(&gt, frame, &setting, &method, seed, &out)?.display()
+            );
+        }
+    }
+    Ok(())
+}

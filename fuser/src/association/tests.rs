@@ -61,7 +61,7 @@ fn centre_score_hand_computed() {
     // the noisier detection sets lambda
     let c = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 3.0, 0.1, 0.1);
     close(lambda_max(CsbaParams::PAPER.gate, &a, &c), 18.0);
-    close(lambda_max(CsbaParams::PLUS.gate, &a, &c), CHI3_GATE_99_99);
+    close(lambda_max(CsbaParams::PLUS.gate, &a, &c), MAHALANOBIS_GATE);
 }
 
 #[test]
@@ -111,6 +111,16 @@ fn orientation_scores_hand_computed() {
 }
 
 #[test]
+fn log_likelihood_cost_hand_computed() {
+    // Gaussian centre score exp(-d^2/2) with d = 1, OS = DS = 1: C = 0.5 * 0.5 / 1.0
+    close(log_cost([0.2, 0.5, 0.3], 1.0, (-0.5f64).exp(), 1.0), 0.25);
+    let a = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    let b = det([1.0, 1.0, 0.0], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
+    // d_M^2 = 2 / 2 = 1 -> C = 0.5 * 0.5
+    close(pair_cost(&CsbaParams::PLUS, &a, &b).unwrap(), 0.25);
+}
+
+#[test]
 fn weighted_cost() {
     close(cost([0.2, 0.5, 0.3], 0.5, 0.5, 0.5), 0.5);
     close(cost([0.2, 0.5, 0.3], 1.0, 0.4, 0.0), 0.6);
@@ -127,6 +137,9 @@ fn gate_rejects_other_classes_and_far_pairs() {
     // d_M = 2.2 / sqrt(0.5) = 3.11 > lambda = 3
     assert_eq!(pair_cost(&CsbaParams::PAPER, &a, &far), None);
     assert!(pair_cost(&CsbaParams::PLUS, &a, &far).is_some());
+    // d_M = 4.3 / sqrt(0.5) = 6.08 > 6
+    let farther = det([4.3, 0.0, 0.0], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1);
+    assert_eq!(pair_cost(&CsbaParams::PLUS, &a, &farther), None);
 }
 
 fn e(a: usize, b: usize, cost: f64) -> Edge {

@@ -1,0 +1,214 @@
+//! The paper's Table 2: every method under every noise setting, beside the single agents and the
+//! lower bound, on one ground truth. Frames are independent, so they are scored in parallel;
+//! the noise of a frame depends only on (seed, agent, frame), so results do not depend on threads.
+
+use crate::dataset::GroundTruth;
+use crate::metrics::{Accumulator, Metrics};
+use crate::noise::{detect, place_agents, NoiseSetting};
+use rayon::prelude::*;
+use serde::Serialize;
+use v2x_fuser::Method;
+use v2x_protocol::Detection;
+
+/// One row of the table.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    /// The noise setting (`mild`, `moderate`, `large`, `mild+large`, ...).
+    pub noise: String,
+    /// The method name, `agentN` for a single agent, or `bound`.
+    pub method: String,
+    /// The metrics (for `bound`, only `mATE` is set).
+    #[serde(flatten)]
+    pub metrics: Metrics,
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct BenchConfig {
+    /// Methods, in row order.
+    pub methods: Vec<Method>,
+    /// Noise settings, in table order.
+    pub settings: Vec<NoiseSetting>,
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Sensing range of every agent (None: every agent sees every object).
+    pub range: Option<f64>,
+}
+
+/// Every agent's detections of frame `i` under a setting.
+pub fn agent_detections(
+    gt: &GroundTruth,
+    i: usize,
+    setting: &NoiseSetting,
+    seed: u64,
+    range: Option<f64>,
+) -> Vec<Vec<Detection>> {
+    let frame = &gt.frames[i];
+    let places = place_agents(frame, setting.agents.len(), seed);
+    setting
+        .agents
+        .iter()
+        .enumerate()
+        .map(|(a, noise)| detect(frame, i, a, noise, places[a].position, range, seed))
+        .collect()
+}
+
+/// Runs the table; `tick` is called once per frame and setting done (for a progress bar).
+pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for setting in &cfg.settings {
+        let n_agents = setting.agents.len();
+        let slots = n_agents + cfg.methods.len();
+        let accs = (0..gt.frames.len())
+            .into_par_iter()
+            .fold(
+                || vec![Accumulator::new(); slots],
+                |mut accs, i| {
+                    let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+                    let objects = &gt.frames[i].objects;
+                    for (a, d) in dets.iter().enumerate() {
+                        accs[a].add_frame(objects, d);
+                    }
+                    for (m, method) in cfg.methods.iter().enumerate() {
+                        accs[n_agents + m].add_frame(objects, &method.fuse(&dets));
+                    }
+                    tick();
+                    accs
+                },
+            )
+            .reduce(
+                || vec![Accumulator::new(); slots],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        x.merge(y);
+                    }
+                    a
+                },
+            );
+        for a in 0..n_agents {
+            rows.push(Row {
+                noise: setting.name.clone(),
+                method: format!("agent{}", a + 1),
+                metrics: accs[a].summary(),
+            });
+        }
+        for (m, method) in cfg.methods.iter().enumerate() {
+            rows.push(Row {
+                noise: setting.name.clone(),
+                method: method.name(),
+                metrics: accs[n_agents + m].summary(),
+            });
+        }
+        let mut bound = Accumulator::new().summary();
+        bound.precision = None;
+        bound.recall = None;
+        bound.m_ate = Some(setting.error_bound());
+        rows.push(Row {
+            noise: setting.name.clone(),
+            method: "bound".into(),
+            metrics: bound,
+        });
+    }
+    rows
+}
+
+fn cell(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// The rows as a Markdown table.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = String::from("| noise | method | precision | recall | mATE (m) | mASE (m) | mAOE (deg) | TP-only mATE | TP-only mASE | TP-only mAOE |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for r in rows {
+        let m = &r.metrics;
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            r.noise,
+            r.method,
+            cell(m.precision, 4),
+            cell(m.recall, 4),
+            cell(m.m_ate, 3),
+            cell(m.m_ase, 3),
+            cell(m.m_aoe, 2),
+            cell(m.tp_only.m_ate, 3),
+            cell(m.tp_only.m_ase, 3),
+            cell(m.tp_only.m_aoe, 2)
+        ));
+    }
+    s
+}
+
+/// The rows as CSV.
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = String::from("noise,method,precision,recall,mATE,mASE,mAOE,tp,fp,fn,tp_only_mATE,tp_only_mASE,tp_only_mAOE\n");
+    let c = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
+    for r in rows {
+        let m = &r.metrics;
+        s.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            r.noise,
+            r.method,
+            c(m.precision),
+            c(m.recall),
+            c(m.m_ate),
+            c(m.m_ase),
+            c(m.m_aoe),
+            m.tp,
+            m.fp,
+            m.fn_,
+            c(m.tp_only.m_ate),
+            c(m.tp_only.m_ase),
+            c(m.tp_only.m_aoe)
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::town::{generate, TownConfig};
+
+    #[test]
+    fn small_table_has_the_papers_shape() {
+        let gt = generate(&TownConfig {
+            scenes: 4,
+            seconds: 5.0,
+            hz: 2.0,
+            seed: 1,
+        });
+        let cfg = BenchConfig {
+            methods: vec![
+                "nms-3d".parse().unwrap(),
+                "csba-wls".parse().unwrap(),
+                "csba-wls+".parse().unwrap(),
+                "gt-wls".parse().unwrap(),
+            ],
+            settings: vec![NoiseSetting::parse("mild", 2).unwrap()],
+            seed: 5,
+            range: None,
+        };
+        let rows = run(&gt, &cfg, &|| {});
+        let get = |m: &str| rows.iter().find(|r| r.method == m).unwrap().metrics.clone();
+        assert_eq!(rows.len(), 2 + 4 + 1);
+        // single agents: every object once, precision and recall 1
+        assert_eq!(get("agent1").precision, Some(1.0));
+        assert_eq!(get("agent2").recall, Some(1.0));
+        // oracle: perfect association, error near the bound sqrt(pi/2) * 0.5/sqrt(2) = 0.443
+        let gt_wls = get("gt-wls");
+        assert_eq!(gt_wls.precision, Some(1.0));
+        assert!(
+            (gt_wls.tp_only.m_ate.unwrap() - 0.443).abs() < 0.05,
+            "{:?}",
+            gt_wls.tp_only.m_ate
+        );
+        // NMS keeps duplicates at mild noise? It suppresses overlaps: precision high, error of one agent
+        let plus = get("csba-wls+");
+        assert!(plus.precision.unwrap() > 0.99 && plus.recall.unwrap() > 0.99);
+        assert!(plus.m_ate.unwrap() < gt_wls.m_ate.unwrap() * 1.05);
+        assert!(plus.m_ate.unwrap() < get("agent1").m_ate.unwrap());
+        // deterministic
+        let again = run(&gt, &cfg, &|| {});
+        assert_eq!(table(&rows), table(&again));
+    }
+}

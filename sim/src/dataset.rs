@@ -1,0 +1,439 @@
+//! Ground truth: time-ordered frames of objects with stable ids, from nuScenes tables on disk or
+//! from the synthetic town ([`crate::town`]).
+//!
+//! The loader reads `scene`, `sample`, `sample_annotation`, `instance` and `category`, plus
+//! `ego_pose` through `sample_data` when both are present; categories map to the 10 detection
+//! classes and the others are skipped and counted. Errors name the directory, table, record and
+//! field.
+
+use serde_json::Value;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use v2x_protocol::nuscenes_json::{quaternion_yaw, TokenTable};
+use v2x_protocol::{wrap_angle, Class};
+
+/// One ground-truth object in one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GtObject {
+    /// Stable object id (index in the dataset's token table).
+    pub id: u32,
+    /// Detection class.
+    pub class: Class,
+    /// Centre in the map frame (m).
+    pub center: [f64; 3],
+    /// Size l, w, h (m).
+    pub size: [f64; 3],
+    /// Yaw (rad).
+    pub yaw: f64,
+}
+
+/// All objects at one time step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GtFrame {
+    /// The nuScenes sample token.
+    pub sample_token: String,
+    /// Index of the scene in [`GroundTruth::scenes`].
+    pub scene: usize,
+    /// Timestamp (microseconds).
+    pub timestamp_us: u64,
+    /// Ego position when known (m).
+    pub ego: Option<[f64; 3]>,
+    /// The objects.
+    pub objects: Vec<GtObject>,
+}
+
+/// A whole ground-truth data set.
+#[derive(Clone, Debug, Default)]
+pub struct GroundTruth {
+    /// Scene names, in order.
+    pub scenes: Vec<String>,
+    /// Frames ordered by scene, then time.
+    pub frames: Vec<GtFrame>,
+    /// Instance tokens of the object ids.
+    pub tokens: TokenTable,
+    /// Annotations skipped per category name (not one of the 10 classes).
+    pub skipped: BTreeMap<String, usize>,
+}
+
+impl GroundTruth {
+    /// Number of annotated boxes over all frames.
+    pub fn boxes(&self) -> usize {
+        self.frames.iter().map(|f| f.objects.len()).sum()
+    }
+
+    /// The frame of a sample token.
+    pub fn frame_index(&self) -> HashMap<&str, usize> {
+        self.frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (f.sample_token.as_str(), i))
+            .collect()
+    }
+
+    /// Frames per second of the data (median spacing of the first scene).
+    pub fn hz(&self) -> f64 {
+        let mut dts: Vec<u64> = self
+            .frames
+            .windows(2)
+            .filter(|w| w[0].scene == w[1].scene && w[1].timestamp_us > w[0].timestamp_us)
+            .map(|w| w[1].timestamp_us - w[0].timestamp_us)
+            .take(101)
+            .collect();
+        dts.sort_unstable();
+        dts.get(dts.len() / 2).map_or(10.0, |&d| 1e6 / d as f64)
+    }
+}
+
+/// Why the tables could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The directory does not exist.
+    #[error("{0}: no such directory (give --dataroot DIR --version NAME so that DIR/NAME holds the nuScenes tables)")]
+    MissingDir(PathBuf),
+    /// A required table file is absent.
+    #[error("{path}: missing table '{table}'")]
+    MissingTable {
+        /// The file that was expected.
+        path: PathBuf,
+        /// The table name.
+        table: &'static str,
+    },
+    /// A table is unreadable or not a JSON array.
+    #[error("{path}: {message}")]
+    BadTable {
+        /// The table file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A record lacks a field or has the wrong type.
+    #[error("{path}: record {index}: field '{field}': {message}")]
+    BadField {
+        /// The table file.
+        path: PathBuf,
+        /// Record index.
+        index: usize,
+        /// The field.
+        field: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+struct Table {
+    path: PathBuf,
+    rows: Vec<Value>,
+}
+
+impl Table {
+    fn load(dir: &Path, name: &'static str, required: bool) -> Result<Option<Table>, LoadError> {
+        let path = dir.join(format!("{name}.json"));
+        if !path.exists() {
+            return if required {
+                Err(LoadError::MissingTable { path, table: name })
+            } else {
+                Ok(None)
+            };
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| LoadError::BadTable {
+            path: path.clone(),
+            message: format!("cannot read: {e}"),
+        })?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| LoadError::BadTable {
+            path: path.clone(),
+            message: format!("not valid JSON: {e}"),
+        })?;
+        match v {
+            Value::Array(rows) => Ok(Some(Table { path, rows })),
+            _ => Err(LoadError::BadTable {
+                path,
+                message: "expected a JSON array of records".into(),
+            }),
+        }
+    }
+
+    fn err(&self, index: usize, field: &'static str, message: &str) -> LoadError {
+        LoadError::BadField {
+            path: self.path.clone(),
+            index,
+            field,
+            message: message.into(),
+        }
+    }
+
+    fn str(&self, i: usize, field: &'static str) -> Result<&str, LoadError> {
+        self.rows[i]
+            .get(field)
+            .ok_or_else(|| self.err(i, field, "missing"))?
+            .as_str()
+            .ok_or_else(|| self.err(i, field, "expected a string"))
+    }
+
+    fn u64(&self, i: usize, field: &'static str) -> Result<u64, LoadError> {
+        self.rows[i]
+            .get(field)
+            .ok_or_else(|| self.err(i, field, "missing"))?
+            .as_u64()
+            .ok_or_else(|| self.err(i, field, "expected a non-negative integer"))
+    }
+
+    fn nums<const N: usize>(&self, i: usize, field: &'static str) -> Result<[f64; N], LoadError> {
+        let arr = self.rows[i]
+            .get(field)
+            .ok_or_else(|| self.err(i, field, "missing"))?
+            .as_array()
+            .ok_or_else(|| self.err(i, field, "expected an array"))?;
+        if arr.len() != N {
+            return Err(self.err(
+                i,
+                field,
+                &format!("expected {N} numbers, found {}", arr.len()),
+            ));
+        }
+        let mut out = [0.0; N];
+        for (k, v) in arr.iter().enumerate() {
+            out[k] = v
+                .as_f64()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| self.err(i, field, "expected finite numbers"))?;
+        }
+        Ok(out)
+    }
+}
+
+/// Loads nuScenes tables from `dataroot/version`.
+pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, LoadError> {
+    let dir = dataroot.join(version);
+    if !dir.is_dir() {
+        return Err(LoadError::MissingDir(dir));
+    }
+    let scene = Table::load(&dir, "scene", true)?.expect("required");
+    let sample = Table::load(&dir, "sample", true)?.expect("required");
+    let ann = Table::load(&dir, "sample_annotation", true)?.expect("required");
+    let instance = Table::load(&dir, "instance", true)?.expect("required");
+    let category = Table::load(&dir, "category", true)?.expect("required");
+    let sample_data = Table::load(&dir, "sample_data", false)?;
+    let ego_pose = Table::load(&dir, "ego_pose", false)?;
+
+    let mut cat_name: HashMap<&str, &str> = HashMap::new();
+    for i in 0..category.rows.len() {
+        cat_name.insert(category.str(i, "token")?, category.str(i, "name")?);
+    }
+    let mut inst_cat: HashMap<&str, &str> = HashMap::new();
+    for i in 0..instance.rows.len() {
+        let c = instance.str(i, "category_token")?;
+        if !cat_name.contains_key(c) {
+            return Err(instance.err(
+                i,
+                "category_token",
+                &format!("'{c}' is not in category.json"),
+            ));
+        }
+        inst_cat.insert(instance.str(i, "token")?, c);
+    }
+    let mut scene_index: HashMap<&str, usize> = HashMap::new();
+    let mut scenes = Vec::new();
+    for i in 0..scene.rows.len() {
+        scene_index.insert(scene.str(i, "token")?, i);
+        scenes.push(scene.str(i, "name")?.to_string());
+    }
+    // Ego poses by sample, through key-frame sample_data.
+    let mut ego_of_sample: HashMap<String, [f64; 3]> = HashMap::new();
+    if let (Some(sd), Some(ep)) = (&sample_data, &ego_pose) {
+        let mut pose: HashMap<&str, [f64; 3]> = HashMap::new();
+        for i in 0..ep.rows.len() {
+            pose.insert(ep.str(i, "token")?, ep.nums::<3>(i, "translation")?);
+        }
+        for i in 0..sd.rows.len() {
+            let key = sd.rows[i]
+                .get("is_key_frame")
+                .and_then(Value::as_bool)
+                .unwrap_or(true);
+            if !key {
+                continue;
+            }
+            let s = sd.str(i, "sample_token")?;
+            let e = sd.str(i, "ego_pose_token")?;
+            if let Some(p) = pose.get(e) {
+                ego_of_sample.entry(s.to_string()).or_insert(*p);
+            }
+        }
+    }
+    let mut frames = Vec::with_capacity(sample.rows.len());
+    let mut frame_of: HashMap<&str, usize> = HashMap::new();
+    for i in 0..sample.rows.len() {
+        let token = sample.str(i, "token")?;
+        let sc = sample.str(i, "scene_token")?;
+        let scene = *scene_index
+            .get(sc)
+            .ok_or_else(|| sample.err(i, "scene_token", &format!("'{sc}' is not in scene.json")))?;
+        frame_of.insert(token, frames.len());
+        frames.push(GtFrame {
+            sample_token: token.to_string(),
+            scene,
+            timestamp_us: sample.u64(i, "timestamp")?,
+            ego: ego_of_sample.get(token).copied(),
+            objects: Vec::new(),
+        });
+    }
+    let mut tokens = TokenTable::new();
+    let mut skipped: BTreeMap<String, usize> = BTreeMap::new();
+    for i in 0..ann.rows.len() {
+        let s = ann.str(i, "sample_token")?;
+        let f = *frame_of
+            .get(s)
+            .ok_or_else(|| ann.err(i, "sample_token", &format!("'{s}' is not in sample.json")))?;
+        let inst = ann.str(i, "instance_token")?;
+        let cat = inst_cat.get(inst).ok_or_else(|| {
+            ann.err(
+                i,
+                "instance_token",
+                &format!("'{inst}' is not in instance.json"),
+            )
+        })?;
+        let name = cat_name[cat];
+        let Some(class) = Class::from_category(name) else {
+            *skipped.entry(name.to_string()).or_default() += 1;
+            continue;
+        };
+        let center = ann.nums::<3>(i, "translation")?;
+        let [w, l, h] = ann.nums::<3>(i, "size")?;
+        if w <= 0.0 || l <= 0.0 || h <= 0.0 {
+            return Err(ann.err(i, "size", "sizes must be positive"));
+        }
+        let q = ann.nums::<4>(i, "rotation")?;
+        frames[f].objects.push(GtObject {
+            id: tokens.intern(inst),
+            class,
+            center,
+            size: [l, w, h],
+            yaw: wrap_angle(quaternion_yaw(q)),
+        });
+    }
+    frames.sort_by(|a, b| {
+        (a.scene, a.timestamp_us, &a.sample_token).cmp(&(b.scene, b.timestamp_us, &b.sample_token))
+    });
+    for f in &mut frames {
+        f.objects.sort_by_key(|o| o.id);
+    }
+    Ok(GroundTruth {
+        scenes,
+        frames,
+        tokens,
+        skipped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixture() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/nuscenes-mini")
+    }
+
+    #[test]
+    fn loads_the_fixture() {
+        let gt = load_nuscenes(&fixture(), "v1.0-fixture").unwrap();
+        assert_eq!(gt.scenes, vec!["scene-a", "scene-b"]);
+        assert_eq!(gt.frames.len(), 3);
+        // frames in scene then time order
+        assert_eq!(gt.frames[0].sample_token, "s1");
+        assert_eq!(gt.frames[1].sample_token, "s2");
+        assert_eq!(gt.frames[2].sample_token, "s3");
+        assert_eq!(gt.frames[0].ego, Some([100.0, 200.0, 0.0]));
+        assert_eq!(gt.frames[2].ego, None);
+        // s1: a car (size [w,l,h] = [2,4.5,1.6], yaw 90 deg) and a pedestrian; the animal skipped
+        let f = &gt.frames[0];
+        assert_eq!(f.objects.len(), 2);
+        let car = f.objects.iter().find(|o| o.class == Class::Car).unwrap();
+        assert_eq!(car.size, [4.5, 2.0, 1.6]);
+        assert!((car.yaw - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+        assert_eq!(gt.tokens.name(car.id), Some("inst-car"));
+        // the car keeps its id across frames
+        assert!(gt.frames[1].objects.iter().any(|o| o.id == car.id));
+        assert_eq!(gt.skipped.get("animal"), Some(&1));
+        assert_eq!(gt.boxes(), 4);
+        assert!((gt.hz() - 2.0).abs() < 1e-9);
+    }
+
+    fn copy_fixture(tmp: &Path) -> PathBuf {
+        let dst = tmp.join("v1.0-fixture");
+        std::fs::create_dir_all(&dst).unwrap();
+        for e in std::fs::read_dir(fixture().join("v1.0-fixture")).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), dst.join(e.file_name())).unwrap();
+        }
+        dst
+    }
+
+    fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("v2x-sim-test-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn missing_directory_and_table() {
+        let e = load_nuscenes(Path::new("/nonexistent"), "v1.0-x").unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("/nonexistent/v1.0-x: no such directory"),
+            "{e}"
+        );
+        let tmp = tmpdir("missing");
+        let dir = copy_fixture(&tmp);
+        std::fs::remove_file(dir.join("instance.json")).unwrap();
+        let e = load_nuscenes(&tmp, "v1.0-fixture").unwrap_err();
+        assert!(e.to_string().contains("missing table 'instance'"), "{e}");
+    }
+
+    #[test]
+    fn malformed_tables() {
+        let cases: &[(&str, &str, &str, &str)] = &[
+            (
+                "sample_annotation.json",
+                "\"translation\": [10.0, 20.0, 1.0]",
+                "\"translation\": [10.0, 20.0]",
+                "field 'translation': expected 3 numbers",
+            ),
+            (
+                "sample_annotation.json",
+                "\"size\": [2.0, 4.5, 1.6]",
+                "\"size\": [2.0, 0.0, 1.6]",
+                "field 'size': sizes must be positive",
+            ),
+            (
+                "sample_annotation.json",
+                "\"instance_token\": \"inst-car\"",
+                "\"instance_token\": \"inst-zzz\"",
+                "field 'instance_token': 'inst-zzz' is not in instance.json",
+            ),
+            (
+                "sample.json",
+                "\"timestamp\": 1000000",
+                "\"timestamp\": \"soon\"",
+                "field 'timestamp': expected a non-negative integer",
+            ),
+            (
+                "category.json",
+                "\"name\": \"vehicle.car\"",
+                "\"nom\": \"vehicle.car\"",
+                "field 'name': missing",
+            ),
+            ("scene.json", "[", "{", "not valid JSON"),
+        ];
+        for (i, (table, from, to, msg)) in cases.iter().enumerate() {
+            let tmp = tmpdir(&format!("bad{i}"));
+            let dir = copy_fixture(&tmp);
+            let p = dir.join(table);
+            let text = std::fs::read_to_string(&p).unwrap();
+            assert!(text.contains(from), "{table}: {from}");
+            std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
+            let e = load_nuscenes(&tmp, "v1.0-fixture").unwrap_err().to_string();
+            assert!(e.contains(msg), "{e}");
+            assert!(e.contains(table), "{e}");
+        }
+    }
+}

@@ -1,0 +1,387 @@
+//! Metrics of DESIGN §7 (the paper's §4.3), sans-IO.
+//!
+//! Predictions are matched to ground truth by object id: for each ground-truth object the
+//! closest prediction carrying its id (2D centre distance) is a true positive, any other one
+//! carrying it a false positive; an object with no prediction is a false negative, and a
+//! prediction whose id is not in the frame's ground truth (or that has none) is a false positive
+//! with no error to measure. Errors are false-positive-penalised: every prediction with a
+//! ground-truth id, TP or FP, contributes its error against that object, averaged per class
+//! (the ground truth's class) and then over the classes that have any ("m" = class mean). The
+//! TP-only variant (nuScenes style) averages over true positives alone.
+//! ATE: 2D centre distance (m); ASE: Euclidean distance of (l, w, h) (m); AOE: |yaw difference|
+//! in degrees, with period pi for barriers and 2 pi otherwise.
+
+use crate::dataset::GtObject;
+use serde::Serialize;
+use std::collections::{BTreeMap, HashMap};
+use v2x_protocol::{wrap_angle, Class, Detection};
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Sums {
+    ate: f64,
+    ase: f64,
+    aoe: f64,
+    n: usize,
+}
+
+impl Sums {
+    fn add(&mut self, e: (f64, f64, f64)) {
+        self.ate += e.0;
+        self.ase += e.1;
+        self.aoe += e.2;
+        self.n += 1;
+    }
+    fn merge(&mut self, o: &Sums) {
+        self.ate += o.ate;
+        self.ase += o.ase;
+        self.aoe += o.aoe;
+        self.n += o.n;
+    }
+    fn means(&self) -> Option<(f64, f64, f64)> {
+        (self.n > 0).then(|| {
+            let n = self.n as f64;
+            (self.ate / n, self.ase / n, self.aoe / n)
+        })
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct ClassSums {
+    tp: usize,
+    fp: usize,
+    fn_: usize,
+    all: Sums,
+    tp_only: Sums,
+}
+
+/// Accumulates matches and errors over frames.
+#[derive(Clone, Debug, Default)]
+pub struct Accumulator {
+    classes: BTreeMap<Class, ClassSums>,
+}
+
+/// ATE, ASE and AOE (degrees) of a prediction against its ground truth.
+pub fn errors(p: &Detection, g: &GtObject) -> (f64, f64, f64) {
+    let ate = (p.center[0] - g.center[0]).hypot(p.center[1] - g.center[1]);
+    let ase = (0..3)
+        .map(|k| (p.size[k] - g.size[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let mut d = wrap_angle(p.yaw - g.yaw).abs();
+    if g.class == Class::Barrier {
+        d = d.min(std::f64::consts::PI - d);
+    }
+    (ate, ase, d.to_degrees())
+}
+
+impl Accumulator {
+    /// An empty accumulator.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Scores one frame.
+    pub fn add_frame(&mut self, gt: &[GtObject], preds: &[Detection]) {
+        let index: HashMap<u32, usize> = gt.iter().enumerate().map(|(i, g)| (g.id, i)).collect();
+        let mut claims: Vec<Vec<(usize, f64)>> = vec![Vec::new(); gt.len()];
+        for (j, p) in preds.iter().enumerate() {
+            match index.get(&p.id) {
+                Some(&i) => {
+                    let g = &gt[i];
+                    claims[i].push((
+                        j,
+                        (p.center[0] - g.center[0]).hypot(p.center[1] - g.center[1]),
+                    ));
+                }
+                None => self.classes.entry(p.class).or_default().fp += 1,
+            }
+        }
+        for (i, g) in gt.iter().enumerate() {
+            let c = self.classes.entry(g.class).or_default();
+            let Some(&(best, _)) = claims[i]
+                .iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            else {
+                c.fn_ += 1;
+                continue;
+            };
+            for &(j, _) in &claims[i] {
+                let e = errors(&preds[j], g);
+                c.all.add(e);
+                if j == best {
+                    c.tp += 1;
+                    c.tp_only.add(e);
+                } else {
+                    c.fp += 1;
+                }
+            }
+        }
+    }
+
+    /// Adds another accumulator's counts.
+    pub fn merge(&mut self, other: &Accumulator) {
+        for (c, o) in &other.classes {
+            let s = self.classes.entry(*c).or_default();
+            s.tp += o.tp;
+            s.fp += o.fp;
+            s.fn_ += o.fn_;
+            s.all.merge(&o.all);
+            s.tp_only.merge(&o.tp_only);
+        }
+    }
+
+    /// The metrics so far.
+    pub fn summary(&self) -> Metrics {
+        let mut per_class = BTreeMap::new();
+        let (mut tp, mut fp, mut fn_) = (0, 0, 0);
+        let mut all_means = Vec::new();
+        let mut tp_means = Vec::new();
+        for (c, s) in &self.classes {
+            tp += s.tp;
+            fp += s.fp;
+            fn_ += s.fn_;
+            let m = s.all.means();
+            let t = s.tp_only.means();
+            all_means.extend(m);
+            tp_means.extend(t);
+            per_class.insert(
+                c.name().to_string(),
+                ClassMetrics {
+                    precision: ratio(s.tp, s.tp + s.fp),
+                    recall: ratio(s.tp, s.tp + s.fn_),
+                    ate: m.map(|v| v.0),
+                    ase: m.map(|v| v.1),
+                    aoe: m.map(|v| v.2),
+                    tp: s.tp,
+                    fp: s.fp,
+                    fn_: s.fn_,
+                    tp_only: ErrorMetrics::of(t.into_iter().collect::<Vec<_>>().as_slice()),
+                },
+            );
+        }
+        let all = ErrorMetrics::of(&all_means);
+        Metrics {
+            precision: ratio(tp, tp + fp),
+            recall: ratio(tp, tp + fn_),
+            m_ate: all.m_ate,
+            m_ase: all.m_ase,
+            m_aoe: all.m_aoe,
+            tp,
+            fp,
+            fn_,
+            per_class,
+            tp_only: ErrorMetrics::of(&tp_means),
+        }
+    }
+}
+
+fn ratio(a: usize, b: usize) -> Option<f64> {
+    (b > 0).then(|| a as f64 / b as f64)
+}
+
+/// Class-mean errors.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ErrorMetrics {
+    /// Mean ATE (m).
+    #[serde(rename = "mATE")]
+    pub m_ate: Option<f64>,
+    /// Mean ASE (m).
+    #[serde(rename = "mASE")]
+    pub m_ase: Option<f64>,
+    /// Mean AOE (degrees).
+    #[serde(rename = "mAOE")]
+    pub m_aoe: Option<f64>,
+}
+
+impl ErrorMetrics {
+    fn of(means: &[(f64, f64, f64)]) -> Self {
+        if means.is_empty() {
+            return ErrorMetrics {
+                m_ate: None,
+                m_ase: None,
+                m_aoe: None,
+            };
+        }
+        let n = means.len() as f64;
+        ErrorMetrics {
+            m_ate: Some(means.iter().map(|m| m.0).sum::<f64>() / n),
+            m_ase: Some(means.iter().map(|m| m.1).sum::<f64>() / n),
+            m_aoe: Some(means.iter().map(|m| m.2).sum::<f64>() / n),
+        }
+    }
+}
+
+/// One class's figures.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ClassMetrics {
+    /// TP / (TP + FP).
+    pub precision: Option<f64>,
+    /// TP / (TP + FN).
+    pub recall: Option<f64>,
+    /// Mean ATE, false positives included (m).
+    #[serde(rename = "ATE")]
+    pub ate: Option<f64>,
+    /// Mean ASE, false positives included (m).
+    #[serde(rename = "ASE")]
+    pub ase: Option<f64>,
+    /// Mean AOE, false positives included (degrees).
+    #[serde(rename = "AOE")]
+    pub aoe: Option<f64>,
+    /// True positives.
+    pub tp: usize,
+    /// False positives.
+    pub fp: usize,
+    /// False negatives.
+    #[serde(rename = "fn")]
+    pub fn_: usize,
+    /// TP-only errors.
+    pub tp_only: ErrorMetrics,
+}
+
+/// The metrics of a whole prediction set (`eval --format json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Metrics {
+    /// TP / (TP + FP).
+    pub precision: Option<f64>,
+    /// TP / (TP + FN).
+    pub recall: Option<f64>,
+    /// Class-mean ATE, false positives included (m).
+    #[serde(rename = "mATE")]
+    pub m_ate: Option<f64>,
+    /// Class-mean ASE, false positives included (m).
+    #[serde(rename = "mASE")]
+    pub m_ase: Option<f64>,
+    /// Class-mean AOE, false positives included (degrees).
+    #[serde(rename = "mAOE")]
+    pub m_aoe: Option<f64>,
+    /// True positives.
+    pub tp: usize,
+    /// False positives.
+    pub fp: usize,
+    /// False negatives.
+    #[serde(rename = "fn")]
+    pub fn_: usize,
+    /// Per-class figures by class name.
+    pub per_class: BTreeMap<String, ClassMetrics>,
+    /// TP-only class-mean errors.
+    pub tp_only: ErrorMetrics,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use v2x_protocol::Uncertainty;
+
+    fn gt(id: u32, class: Class, x: f64, yaw: f64) -> GtObject {
+        GtObject {
+            id,
+            class,
+            center: [x, 0.0, 1.0],
+            size: [4.0, 2.0, 1.5],
+            yaw,
+        }
+    }
+
+    fn pred(id: u32, class: Class, x: f64, y: f64, yaw: f64, size: [f64; 3]) -> Detection {
+        Detection {
+            class,
+            center: [x, y, 1.0],
+            size,
+            yaw,
+            score: 0.5,
+            std: Uncertainty::uniform(1.0, 1.0, 1.0),
+            pos_cov: None,
+            id,
+        }
+    }
+
+    #[test]
+    fn one_tp_and_one_fp_of_the_same_id() {
+        let g = [gt(1, Class::Car, 0.0, 0.0)];
+        // TP 3-4-5 away (ATE 5), FP 10 m away; sizes off by (0, 0, 1) -> ASE 1; yaw 10 deg
+        let p = [
+            pred(1, Class::Car, 10.0, 0.0, 0.0, [4.0, 2.0, 1.5]),
+            pred(1, Class::Car, 3.0, 4.0, 10f64.to_radians(), [4.0, 2.0, 2.5]),
+        ];
+        let mut acc = Accumulator::new();
+        acc.add_frame(&g, &p);
+        let m = acc.summary();
+        assert_eq!((m.tp, m.fp, m.fn_), (1, 1, 0));
+        assert_eq!(m.precision, Some(0.5));
+        assert_eq!(m.recall, Some(1.0));
+        assert!((m.m_ate.unwrap() - 7.5).abs() < 1e-12);
+        assert!((m.m_ase.unwrap() - 0.5).abs() < 1e-12);
+        assert!((m.m_aoe.unwrap() - 5.0).abs() < 1e-9);
+        assert!((m.tp_only.m_ate.unwrap() - 5.0).abs() < 1e-12);
+        assert!((m.tp_only.m_aoe.unwrap() - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_missed_object_and_an_unknown_id() {
+        let g = [
+            gt(1, Class::Car, 0.0, 0.0),
+            gt(2, Class::Pedestrian, 5.0, 0.0),
+        ];
+        let p = [
+            pred(1, Class::Car, 1.0, 0.0, 0.0, [4.0, 2.0, 1.5]),
+            pred(99, Class::Car, 50.0, 0.0, 0.0, [4.0, 2.0, 1.5]),
+        ];
+        let mut acc = Accumulator::new();
+        acc.add_frame(&g, &p);
+        let m = acc.summary();
+        assert_eq!((m.tp, m.fp, m.fn_), (1, 1, 1));
+        assert_eq!(m.recall, Some(0.5));
+        // only the car has errors: the class mean is the car's
+        assert!((m.m_ate.unwrap() - 1.0).abs() < 1e-12);
+        assert_eq!(m.per_class["pedestrian"].fn_, 1);
+        assert_eq!(m.per_class["pedestrian"].ate, None);
+    }
+
+    #[test]
+    fn a_barrier_yawed_by_pi_has_no_orientation_error() {
+        let g = [
+            gt(1, Class::Barrier, 0.0, 0.2),
+            gt(2, Class::Car, 10.0, 0.2),
+        ];
+        let p = [
+            pred(
+                1,
+                Class::Barrier,
+                0.0,
+                0.0,
+                wrap_angle(0.2 + std::f64::consts::PI),
+                [4.0, 2.0, 1.5],
+            ),
+            pred(
+                2,
+                Class::Car,
+                10.0,
+                0.0,
+                wrap_angle(0.2 + std::f64::consts::PI),
+                [4.0, 2.0, 1.5],
+            ),
+        ];
+        let mut acc = Accumulator::new();
+        acc.add_frame(&g, &p);
+        let m = acc.summary();
+        assert!(m.per_class["barrier"].aoe.unwrap() < 1e-9);
+        assert!((m.per_class["car"].aoe.unwrap() - 180.0).abs() < 1e-9);
+        // class mean of 0 and 180
+        assert!((m.m_aoe.unwrap() - 90.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn merge_equals_one_pass() {
+        let g = [gt(1, Class::Car, 0.0, 0.0)];
+        let p = [pred(1, Class::Car, 1.0, 0.0, 0.0, [4.0, 2.0, 1.5])];
+        let mut a = Accumulator::new();
+        a.add_frame(&g, &p);
+        a.add_frame(&g, &[]);
+        let mut b = Accumulator::new();
+        b.add_frame(&g, &p);
+        let mut c = Accumulator::new();
+        c.add_frame(&g, &[]);
+        b.merge(&c);
+        assert_eq!(a.summary(), b.summary());
+    }
+}
