@@ -1,1 +1,280 @@
-//! placeholder
+//! A V2X agent on the network: publishes its detections as compact [`Frame`]s on
+//! `v2x/NS/det/AGENT`, declares a liveliness token on `v2x/NS/alive/AGENT` so the fuser knows it
+//! is there, and simulates its radio link (fixed latency, jitter, drop rate) and its sensor clock
+//! (an offset added to capture times). [`replay`] sends a sequence of frames at the data's own
+//! clock, sped up or slowed down by a factor.
+
+use anyhow::{anyhow, Context};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::{keys, wire, AgentKind, Frame};
+
+/// The simulated link and sensor clock of an agent.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Link {
+    /// Fixed one-way latency (ms).
+    pub latency_ms: f64,
+    /// Uniform jitter added to the latency, in [0, jitter_ms] (ms).
+    pub jitter_ms: f64,
+    /// Probability that a frame is lost, in [0, 1].
+    pub drop_rate: f64,
+    /// Offset of the sensor clock from true time (ms), added to every capture time.
+    pub clock_offset_ms: f64,
+}
+
+impl Link {
+    /// Checks the values are usable, naming the bad field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.latency_ms.is_finite() && self.latency_ms >= 0.0) {
+            return Err(format!("latency_ms must be >= 0 (got {})", self.latency_ms));
+        }
+        if !(self.jitter_ms.is_finite() && self.jitter_ms >= 0.0) {
+            return Err(format!("jitter_ms must be >= 0 (got {})", self.jitter_ms));
+        }
+        if !(0.0..=1.0).contains(&self.drop_rate) {
+            return Err(format!(
+                "drop_rate must be in [0, 1] (got {})",
+                self.drop_rate
+            ));
+        }
+        if !self.clock_offset_ms.is_finite() {
+            return Err("clock_offset_ms must be finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// Opens a Zenoh session with the given options.
+pub async fn open_session(args: &ZenohArgs) -> anyhow::Result<zenoh::Session> {
+    let mut config = match &args.zenoh_config {
+        Some(p) => zenoh::Config::from_file(p)
+            .map_err(|e| anyhow!("{}: invalid Zenoh configuration: {e}", p.display()))?,
+        None => zenoh::Config::default(),
+    };
+    for (key, value) in args.json5_pairs() {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| anyhow!("Zenoh option {key} = {value}: {e}"))?;
+    }
+    zenoh::open(config)
+        .await
+        .map_err(|e| anyhow!("cannot open a Zenoh session: {e}"))
+}
+
+/// Counters of what an agent sent.
+#[derive(Debug, Default)]
+pub struct AgentCounters {
+    /// Frames handed to the link.
+    pub frames: AtomicU64,
+    /// Frames the link dropped.
+    pub dropped: AtomicU64,
+    /// Frames published.
+    pub published: AtomicU64,
+    /// Payload bytes published.
+    pub payload_bytes: AtomicU64,
+    /// Objects published.
+    pub objects: AtomicU64,
+}
+
+/// A snapshot of [`AgentCounters`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct AgentTotals {
+    /// Frames handed to the link.
+    pub frames: u64,
+    /// Frames the link dropped.
+    pub dropped: u64,
+    /// Frames published.
+    pub published: u64,
+    /// Payload bytes published.
+    pub payload_bytes: u64,
+    /// Objects published.
+    pub objects: u64,
+}
+
+impl AgentCounters {
+    /// The current values.
+    pub fn totals(&self) -> AgentTotals {
+        AgentTotals {
+            frames: self.frames.load(Ordering::Relaxed),
+            dropped: self.dropped.load(Ordering::Relaxed),
+            published: self.published.load(Ordering::Relaxed),
+            payload_bytes: self.payload_bytes.load(Ordering::Relaxed),
+            objects: self.objects.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// A publishing agent.
+pub struct Agent {
+    name: String,
+    kind: AgentKind,
+    link: Link,
+    rng: ChaCha8Rng,
+    seq: u32,
+    publisher: Arc<zenoh::pubsub::Publisher<'static>>,
+    _token: zenoh::liveliness::LivelinessToken,
+    counters: Arc<AgentCounters>,
+}
+
+impl Agent {
+    /// Declares the agent's publisher and liveliness token on `session`.
+    pub async fn start(
+        session: &zenoh::Session,
+        ns: &str,
+        name: &str,
+        kind: AgentKind,
+        link: Link,
+        seed: u64,
+    ) -> anyhow::Result<Agent> {
+        keys::validate_chunk("namespace", ns).map_err(|e| anyhow!(e))?;
+        keys::validate_chunk("agent name", name).map_err(|e| anyhow!(e))?;
+        link.validate().map_err(|e| anyhow!("agent {name}: {e}"))?;
+        let publisher = session
+            .declare_publisher(keys::detections(ns, name))
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .await
+            .map_err(|e| anyhow!("agent {name}: cannot declare its publisher: {e}"))?;
+        let token = session
+            .liveliness()
+            .declare_token(keys::alive(ns, name))
+            .await
+            .map_err(|e| anyhow!("agent {name}: cannot declare its liveliness token: {e}"))?;
+        Ok(Agent {
+            name: name.to_string(),
+            kind,
+            link,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            seq: 0,
+            publisher: Arc::new(publisher),
+            _token: token,
+            counters: Arc::new(AgentCounters::default()),
+        })
+    }
+
+    /// The agent's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The agent's counters.
+    pub fn counters(&self) -> Arc<AgentCounters> {
+        self.counters.clone()
+    }
+
+    /// Waits until a subscriber (the fuser) matches the agent's detections, or the timeout.
+    pub async fn wait_for_subscriber(&self, timeout: Duration) -> anyhow::Result<()> {
+        let wait = async {
+            loop {
+                let status = self
+                    .publisher
+                    .matching_status()
+                    .await
+                    .map_err(|e| anyhow!("matching status: {e}"))?;
+                if status.matching() {
+                    return anyhow::Ok(());
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        };
+        tokio::time::timeout(timeout, wait).await.with_context(|| {
+            format!(
+                "agent {}: no fuser subscribed within {timeout:?}",
+                self.name
+            )
+        })?
+    }
+
+    /// Stamps, encodes and sends a frame through the simulated link: it may be dropped, is
+    /// delayed by latency + jitter, and its capture time is shifted by the clock offset.
+    /// Returns the payload size, or `None` if the link dropped the frame.
+    pub fn send(&mut self, mut frame: Frame) -> anyhow::Result<Option<usize>> {
+        frame.agent = self.name.clone();
+        frame.kind = self.kind;
+        frame.seq = self.seq;
+        self.seq = self.seq.wrapping_add(1);
+        let offset_us = (self.link.clock_offset_ms * 1000.0).round() as i64;
+        frame.capture_us = frame.capture_us.saturating_add_signed(offset_us);
+        let payload = wire::encode(&frame)
+            .with_context(|| format!("agent {}: frame {} does not encode", self.name, frame.seq))?;
+        self.counters.frames.fetch_add(1, Ordering::Relaxed);
+        if self.link.drop_rate > 0.0 && self.rng.gen::<f64>() < self.link.drop_rate {
+            self.counters.dropped.fetch_add(1, Ordering::Relaxed);
+            return Ok(None);
+        }
+        let delay_ms = self.link.latency_ms
+            + if self.link.jitter_ms > 0.0 {
+                self.rng.gen_range(0.0..self.link.jitter_ms)
+            } else {
+                0.0
+            };
+        let len = payload.len();
+        let objects = frame.detections.len() as u64;
+        let publisher = self.publisher.clone();
+        let counters = self.counters.clone();
+        let name = self.name.clone();
+        tokio::spawn(async move {
+            if delay_ms > 0.0 {
+                tokio::time::sleep(Duration::from_secs_f64(delay_ms / 1000.0)).await;
+            }
+            match publisher.put(payload).await {
+                Ok(()) => {
+                    counters.published.fetch_add(1, Ordering::Relaxed);
+                    counters
+                        .payload_bytes
+                        .fetch_add(len as u64, Ordering::Relaxed);
+                    counters.objects.fetch_add(objects, Ordering::Relaxed);
+                }
+                Err(e) => tracing::warn!("agent {name}: publish failed: {e}"),
+            }
+        });
+        Ok(Some(len))
+    }
+}
+
+/// Microseconds since the Unix epoch on this machine's clock.
+pub fn now_us() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+/// Replays frames at their own clock: frame i is sent (speed x) (capture_i - capture_0) after the
+/// first. With `restamp`, capture times are replaced by this machine's clock at sending (a live
+/// sensor); otherwise they are kept (the data's clock). Stops early when `stop` resolves.
+pub async fn replay(
+    agent: &mut Agent,
+    frames: Vec<Frame>,
+    speed: f64,
+    restamp: bool,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<usize> {
+    if !(speed.is_finite() && speed > 0.0) {
+        anyhow::bail!("speed must be > 0 (got {speed})");
+    }
+    let Some(first) = frames.first().map(|f| f.capture_us) else {
+        return Ok(0);
+    };
+    tokio::pin!(stop);
+    let start = tokio::time::Instant::now();
+    let mut sent = 0;
+    for mut f in frames {
+        let due = start
+            + Duration::from_secs_f64(f.capture_us.saturating_sub(first) as f64 / 1e6 / speed);
+        tokio::select! {
+            _ = tokio::time::sleep_until(due) => {}
+            _ = &mut stop => break,
+        }
+        if restamp {
+            f.capture_us = now_us();
+        }
+        agent.send(f)?;
+        sent += 1;
+    }
+    Ok(sent)
+}

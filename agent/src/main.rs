@@ -1,1 +1,180 @@
-fn main() {}
+//! `v2x-agent`: replays a nuScenes results file (any detector's output) as one agent over Zenoh.
+
+use anyhow::{anyhow, bail, Context};
+use clap::Parser;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::Duration;
+use v2x_agent::{open_session, replay, Agent, Link};
+use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::nuscenes_json::{read_results, MissingStd, TokenTable};
+use v2x_protocol::{AgentKind, Frame, Uncertainty};
+
+#[derive(Parser)]
+#[command(
+    name = "v2x-agent",
+    version,
+    about = "Replay a nuScenes results file as one V2X agent over Zenoh"
+)]
+struct Cli {
+    /// The results file to replay (one agent's detections per sample token).
+    results: PathBuf,
+    /// The agent's name (last segment of v2x/NS/det/AGENT).
+    #[arg(long)]
+    name: String,
+    /// vehicle or infrastructure.
+    #[arg(long, default_value = "vehicle")]
+    kind: AgentKind,
+    /// Scenario namespace.
+    #[arg(long, default_value = "default")]
+    ns: String,
+    /// nuScenes sample table (sample.json) giving each sample's timestamp; without it, samples
+    /// are sent in token order at --hz (or at the `v2x_timestamps` map in the file's meta).
+    #[arg(long)]
+    sample_table: Option<PathBuf>,
+    /// Frame rate when no timestamps are known.
+    #[arg(long, default_value_t = 10.0)]
+    hz: f64,
+    /// Playback speed factor (2 = twice as fast).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+    /// Stamp frames with this machine's clock when sent (a live sensor) instead of the data's.
+    #[arg(long)]
+    live_clock: bool,
+    /// Stds for boxes without std fields: mild, moderate, large or POS,SIZE,YAW_DEG.
+    #[arg(long, value_parser = v2x_protocol::parse_std)]
+    default_std: Option<Uncertainty>,
+    /// Simulated one-way latency (ms).
+    #[arg(long, default_value_t = 0.0)]
+    latency_ms: f64,
+    /// Simulated jitter, uniform in [0, J] ms.
+    #[arg(long, default_value_t = 0.0)]
+    jitter_ms: f64,
+    /// Simulated frame loss probability.
+    #[arg(long, default_value_t = 0.0)]
+    drop_rate: f64,
+    /// Simulated sensor clock offset (ms).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    clock_offset_ms: f64,
+    /// Wait at most this long for a fuser to subscribe before sending (s).
+    #[arg(long, default_value_t = 30.0)]
+    wait_s: f64,
+    /// Seed of the link simulation.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[command(flatten)]
+    zenoh: ZenohArgs,
+}
+
+fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a JSON array of samples", path.display()))?;
+    let mut out = HashMap::new();
+    for (i, r) in rows.iter().enumerate() {
+        let token = r
+            .get("token")
+            .and_then(|v| v.as_str())
+            .ok_or_else(|| anyhow!("{}: record {i}: field 'token' missing", path.display()))?;
+        let ts = r
+            .get("timestamp")
+            .and_then(|v| v.as_u64())
+            .ok_or_else(|| anyhow!("{}: record {i}: field 'timestamp' missing", path.display()))?;
+        out.insert(token.to_string(), ts);
+    }
+    Ok(out)
+}
+
+#[tokio::main(flavor = "multi_thread")]
+async fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let missing = cli
+        .default_std
+        .map_or(MissingStd::Error, MissingStd::Default);
+    let results = read_results(&cli.results, &mut TokenTable::new(), missing)?;
+    let mut times: HashMap<String, u64> = match &cli.sample_table {
+        Some(p) => timestamps(p)?,
+        None => results
+            .meta
+            .get("v2x_timestamps")
+            .and_then(|m| m.as_object())
+            .map(|m| {
+                m.iter()
+                    .filter_map(|(k, v)| Some((k.clone(), v.as_u64()?)))
+                    .collect()
+            })
+            .unwrap_or_default(),
+    };
+    if times.is_empty() {
+        if !(cli.hz > 0.0) {
+            bail!("--hz must be > 0");
+        }
+        tracing::warn!(
+            "no timestamps known: sending samples in token order at {} Hz",
+            cli.hz
+        );
+        for (i, s) in results.samples.keys().enumerate() {
+            times.insert(s.clone(), (i as f64 * 1e6 / cli.hz) as u64);
+        }
+    }
+    let mut frames = Vec::new();
+    for (token, dets) in results.samples {
+        let t = *times.get(&token).ok_or_else(|| {
+            anyhow!(
+                "{}: sample '{token}' has no timestamp in the sample table",
+                cli.results.display()
+            )
+        })?;
+        frames.push(
+            Frame {
+                agent: cli.name.clone(),
+                kind: cli.kind,
+                seq: 0,
+                capture_us: t,
+                origin: [0.0; 3],
+                detections: dets,
+            }
+            .with_centroid_origin(),
+        );
+    }
+    frames.sort_by_key(|f| f.capture_us);
+    let link = Link {
+        latency_ms: cli.latency_ms,
+        jitter_ms: cli.jitter_ms,
+        drop_rate: cli.drop_rate,
+        clock_offset_ms: cli.clock_offset_ms,
+    };
+    let session = open_session(&cli.zenoh).await?;
+    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    agent
+        .wait_for_subscriber(Duration::from_secs_f64(cli.wait_s))
+        .await?;
+    let n = frames.len();
+    let sent = replay(&mut agent, frames, cli.speed, cli.live_clock, async {
+        let _ = tokio::signal::ctrl_c().await;
+    })
+    .await?;
+    // Let delayed publications leave before closing.
+    tokio::time::sleep(Duration::from_millis(
+        (cli.latency_ms + cli.jitter_ms) as u64 + 200,
+    ))
+    .await;
+    let t = agent.counters().totals();
+    eprintln!(
+        "{}: sent {sent} of {n} frames ({} dropped by the link), {} payload bytes",
+        cli.name, t.dropped, t.payload_bytes
+    );
+    drop(agent);
+    session
+        .close()
+        .await
+        .map_err(|e| anyhow!("closing the session: {e}"))?;
+    Ok(())
+}

@@ -1,1 +1,126 @@
-fn main() {}
+//! Time per fusion step: csba-wls (and csba-wls+) for 2 agents x {10, 25, 80, 200, 1000} objects
+//! at mild, moderate and large noise, {2, 4, 8} agents x 80 objects, and every method at 2 x 80.
+//! Scenes have nuScenes-like density (80 objects within 50 m, the area grows with the count)
+//! and class mix.
+//!
+//! Run: `cargo bench -p v2x-fuser --bench fusion` (add a filter such as `csba-wls/2x80` to pick).
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::hint::black_box;
+use std::time::Duration;
+use v2x_fuser::Method;
+use v2x_protocol::{wrap_angle, Class, Detection, NoiseProfile, Uncertainty};
+
+const MIX: [Class; 10] = [
+    Class::Car,
+    Class::Car,
+    Class::Car,
+    Class::Car,
+    Class::Pedestrian,
+    Class::Pedestrian,
+    Class::Barrier,
+    Class::TrafficCone,
+    Class::Truck,
+    Class::Bicycle,
+];
+
+/// Ground truth of `n` objects, then one noisy copy per agent.
+fn scene(n: usize, agents: usize, noise: NoiseProfile, seed: u64) -> Vec<Vec<Detection>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let radius = 50.0 * (n as f64 / 80.0).sqrt();
+    let gt: Vec<Detection> = (0..n)
+        .map(|i| {
+            let class = MIX[rng.gen_range(0..MIX.len())];
+            let r = radius * rng.gen::<f64>().sqrt();
+            let a = rng.gen::<f64>() * std::f64::consts::TAU;
+            Detection {
+                class,
+                center: [r * a.cos(), r * a.sin(), 1.0],
+                size: class.typical_size(),
+                yaw: rng.gen_range(-3.1..3.1),
+                score: 0.8,
+                std: noise.std(),
+                pos_cov: None,
+                id: i as u32,
+            }
+        })
+        .collect();
+    let s: Uncertainty = noise.std();
+    (0..agents)
+        .map(|_| {
+            let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+            gt.iter()
+                .map(|d| {
+                    let mut d = d.clone();
+                    for k in 0..3 {
+                        d.center[k] += s.pos[k] * g();
+                        d.size[k] = (d.size[k] + s.size[k] * g()).max(0.05);
+                    }
+                    d.yaw = wrap_angle(d.yaw + s.yaw * g());
+                    d
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn bench_objects(c: &mut Criterion) {
+    for method in ["csba-wls", "csba-wls+"] {
+        let m: Method = method.parse().expect("known method");
+        let mut group = c.benchmark_group(format!("{method}/2-agents"));
+        group
+            .warm_up_time(Duration::from_millis(500))
+            .measurement_time(Duration::from_secs(2))
+            .sample_size(30);
+        for noise in NoiseProfile::ALL {
+            for n in [10usize, 25, 80, 200, 1000] {
+                let s = scene(n, 2, noise, 1);
+                group.bench_with_input(BenchmarkId::new(noise.name(), n), &s, |b, s| {
+                    b.iter(|| black_box(m.fuse(black_box(s))))
+                });
+            }
+        }
+        group.finish();
+    }
+}
+
+fn bench_agents(c: &mut Criterion) {
+    let m: Method = "csba-wls".parse().expect("known method");
+    let mut group = c.benchmark_group("csba-wls/80-objects");
+    group
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .sample_size(30);
+    for noise in NoiseProfile::ALL {
+        for agents in [2usize, 4, 8] {
+            let s = scene(80, agents, noise, 2);
+            group.bench_with_input(BenchmarkId::new(noise.name(), agents), &s, |b, s| {
+                b.iter(|| black_box(m.fuse(black_box(s))))
+            });
+        }
+    }
+    group.finish();
+}
+
+fn bench_methods(c: &mut Criterion) {
+    let mut group = c.benchmark_group("methods/2x80");
+    group
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .sample_size(30);
+    for noise in [NoiseProfile::Mild, NoiseProfile::Large] {
+        let s = scene(80, 2, noise, 3);
+        for m in Method::all() {
+            group.bench_with_input(BenchmarkId::new(m.name(), noise.name()), &s, |b, s| {
+                b.iter(|| black_box(m.fuse(black_box(s))))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_objects, bench_agents, bench_methods);
+criterion_main!(benches);

@@ -10,6 +10,8 @@ pub mod baselines;
 pub mod fusion;
 pub mod geometry;
 pub mod method;
+pub mod node;
 pub mod offline;
+pub mod window;
 
 pub use method::{Method, METHODS};

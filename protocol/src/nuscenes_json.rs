@@ -4,7 +4,9 @@
 //! `sample_token`, `translation` [x, y, z], `size` **[w, l, h]**, `rotation` **[w, x, y, z]**,
 //! `velocity`, `detection_name`, `detection_score` and `attribute_name`. v2x-fusion adds optional
 //! extension fields: `translation_std` [3], `size_std` [3] (w, l, h order), `yaw_std` (rad),
-//! `translation_cov` [9] (row-major 3x3, m^2) and `instance_token` (the ground-truth object).
+//! `translation_cov` [9] (row-major 3x3, m^2), `instance_token` (the ground-truth object) and
+//! `instance_id` (the object's number in the ground truth's instance order, written when no token
+//! is known, e.g. by the fuser node's recorder).
 //! Errors name the file, the sample token, the box index and the field.
 
 use crate::{wrap_angle, Class, Detection, Uncertainty, NO_ID};
@@ -338,12 +340,17 @@ fn parse_box(
             Some(m)
         }
     };
-    let id = match obj.get("instance_token") {
-        None | Some(Value::Null) => NO_ID,
-        Some(v) => tokens.intern(
+    let id = match (obj.get("instance_token"), obj.get("instance_id")) {
+        (Some(v), _) if !v.is_null() => tokens.intern(
             v.as_str()
                 .ok_or_else(|| ctx.err(Some("instance_token"), "expected a string"))?,
         ),
+        (_, Some(v)) if !v.is_null() => {
+            v.as_u64().filter(|&i| i < NO_ID as u64).ok_or_else(|| {
+                ctx.err(Some("instance_id"), "expected an integer below 4294967295")
+            })? as u32
+        }
+        _ => NO_ID,
     };
     Ok(Detection {
         class,
@@ -380,6 +387,8 @@ pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
     }
     if let Some(t) = tokens.name(d.id) {
         m.insert("instance_token".into(), json!(t));
+    } else if d.id != NO_ID {
+        m.insert("instance_id".into(), json!(d.id));
     }
     b
 }
@@ -557,6 +566,20 @@ mod tests {
                 "{shown}"
             );
         }
+    }
+
+    #[test]
+    fn instance_ids_without_tokens() {
+        let text = replaced(r#""instance_token": "abc""#, r#""instance_id": 42"#);
+        let r = parse_results(p(), &text, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        assert_eq!(r.samples["s1"][0].id, 42);
+        let out = results_json(&r, &TokenTable::new()).to_string();
+        assert!(out.contains(r#""instance_id":42"#), "{out}");
+        let bad = replaced(r#""instance_token": "abc""#, r#""instance_id": -1"#);
+        assert_eq!(
+            err_of(&bad, MissingStd::Error).field.as_deref(),
+            Some("instance_id")
+        );
     }
 
     #[test]

@@ -6,7 +6,6 @@ use crate::metrics::{Accumulator, Metrics};
 use crate::town::{generate, TownConfig};
 use anyhow::{bail, Context};
 use clap::Args;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd};
 use v2x_protocol::Uncertainty;
@@ -107,19 +106,31 @@ pub fn evaluate_file(
         MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
     )?;
     let by_token = gt.frame_index();
-    let by_time: HashMap<u64, usize> = gt
+    let mut by_time: Vec<(u64, usize)> = gt
         .frames
         .iter()
         .enumerate()
         .map(|(i, f)| (f.timestamp_us, i))
         .collect();
+    by_time.sort_unstable();
+    // `t<us>` keys (fuser recordings) match the nearest frame within 50 ms.
+    let nearest = |t: u64| -> Option<usize> {
+        let k = by_time.partition_point(|&(ts, _)| ts < t);
+        [k.checked_sub(1), Some(k)]
+            .into_iter()
+            .flatten()
+            .filter_map(|j| by_time.get(j))
+            .filter(|(ts, _)| ts.abs_diff(t) <= 50_000)
+            .min_by_key(|(ts, _)| ts.abs_diff(t))
+            .map(|&(_, i)| i)
+    };
     let mut preds: Vec<Option<&[v2x_protocol::Detection]>> = vec![None; gt.frames.len()];
     let mut unknown = Vec::new();
     for (key, dets) in &results.samples {
         let frame = by_token.get(key.as_str()).copied().or_else(|| {
             key.strip_prefix('t')
                 .and_then(|t| t.parse::<u64>().ok())
-                .and_then(|t| by_time.get(&t).copied())
+                .and_then(nearest)
         });
         match frame {
             Some(i) => preds[i] = Some(dets),

@@ -11,4 +11,6 @@ pub mod dataset;
 pub mod metrics;
 pub mod noise;
 pub mod plot;
+pub mod run;
+pub mod scenario;
 pub mod town;

@@ -114,6 +114,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    #[command(flatten)]
+    Run(v2x_sim::run::RunCommand),
 }
 
 fn parse_list<T>(
@@ -284,6 +286,13 @@ fn main() -> anyhow::Result<()> {
                     eprintln!("drew {}", plot(&gt, frame, s, &best, seed, &out)?.display());
                 }
             }
+        }
+        Command::Run(cmd) => {
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            rt.block_on(v2x_sim::run::run_command(cmd))?;
         }
         Command::Plot {
             data,

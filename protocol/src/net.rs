@@ -1,0 +1,75 @@
+//! Zenoh session options as Zenoh users expect them (`--mode`, `-e/--connect`, `-l/--listen`,
+//! `--no-multicast-scouting`, `--zenoh-config`), shared by every binary and by scenario files.
+//! This module only describes the options; the crates that open sessions apply them with
+//! `zenoh::Config::insert_json5` on the pairs [`ZenohArgs::json5_pairs`] returns.
+
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Zenoh session options.
+#[derive(clap::Args, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ZenohArgs {
+    /// Zenoh mode: peer, client or router (default: the config file's, else peer).
+    #[arg(long, value_parser = ["peer", "client", "router"])]
+    pub mode: Option<String>,
+    /// Endpoints to connect to, e.g. tcp/192.168.1.2:7447 (repeatable).
+    #[arg(short = 'e', long = "connect")]
+    pub connect: Vec<String>,
+    /// Endpoints to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
+    #[arg(short = 'l', long = "listen")]
+    pub listen: Vec<String>,
+    /// Disable multicast scouting (discover peers only through --connect).
+    #[arg(long)]
+    pub no_multicast_scouting: bool,
+    /// A Zenoh configuration file (JSON5); the options above override it.
+    #[arg(long)]
+    pub zenoh_config: Option<PathBuf>,
+}
+
+impl ZenohArgs {
+    /// The (key, JSON5 value) pairs to insert into a Zenoh config.
+    pub fn json5_pairs(&self) -> Vec<(&'static str, String)> {
+        let list = |v: &[String]| serde_json::to_string(v).expect("strings serialize");
+        let mut out = Vec::new();
+        if let Some(m) = &self.mode {
+            out.push(("mode", format!("\"{m}\"")));
+        }
+        if !self.connect.is_empty() {
+            out.push(("connect/endpoints", list(&self.connect)));
+        }
+        if !self.listen.is_empty() {
+            out.push(("listen/endpoints", list(&self.listen)));
+        }
+        if self.no_multicast_scouting {
+            out.push(("scouting/multicast/enabled", "false".into()));
+        }
+        out
+    }
+
+    /// Options for a loopback-only session: no multicast, listening and connecting as given.
+    pub fn loopback(listen: &[String], connect: &[String]) -> Self {
+        ZenohArgs {
+            mode: Some("peer".into()),
+            connect: connect.to_vec(),
+            listen: listen.to_vec(),
+            no_multicast_scouting: true,
+            zenoh_config: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs() {
+        let a = ZenohArgs::loopback(&["tcp/127.0.0.1:7001".into()], &[]);
+        let p = a.json5_pairs();
+        assert!(p.contains(&("mode", "\"peer\"".into())));
+        assert!(p.contains(&("listen/endpoints", "[\"tcp/127.0.0.1:7001\"]".into())));
+        assert!(p.contains(&("scouting/multicast/enabled", "false".into())));
+        assert!(ZenohArgs::default().json5_pairs().is_empty());
+    }
+}
