@@ -197,6 +197,18 @@ fn main() -> anyhow::Result<()> {
                         .insert(gt.frames[i].sample_token.clone(), d);
                 }
             }
+            // Sample timestamps ride along in the meta block so that `v2x-agent` can replay the
+            // files at the data's clock.
+            let times: serde_json::Map<String, serde_json::Value> = gt
+                .frames
+                .iter()
+                .map(|f| (f.sample_token.clone(), f.timestamp_us.into()))
+                .collect();
+            let mut meta = v2x_protocol::nuscenes_json::default_meta();
+            meta["v2x_timestamps"] = serde_json::Value::Object(times);
+            for r in &mut files {
+                r.meta = meta.clone();
+            }
             for (a, r) in files.iter().enumerate() {
                 let p = out.join(format!("agent{}.json", a + 1));
                 write_results(&p, r, &gt.tokens)?;

@@ -486,7 +486,7 @@ pub async fn run_local(
             scenario.agents.iter().enumerate().map(|(idx, _)| {
                 agent_role(&agent_sessions[idx], scenario, gt, &schedule, idx, epoch)
             });
-        let results = futures_join_all(runs).await;
+        let results = futures::future::join_all(runs).await;
         let _ = done_tx.send(());
         results
     };
@@ -517,43 +517,16 @@ pub async fn run_local(
     Ok((summary, outcome))
 }
 
-async fn futures_join_all<F: std::future::Future>(futs: impl Iterator<Item = F>) -> Vec<F::Output> {
-    let handles: Vec<_> = futs.map(Box::pin).collect();
-    let mut out = Vec::with_capacity(handles.len());
-    // Poll all concurrently.
-    let mut set = Vec::new();
-    for h in handles {
-        set.push(h);
+/// The fused output as a results file keyed by the ground truth's sample tokens.
+pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -> Results {
+    let mut r = Results::default();
+    for (&k, dets) in &outcome.fused {
+        r.samples.insert(
+            gt.frames[schedule.frames[k]].sample_token.clone(),
+            dets.clone(),
+        );
     }
-    let results = join_vec(set).await;
-    out.extend(results);
-    out
-}
-
-async fn join_vec<F: std::future::Future + Unpin>(mut futs: Vec<F>) -> Vec<F::Output> {
-    use std::task::Poll;
-    let mut results: Vec<Option<F::Output>> = (0..futs.len()).map(|_| None).collect();
-    std::future::poll_fn(|cx| {
-        let mut pending = false;
-        for (i, f) in futs.iter_mut().enumerate() {
-            if results[i].is_none() {
-                match std::pin::Pin::new(f).poll(cx) {
-                    Poll::Ready(v) => results[i] = Some(v),
-                    Poll::Pending => pending = true,
-                }
-            }
-        }
-        if pending {
-            Poll::Pending
-        } else {
-            Poll::Ready(())
-        }
-    })
-    .await;
-    results
-        .into_iter()
-        .map(|r| r.expect("every future completed"))
-        .collect()
+    r
 }
 
 /// Prints the summary as tables.
@@ -716,7 +689,7 @@ async fn run_roles(
                 );
                 anyhow::Ok((a.name.clone(), t))
             });
-        for r in futures_join_all(runs).await {
+        for r in futures::future::join_all(runs).await {
             let (name, t) = r?;
             out.insert(name, (t, None));
         }

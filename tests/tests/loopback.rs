@@ -1,0 +1,99 @@
+//! Two and four agents and the fuser in one process over loopback Zenoh: the fused output scores
+//! exactly as the offline fusion of the same (wire-quantized) detections, directly and through a
+//! recorded results file read back by `eval`.
+
+use v2x_protocol::{wire, Frame};
+use v2x_sim::cli::evaluate_file;
+use v2x_sim::metrics::Accumulator;
+use v2x_sim::run::{agent_view, recorded, run_local, Schedule};
+use v2x_sim::scenario::Scenario;
+use v2x_tests::{scenario_toml, tempdir, within};
+
+async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
+    let scenario = Scenario::parse(
+        &scenario_toml(ns, noises, agents, 3.0, 2.0, "csba-wls+"),
+        ns,
+        None,
+    )
+    .unwrap();
+    let gt = scenario.dataset.data_args().load().unwrap();
+    let (summary, outcome) = within(90, "the loopback run", run_local(&scenario, &gt))
+        .await
+        .unwrap();
+    let schedule = Schedule::of(&gt, scenario.duration_s);
+    assert_eq!(summary.frames_scheduled, 30);
+    assert_eq!(summary.windows, 30, "one fused window per frame");
+    assert_eq!(summary.windows_incomplete, 0);
+    assert_eq!(
+        outcome.fused.len(),
+        30,
+        "every window maps back to its frame"
+    );
+
+    // Offline: the same detections, quantized as the wire does, fused in the fuser's agent order.
+    let mut order: Vec<usize> = (0..agents).collect();
+    order.sort_by_key(|&i| scenario.agents[i].name.clone());
+    let method = scenario.method();
+    let mut acc = Accumulator::new();
+    for &gi in &schedule.frames {
+        let lists: Vec<_> = order
+            .iter()
+            .map(|&idx| {
+                let (detections, origin) = agent_view(&scenario, &gt, gi, idx);
+                let f = Frame {
+                    agent: "x".into(),
+                    kind: Default::default(),
+                    seq: 0,
+                    capture_us: 0,
+                    origin,
+                    detections,
+                };
+                wire::decode(&wire::encode(&f).unwrap()).unwrap().detections
+            })
+            .collect();
+        acc.add_frame(&gt.frames[gi].objects, &method.fuse(&lists));
+    }
+    let offline = acc.summary();
+    assert_eq!(summary.fused, offline, "network and offline fusion differ");
+    assert!(offline.precision.unwrap() > 0.99 && offline.recall.unwrap() > 0.99);
+
+    // Through a recorded file, as `v2x-sim run --record` + `v2x-sim eval` do.
+    let dir = tempdir(ns);
+    let path = dir.join("fused.json");
+    v2x_protocol::nuscenes_json::write_results(
+        &path,
+        &recorded(&gt, &schedule, &outcome),
+        &gt.tokens,
+    )
+    .unwrap();
+    let (m, _) = evaluate_file(&gt, &path, false).unwrap();
+    assert_eq!((m.tp, m.fp, m.fn_), (offline.tp, offline.fp, offline.fn_));
+    for (a, b) in [
+        (m.m_ate, offline.m_ate),
+        (m.m_ase, offline.m_ase),
+        (m.m_aoe, offline.m_aoe),
+    ] {
+        assert!((a.unwrap() - b.unwrap()).abs() < 1e-9, "{a:?} vs {b:?}");
+    }
+    // Bandwidth was measured on the wire, and is more than the payload.
+    for b in summary.bandwidth.values() {
+        assert_eq!(b.frames, 30);
+        let wire = b.wire_bytes_per_frame.unwrap();
+        assert!(
+            wire > b.payload_bytes_per_frame,
+            "{wire} vs {}",
+            b.payload_bytes_per_frame
+        );
+        assert!(b.payload_bytes_per_object < 20.0);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn two_agents_over_loopback_score_as_offline() {
+    network_equals_offline("e2e-two", 2, &["mild", "large"]).await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn four_agents_over_loopback_score_as_offline() {
+    network_equals_offline("e2e-four", 4, &["mild", "moderate", "large", "moderate"]).await;
+}

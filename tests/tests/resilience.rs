@@ -1,0 +1,296 @@
+//! The fuser under stress, over loopback Zenoh: an agent that leaves and rejoins, a fuser
+//! restarted mid-run, and late, duplicate, out-of-order and malformed frames.
+
+use std::collections::BTreeSet;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use v2x_agent::{open_session, Agent, Link};
+use v2x_fuser::node::{self, Fused, NodeConfig};
+use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::{keys, wire, AgentKind, Class, Detection, Frame, Uncertainty};
+use v2x_sim::run::free_port;
+use v2x_tests::within;
+
+fn det(x: f64, id: u32) -> Detection {
+    Detection {
+        class: Class::Car,
+        center: [x, 0.0, 0.8],
+        size: [4.5, 1.9, 1.6],
+        yaw: 0.0,
+        score: 0.8,
+        std: Uncertainty::uniform(0.5, 0.1, 0.1),
+        pos_cov: None,
+        id,
+    }
+}
+
+fn frame(t_ms: u64) -> Frame {
+    Frame {
+        agent: String::new(),
+        kind: AgentKind::Vehicle,
+        seq: 0,
+        capture_us: t_ms * 1000,
+        origin: [0.0; 3],
+        detections: vec![det(10.0, 1), det(30.0, 2)],
+    }
+}
+
+fn endpoint(port: u16) -> String {
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// Starts a fuser node that reports fused windows on a channel; returns (stop, reports, task).
+fn spawn_fuser(
+    session: zenoh::Session,
+    ns: &str,
+    max_wait_ms: f64,
+) -> (
+    tokio::sync::oneshot::Sender<()>,
+    mpsc::UnboundedReceiver<Fused>,
+    tokio::task::JoinHandle<node::NodeStats>,
+) {
+    let (tx, rx) = mpsc::unbounded_channel();
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let cfg = NodeConfig {
+        ns: ns.into(),
+        method: "csba-wls+".parse().unwrap(),
+        window_ms: 100.0,
+        max_wait_ms,
+    };
+    let task = tokio::spawn(async move {
+        let stats = node::run(&session, cfg, |f| tx.send(f.clone()).unwrap(), async {
+            let _ = stop_rx.await;
+        })
+        .await
+        .unwrap();
+        session.close().await.unwrap();
+        stats
+    });
+    (stop_tx, rx, task)
+}
+
+async fn wait_live(session: &zenoh::Session, ns: &str, want: &[&str]) {
+    let want: BTreeSet<String> = want.iter().map(|s| s.to_string()).collect();
+    within(20, &format!("fuser sees live agents {want:?}"), async {
+        loop {
+            if let Ok(v) = node::query_stats(session, ns, Duration::from_secs(2)).await {
+                let live: BTreeSet<String> = v["live"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_str().unwrap().to_string())
+                    .collect();
+                if live == want {
+                    return;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+}
+
+async fn next_fused(rx: &mut mpsc::UnboundedReceiver<Fused>) -> Fused {
+    within(10, "a fused window", rx.recv())
+        .await
+        .expect("fuser running")
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
+    let ns = "leave";
+    let port = free_port().unwrap();
+    let fuser_session = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
+        .await
+        .unwrap();
+    // A long wait: windows can only close early because every *live* agent contributed.
+    let (stop, mut fused, task) = spawn_fuser(fuser_session, ns, 5000.0);
+    let sa = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let sb = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let mut a = Agent::start(&sa, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap();
+    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
+        .await
+        .unwrap();
+    within(
+        10,
+        "a subscriber",
+        a.wait_for_subscriber(Duration::from_secs(10)),
+    )
+    .await
+    .unwrap();
+    b.wait_for_subscriber(Duration::from_secs(10))
+        .await
+        .unwrap();
+    wait_live(&sa, ns, &["a", "b"]).await;
+
+    a.send(frame(0)).unwrap();
+    b.send(frame(0)).unwrap();
+    let f = next_fused(&mut fused).await;
+    assert_eq!(f.members, vec!["a", "b"]);
+    assert!(f.complete);
+    assert_eq!(
+        f.frame.detections.len(),
+        2,
+        "the two agents' boxes fused pairwise"
+    );
+
+    // b stops: its token goes, and a alone completes windows at once.
+    drop(b);
+    wait_live(&sa, ns, &["a"]).await;
+    let t0 = std::time::Instant::now();
+    a.send(frame(100)).unwrap();
+    let f = next_fused(&mut fused).await;
+    assert_eq!(f.members, vec!["a"]);
+    assert!(f.complete, "b is gone, so a alone completes the window");
+    assert!(
+        t0.elapsed() < Duration::from_secs(4),
+        "the fuser did not wait out the 5 s deadline"
+    );
+
+    // b rejoins with a fresh sequence; windows are joint again.
+    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 3)
+        .await
+        .unwrap();
+    wait_live(&sa, ns, &["a", "b"]).await;
+    a.send(frame(200)).unwrap();
+    b.send(frame(200)).unwrap();
+    let f = next_fused(&mut fused).await;
+    assert_eq!(f.members, vec!["a", "b"]);
+
+    stop.send(()).unwrap();
+    let stats = within(10, "fuser shutdown", task).await.unwrap();
+    assert_eq!(stats.windows, 3);
+    assert_eq!(stats.windows_incomplete, 0);
+    assert_eq!(
+        stats.agents["b"].duplicate, 0,
+        "the rejoined agent's seq 0 is not a duplicate"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn fusion_resumes_after_the_fuser_restarts() {
+    let ns = "restart";
+    // Agents listen; the fuser connects to them, so a restarted fuser simply connects again.
+    let (pa, pb) = (free_port().unwrap(), free_port().unwrap());
+    let sa = open_session(&ZenohArgs::loopback(&[endpoint(pa)], &[]))
+        .await
+        .unwrap();
+    let sb = open_session(&ZenohArgs::loopback(&[endpoint(pb)], &[endpoint(pa)]))
+        .await
+        .unwrap();
+    let mut a = Agent::start(&sa, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap();
+    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
+        .await
+        .unwrap();
+    let observer = sa.declare_subscriber(keys::fused(ns)).await.unwrap();
+    let fuser_args = ZenohArgs::loopback(&[], &[endpoint(pa), endpoint(pb)]);
+
+    let mut t = 0u64;
+    for round in 0..2 {
+        let (stop, mut fused, task) =
+            spawn_fuser(open_session(&fuser_args).await.unwrap(), ns, 300.0);
+        a.wait_for_subscriber(Duration::from_secs(10))
+            .await
+            .unwrap();
+        b.wait_for_subscriber(Duration::from_secs(10))
+            .await
+            .unwrap();
+        wait_live(&sa, ns, &["a", "b"]).await;
+        // The agents keep publishing as they would; the fuser fuses again.
+        for _ in 0..3 {
+            a.send(frame(t)).unwrap();
+            b.send(frame(t)).unwrap();
+            let f = next_fused(&mut fused).await;
+            assert_eq!(f.frame.capture_us, t * 1000, "round {round}");
+            assert_eq!(f.members, vec!["a", "b"]);
+            let on_wire = within(10, "fused frame on the network", observer.recv_async())
+                .await
+                .unwrap();
+            let decoded = wire::decode(&on_wire.payload().to_bytes()).unwrap();
+            assert_eq!(decoded.capture_us, t * 1000);
+            t += 100;
+        }
+        stop.send(()).unwrap();
+        within(10, "fuser shutdown", task).await.unwrap();
+        // While no fuser runs, the agents keep sending into the void.
+        a.send(frame(t)).unwrap();
+        t += 100;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn late_duplicate_out_of_order_and_malformed_frames() {
+    let ns = "faults";
+    let port = free_port().unwrap();
+    let fuser_session = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
+        .await
+        .unwrap();
+    let (stop, mut fused, task) = spawn_fuser(fuser_session, ns, 300.0);
+    let s = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    // A raw publisher with no liveliness token: windows close by deadline only.
+    let publisher = s
+        .declare_publisher(keys::detections(ns, "x"))
+        .await
+        .unwrap();
+    within(10, "a subscriber", async {
+        while !publisher.matching_status().await.unwrap().matching() {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    })
+    .await;
+    let enc = |seq: u32, t_ms: u64, agent: &str| {
+        let mut f = frame(t_ms);
+        f.agent = agent.into();
+        f.seq = seq;
+        wire::encode(&f).unwrap()
+    };
+    publisher.put(vec![0xde, 0xad, 0xbe, 0xef]).await.unwrap(); // malformed
+    publisher.put(enc(9, 0, "mallory")).await.unwrap(); // claims another agent's name
+    let mut truncated = enc(0, 0, "x");
+    truncated.truncate(truncated.len() - 3);
+    publisher.put(truncated).await.unwrap(); // truncated
+    publisher.put(enc(2, 200, "x")).await.unwrap(); // out of order: 200 before 100
+    publisher.put(enc(1, 100, "x")).await.unwrap();
+    publisher.put(enc(1, 100, "x")).await.unwrap(); // duplicate
+    let mut anchors = Vec::new();
+    for _ in 0..2 {
+        anchors.push(next_fused(&mut fused).await.frame.capture_us);
+    }
+    assert_eq!(
+        anchors,
+        vec![100_000, 200_000],
+        "both windows fused once, in capture order"
+    );
+    publisher.put(enc(3, 100, "x")).await.unwrap(); // late: its window is closed
+    publisher.put(enc(4, 300, "x")).await.unwrap(); // and the fuser keeps going
+    assert_eq!(next_fused(&mut fused).await.frame.capture_us, 300_000);
+
+    let v = within(
+        10,
+        "stats",
+        node::query_stats(&s, ns, Duration::from_secs(5)),
+    )
+    .await
+    .unwrap();
+    let x = &v["agents"]["x"];
+    assert_eq!(x["frames_in"], 8);
+    assert_eq!(x["invalid"], 3);
+    assert_eq!(x["duplicate"], 1);
+    assert_eq!(x["late"], 1);
+    assert_eq!(x["accepted"], 3);
+    assert_eq!(x["fused"], 3);
+    stop.send(()).unwrap();
+    let stats = within(10, "fuser shutdown", task).await.unwrap();
+    assert_eq!(stats.windows, 3, "nothing fused twice");
+    assert!(fused.try_recv().is_err());
+}
