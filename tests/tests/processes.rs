@@ -1,0 +1,133 @@
+//! Agents as separate processes: `v2x-sim gen` writes two agents' results files, two
+//! `v2x-agent` processes replay them over Zenoh to a `v2x-fuser node` process, which records the
+//! fused output; `v2x-sim eval` scores the recording against the same ground truth.
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+use v2x_sim::run::free_port;
+use v2x_tests::{bin, tempdir};
+
+fn wait_exit(child: &mut std::process::Child, secs: u64, what: &str) -> std::process::ExitStatus {
+    let end = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        if Instant::now() > end {
+            let _ = child.kill();
+            panic!("{what} did not finish within {secs} s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn agents_and_fuser_as_separate_processes() {
+    let dir = tempdir("processes");
+    let town = [
+        "--scenes",
+        "1",
+        "--seconds",
+        "3",
+        "--hz",
+        "10",
+        "--town-seed",
+        "9",
+    ];
+    let out = Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild+large", "--seed", "3", "--out"])
+        .arg(&dir)
+        .args(town)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "gen: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let port = free_port().unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let record = dir.join("fused.json");
+    let mut fuser = Command::new(bin("v2x-fuser"))
+        .args([
+            "node",
+            "--ns",
+            "procs",
+            "--method",
+            "csba-wls+",
+            "--max-wait-ms",
+            "400",
+            "--duration-s",
+            "8",
+            "--no-multicast-scouting",
+            "-l",
+            &endpoint,
+            "--record",
+        ])
+        .arg(&record)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let agents: Vec<_> = [
+        ("veh", "vehicle", "agent1.json"),
+        ("rsu", "infrastructure", "agent2.json"),
+    ]
+    .iter()
+    .map(|(name, kind, file)| {
+        Command::new(bin("v2x-agent"))
+            .arg(dir.join(file))
+            .args([
+                "--name",
+                name,
+                "--kind",
+                kind,
+                "--ns",
+                "procs",
+                "--speed",
+                "2",
+                "--no-multicast-scouting",
+                "-e",
+                &endpoint,
+            ])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    })
+    .collect();
+    for mut a in agents {
+        let status = wait_exit(&mut a, 60, "an agent");
+        let mut err = String::new();
+        std::io::Read::read_to_string(a.stderr.as_mut().unwrap(), &mut err).unwrap();
+        assert!(status.success(), "agent failed: {err}");
+        assert!(err.contains("sent 30 of 30 frames"), "{err}");
+    }
+    // The fuser stops by itself after --duration-s and writes its recording and statistics.
+    let status = wait_exit(&mut fuser, 60, "the fuser");
+    assert!(status.success());
+    let mut stats = String::new();
+    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut stats).unwrap();
+    let stats: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    assert_eq!(stats["windows"], 30, "{stats}");
+    assert_eq!(stats["windows_incomplete"], 0, "{stats}");
+    assert_eq!(stats["agents"]["veh"]["fused"], 30);
+
+    let out = Command::new(bin("v2x-sim"))
+        .args(["eval", "--format", "json"])
+        .args(town)
+        .arg(&record)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "eval: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(m["precision"], 1.0, "{m}");
+    assert_eq!(m["recall"], 1.0, "{m}");
+    // mild+large: fused error close to the mild agent's (about 0.6 m) and far below the large one's
+    let ate = m["mATE"].as_f64().unwrap();
+    assert!(ate < 0.8, "{ate}");
+}
