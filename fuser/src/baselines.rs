@@ -21,7 +21,7 @@
 //! independent members, sqrt(sum sigma^2) / n; the methods themselves ignore stds.
 
 use crate::fusion::fuse_group;
-use crate::geometry::{bev_iou, giou_3d, iou_3d};
+use crate::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
 use std::collections::BTreeMap;
 use v2x_protocol::{wrap_angle, Detection, Uncertainty, NO_ID};
 
@@ -53,8 +53,10 @@ pub fn nms(
         }
         out.push(boxes[i].clone());
         for &j in &order[k + 1..] {
+            // Apart, IoU and GIoU are both <= 0: no suppression at a non-negative threshold.
             if !suppressed[j]
                 && boxes[j].class == boxes[i].class
+                && (threshold < 0.0 || may_overlap(boxes[i], boxes[j]))
                 && overlap(boxes[i], boxes[j]) > threshold
             {
                 suppressed[j] = true;

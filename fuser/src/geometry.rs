@@ -79,13 +79,18 @@ pub fn convex_hull(points: &[Pt]) -> Vec<Pt> {
     hull
 }
 
-/// Area of the BEV intersection of two boxes' footprints.
-pub fn bev_intersection(a: &Detection, b: &Detection) -> f64 {
-    // Quick reject: circumscribed circles do not touch.
+/// False when the footprints' circumscribed circles do not touch (then every IoU is 0 and every
+/// GIoU is <= 0).
+pub fn may_overlap(a: &Detection, b: &Detection) -> bool {
     let (dx, dy) = (a.center[0] - b.center[0], a.center[1] - b.center[1]);
     let ra = 0.5 * a.size[0].hypot(a.size[1]);
     let rb = 0.5 * b.size[0].hypot(b.size[1]);
-    if dx * dx + dy * dy >= (ra + rb) * (ra + rb) {
+    dx * dx + dy * dy < (ra + rb) * (ra + rb)
+}
+
+/// Area of the BEV intersection of two boxes' footprints.
+pub fn bev_intersection(a: &Detection, b: &Detection) -> f64 {
+    if !may_overlap(a, b) {
         return 0.0;
     }
     polygon_area(&clip_convex(&a.bev_corners(), &b.bev_corners())).max(0.0)

@@ -53,6 +53,10 @@ pub const METHODS: &[(&str, &str)] = &[
         "ablation: csba-wls with only the symmetric dimension score of csba-wls+",
     ),
     (
+        "csba-wls+loglik",
+        "ablation: csba-wls with only the Gaussian centre score and log-likelihood cost",
+    ),
+    (
         "nms-3d",
         "greedy NMS over all agents, rotated 3D IoU > 0.15 suppresses, keeps the top box",
     ),

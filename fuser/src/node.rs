@@ -106,6 +106,11 @@ pub struct NodeStats {
     pub e2e_latency_ms: Latency,
     /// Window close to fused publish: fusion, encoding and hand-off to Zenoh.
     pub fusion_latency_ms: Latency,
+    /// Windows still open when the node was told to stop (then flushed).
+    pub open_windows_at_stop: usize,
+    /// Every fusion latency sample (ms), in window order; only in the final statistics.
+    #[serde(skip)]
+    pub fusion_samples: Vec<f64>,
 }
 
 /// A fused window as published.
@@ -338,11 +343,14 @@ pub async fn run(
             publish(&mut st, &publisher, closed, now, &mut on_fused).await;
         }
     }
+    st.stats.open_windows_at_stop = st.windows.open_windows();
     let now = st.now();
     for closed in st.windows.flush(&st.live.clone()) {
         publish(&mut st, &publisher, closed, now, &mut on_fused).await;
     }
-    Ok(st.snapshot())
+    let mut stats = st.snapshot();
+    stats.fusion_samples = std::mem::take(&mut st.fusion);
+    Ok(stats)
 }
 
 async fn publish(

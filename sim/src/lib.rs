@@ -8,6 +8,7 @@
 pub mod bench;
 pub mod cli;
 pub mod dataset;
+pub mod load;
 pub mod metrics;
 pub mod noise;
 pub mod plot;

@@ -116,6 +116,9 @@ enum Command {
     },
     #[command(flatten)]
     Run(v2x_sim::run::RunCommand),
+    /// Load test: N agents x M objects at a fixed rate to one fuser over loopback; reports
+    /// fusion latency, backlog, CPU and memory.
+    Load(v2x_sim::load::LoadArgs),
 }
 
 fn parse_list<T>(
@@ -169,7 +172,8 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "warn,zenoh=error".into()),
         )
         .with_writer(std::io::stderr)
         .init();
@@ -297,6 +301,45 @@ fn main() -> anyhow::Result<()> {
                 for s in &cfg.settings {
                     eprintln!("drew {}", plot(&gt, frame, s, &best, seed, &out)?.display());
                 }
+            }
+        }
+        Command::Load(args) => {
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            let r = rt.block_on(v2x_sim::load::run(&args))?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                let l = |x: &v2x_fuser::node::Latency| {
+                    format!(
+                        "{:.3} / {:.3} / {:.3} / {:.3}",
+                        x.p50_ms.unwrap_or(f64::NAN),
+                        x.p95_ms.unwrap_or(f64::NAN),
+                        x.p99_ms.unwrap_or(f64::NAN),
+                        x.max_ms.unwrap_or(f64::NAN)
+                    )
+                };
+                println!("{} agents x {} objects at {} Hz: {} frames per agent, {} windows fused ({} incomplete), {} open at the end", r.agents, r.objects, r.hz, r.frames_per_agent, r.windows, r.windows_incomplete, r.open_windows_at_end);
+                println!("| latency (ms) | p50 / p95 / p99 / max |\n|---|---|");
+                println!(
+                    "| fusion (window close to publish) | {} |",
+                    l(&r.fusion_latency_ms)
+                );
+                println!(
+                    "| fusion, first half | {} |",
+                    l(&r.fusion_latency_first_half_ms)
+                );
+                println!(
+                    "| fusion, second half | {} |",
+                    l(&r.fusion_latency_second_half_ms)
+                );
+                println!(
+                    "| end to end (capture to publish) | {} |",
+                    l(&r.e2e_latency_ms)
+                );
+                println!("CPU {:.0}% of one core (whole process: agents, Zenoh and fuser); RSS {:.1} MiB at start, {:.1} MiB at the end", r.cpu_percent, r.rss_start_mib, r.rss_end_mib);
             }
         }
         Command::Run(cmd) => {
