@@ -52,19 +52,9 @@ impl Link {
 
 /// Opens a Zenoh session with the given options.
 pub async fn open_session(args: &ZenohArgs) -> anyhow::Result<zenoh::Session> {
-    let mut config = match &args.zenoh_config {
-        Some(p) => zenoh::Config::from_file(p)
-            .map_err(|e| anyhow!("{}: invalid Zenoh configuration: {e}", p.display()))?,
-        None => zenoh::Config::default(),
-    };
-    for (key, value) in args.json5_pairs() {
-        config
-            .insert_json5(key, &value)
-            .map_err(|e| anyhow!("Zenoh option {key} = {value}: {e}"))?;
-    }
-    zenoh::open(config)
+    v2x_protocol::net::open_session(args)
         .await
-        .map_err(|e| anyhow!("cannot open a Zenoh session: {e}"))
+        .map_err(|e| anyhow!(e))
 }
 
 /// Counters of what an agent sent.

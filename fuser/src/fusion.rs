@@ -199,6 +199,28 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #[test]
+        fn any_box_fused_with_itself_keeps_its_values_and_halves_its_variance(
+            c in proptest::array::uniform3(-1e3f64..1e3),
+            yaw in -3.14f64..3.14,
+            s in proptest::array::uniform7(0.01f64..10.0),
+        ) {
+            let mut a = det(c, yaw, 1.0, 1.0, 5);
+            a.std = Uncertainty::from_array(s);
+            let f = fuse_group(&[&a, &a]);
+            for k in 0..3 {
+                proptest::prop_assert!((f.center[k] - a.center[k]).abs() < 1e-9);
+                proptest::prop_assert!((f.size[k] - a.size[k]).abs() < 1e-9);
+            }
+            proptest::prop_assert!(wrap_angle(f.yaw - a.yaw).abs() < 1e-9);
+            for (x, y) in a.std.as_array().iter().zip(f.std.as_array()) {
+                proptest::prop_assert!((y * y - x * x / 2.0).abs() < 1e-9 * x * x);
+            }
+            proptest::prop_assert_eq!(f.id, 5);
+        }
+    }
+
     #[test]
     fn ties_go_to_the_earliest_member() {
         let a = det([0.0; 3], 0.0, 1.0, 0.1, 11);

@@ -1,7 +1,6 @@
 //! Zenoh session options as Zenoh users expect them (`--mode`, `-e/--connect`, `-l/--listen`,
 //! `--no-multicast-scouting`, `--zenoh-config`), shared by every binary and by scenario files.
-//! This module only describes the options; the crates that open sessions apply them with
-//! `zenoh::Config::insert_json5` on the pairs [`ZenohArgs::json5_pairs`] returns.
+//! With the `session` feature, [`open_session`] opens a Zenoh session from them.
 
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -57,6 +56,24 @@ impl ZenohArgs {
             zenoh_config: None,
         }
     }
+}
+
+/// Opens a Zenoh session with the given options (the config file first, then the flags).
+#[cfg(feature = "session")]
+pub async fn open_session(args: &ZenohArgs) -> Result<zenoh::Session, String> {
+    let mut config = match &args.zenoh_config {
+        Some(p) => zenoh::Config::from_file(p)
+            .map_err(|e| format!("{}: invalid Zenoh configuration: {e}", p.display()))?,
+        None => zenoh::Config::default(),
+    };
+    for (key, value) in args.json5_pairs() {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| format!("Zenoh option {key} = {value}: {e}"))?;
+    }
+    zenoh::open(config)
+        .await
+        .map_err(|e| format!("cannot open a Zenoh session: {e}"))
 }
 
 #[cfg(test)]

@@ -1,0 +1,158 @@
+//! The offline command line: `v2x-sim gen` writes agents' results files, `v2x-fuser fuse` fuses
+//! them with every method, `v2x-sim eval` scores the output; bad input gets a clear error.
+
+use std::process::Command;
+use v2x_fuser::METHODS;
+use v2x_tests::{bin, tempdir};
+
+const TOWN: [&str; 8] = [
+    "--scenes",
+    "2",
+    "--seconds",
+    "2",
+    "--hz",
+    "2",
+    "--town-seed",
+    "3",
+];
+
+fn run(cmd: &mut Command) -> (bool, String, String) {
+    let out = cmd.output().unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+#[test]
+fn gen_fuse_eval_with_every_method() {
+    let dir = tempdir("cli");
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild", "--seed", "2", "--out"])
+        .arg(&dir)
+        .args(TOWN));
+    assert!(ok, "{err}");
+    let (ok, help, _) = run(Command::new(bin("v2x-fuser")).args(["fuse", "--help"]));
+    assert!(ok);
+    for (name, _) in METHODS {
+        assert!(help.contains(name), "--help lists {name}");
+        let out = dir.join(format!("{name}.json"));
+        let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+            .args(["fuse", "--method", name, "--output"])
+            .arg(&out)
+            .arg(dir.join("agent1.json"))
+            .arg(dir.join("agent2.json")));
+        assert!(ok, "{name}: {err}");
+        let (ok, json, err) = run(Command::new(bin("v2x-sim"))
+            .args(["eval", "--format", "json"])
+            .args(TOWN)
+            .arg(&out));
+        assert!(ok, "{name}: {err}");
+        let m: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let precision = m["precision"].as_f64().unwrap();
+        match *name {
+            // the gated methods pair every object at mild noise
+            "csba-wls+" | "gt-wls" | "csba-wls+gate" => assert_eq!(precision, 1.0, "{name}"),
+            // NMS keeps both agents' copies of objects that do not overlap enough
+            "nms-3d" | "nms-giou-3d" | "wbf-3d" => assert!(precision < 0.9, "{name}: {precision}"),
+            _ => assert!(precision > 0.45, "{name}: {precision}"),
+        }
+        assert!(m["recall"].as_f64().unwrap() > 0.95, "{name}: {m}");
+    }
+    // The fused output keeps the extension fields.
+    let text = std::fs::read_to_string(dir.join("csba-wls+.json")).unwrap();
+    for field in ["translation_std", "size_std", "yaw_std", "instance_token"] {
+        assert!(text.contains(field), "{field}");
+    }
+}
+
+#[test]
+fn missing_stds_and_bad_files_are_clear_errors() {
+    let dir = tempdir("cli-errors");
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild", "--out"])
+        .arg(&dir)
+        .args(TOWN));
+    assert!(ok, "{err}");
+    // Strip the std fields, as a plain detector's output would be.
+    let text = std::fs::read_to_string(dir.join("agent1.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for boxes in v["results"].as_object_mut().unwrap().values_mut() {
+        for b in boxes.as_array_mut().unwrap() {
+            let b = b.as_object_mut().unwrap();
+            b.remove("translation_std");
+            b.remove("size_std");
+            b.remove("yaw_std");
+        }
+    }
+    let plain = dir.join("plain.json");
+    std::fs::write(&plain, v.to_string()).unwrap();
+    let out = dir.join("out.json");
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--output"])
+        .arg(&out)
+        .arg(&plain)
+        .arg(dir.join("agent2.json")));
+    assert!(!ok);
+    assert!(
+        err.contains("plain.json")
+            && err.contains("translation_std")
+            && err.contains("--default-std"),
+        "{err}"
+    );
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--default-std", "mild", "--output"])
+        .arg(&out)
+        .arg(&plain)
+        .arg(dir.join("agent2.json")));
+    assert!(ok, "{err}");
+    // A broken file names itself; an unknown method lists the known ones.
+    std::fs::write(dir.join("broken.json"), "{\"results\": {\"s\": [{}]}}").unwrap();
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--output"])
+        .arg(&out)
+        .arg(dir.join("broken.json")));
+    assert!(
+        !ok && err.contains("broken.json: sample 's', box 0, field 'translation'"),
+        "{err}"
+    );
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--method", "kalman", "--output"])
+        .arg(&out)
+        .arg(&plain));
+    assert!(!ok && err.contains("csba-wls+"), "{err}");
+    // Scoring against the wrong ground truth says so.
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "eval",
+            "--scenes",
+            "1",
+            "--town-seed",
+            "99",
+            "--seconds",
+            "1",
+            "--hz",
+            "2",
+        ])
+        .arg(dir.join("agent2.json")));
+    assert!(!ok && err.contains("not in the ground truth"), "{err}");
+}
+
+#[test]
+fn plot_draws_ground_truth_agents_and_fused_boxes() {
+    let dir = tempdir("plot");
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["plot", "--frame", "1", "--noise", "mild+large", "--out"])
+        .arg(&dir)
+        .args(TOWN));
+    assert!(ok, "{err}");
+    let svg = std::fs::read_to_string(dir.join("frame-1-mild-large.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    // every box of the ground truth, both agents and the fused output is a polygon
+    let polygons = svg.matches("<polygon").count();
+    let gt = svg.matches("stroke=\"#000000\"").count();
+    assert!(gt >= 8, "{gt} ground-truth boxes");
+    assert!(polygons >= 3 * gt, "{polygons} polygons for {gt} objects");
+    assert!(svg.contains("#2ca02c") && svg.contains("#1f77b4") && svg.contains("#ff7f0e"));
+}
