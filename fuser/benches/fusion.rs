@@ -5,6 +5,8 @@
 //!
 //! Run: `cargo bench -p v2x-fuser --bench fusion` (add a filter such as `csba-wls/2x80` to pick).
 
+#![allow(missing_docs)] // criterion_group! generates an undocumented function
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
