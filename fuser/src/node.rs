@@ -329,13 +329,15 @@ pub async fn run(
             _ = &mut shutdown => break,
         }
         let now = st.now();
-        for closed in st.windows.poll(now, &st.live.clone()) {
+        let ready = st.windows.poll(now, &st.live);
+        for closed in ready {
             publish(&mut st, &publisher, closed, now, &mut on_fused).await;
         }
     }
     st.stats.open_windows_at_stop = st.windows.open_windows();
     let now = st.now();
-    for closed in st.windows.flush(&st.live.clone()) {
+    let rest = st.windows.flush(&st.live);
+    for closed in rest {
         publish(&mut st, &publisher, closed, now, &mut on_fused).await;
     }
     let mut stats = st.snapshot();

@@ -143,9 +143,11 @@ impl Schedule {
     /// The first `duration_s` of data.
     pub fn of(gt: &GroundTruth, duration_s: f64) -> Schedule {
         let hz = gt.hz();
-        let n = ((duration_s * hz).round() as usize).clamp(1, gt.frames.len().max(1));
+        let n = ((duration_s * hz).round() as usize)
+            .max(1)
+            .min(gt.frames.len());
         Schedule {
-            frames: (0..n.min(gt.frames.len())).collect(),
+            frames: (0..n).collect(),
             period_us: (1e6 / hz).round() as u64,
         }
     }
@@ -376,7 +378,7 @@ pub fn summarize(
     }
     let mut bandwidth = BTreeMap::new();
     let mut counts = BTreeMap::new();
-    for (idx, a) in scenario.agents.iter().enumerate() {
+    for a in &scenario.agents {
         let st = outcome
             .stats
             .agents
@@ -422,7 +424,6 @@ pub fn summarize(
                 invalid: st.invalid,
             },
         );
-        let _ = idx;
     }
     Summary {
         namespace: scenario.namespace.clone(),
