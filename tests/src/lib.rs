@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-/// The path of a workspace binary built beside the running test (cargo builds every member's
-/// binaries for `cargo test --workspace`).
+/// The path of a workspace binary built beside the running test (`cargo test --workspace` builds
+/// them, because each binary's own package has an integration test that runs it).
 pub fn bin(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     let dir = exe
