@@ -11,7 +11,6 @@ use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
-use v2x_protocol::net::ZenohArgs;
 use v2x_protocol::{keys, wire, AgentKind, Frame};
 
 /// The simulated link and sensor clock of an agent.
@@ -48,13 +47,6 @@ impl Link {
         }
         Ok(())
     }
-}
-
-/// Opens a Zenoh session with the given options.
-pub async fn open_session(args: &ZenohArgs) -> anyhow::Result<zenoh::Session> {
-    v2x_protocol::net::open_session(args)
-        .await
-        .map_err(|e| anyhow!(e))
 }
 
 /// Counters of what an agent sent.
@@ -123,7 +115,7 @@ impl Agent {
         seed: u64,
     ) -> anyhow::Result<Agent> {
         keys::validate_chunk("namespace", ns).map_err(|e| anyhow!(e))?;
-        keys::validate_chunk("agent name", name).map_err(|e| anyhow!(e))?;
+        wire::check_agent_name(name).map_err(|e| anyhow!(e))?;
         link.validate().map_err(|e| anyhow!("agent {name}: {e}"))?;
         let publisher = session
             .declare_publisher(keys::detections(ns, name))
@@ -234,37 +226,68 @@ pub fn now_us() -> u64 {
         .map_or(0, |d| d.as_micros() as u64)
 }
 
-/// Replays frames at their own clock: frame i is sent (speed x) (capture_i - capture_0) after the
-/// first. With `restamp`, capture times are replaced by this machine's clock at sending (a live
-/// sensor); otherwise they are kept (the data's clock). Stops early when `stop` resolves.
+/// Which clock a replay stamps frames with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum ReplayClock {
+    /// The sender's real-time clock: frame i is captured (and sent) at
+    /// `start_us + (t_i - t_0) / speed` on this machine's clock. Agents given the same start
+    /// replay in step.
+    Real {
+        /// Wall-clock time of the first frame (us since the Unix epoch).
+        start_us: u64,
+    },
+    /// The data's own timestamps (for a fuser that accepts any capture time); frames are still
+    /// sent at the data's pace.
+    Data,
+}
+
+/// What a replay did.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct ReplayReport {
+    /// Frames handed to the link.
+    pub sent: usize,
+    /// Frames skipped because their time had passed by more than half a second when the replay
+    /// reached them (a start in the past).
+    pub skipped: usize,
+}
+
+/// Replays frames at their own pace, `speed` times faster than recorded, stamped by `clock`.
+/// Stops early when `stop` resolves.
 pub async fn replay(
     agent: &mut Agent,
     frames: Vec<Frame>,
     speed: f64,
-    restamp: bool,
+    clock: ReplayClock,
     stop: impl std::future::Future<Output = ()>,
-) -> anyhow::Result<usize> {
+) -> anyhow::Result<ReplayReport> {
     if !(speed.is_finite() && speed > 0.0) {
         anyhow::bail!("speed must be > 0 (got {speed})");
     }
+    let mut report = ReplayReport::default();
     let Some(first) = frames.first().map(|f| f.capture_us) else {
-        return Ok(0);
+        return Ok(report);
+    };
+    let start_us = match clock {
+        ReplayClock::Real { start_us } => start_us,
+        ReplayClock::Data => now_us(),
     };
     tokio::pin!(stop);
-    let start = tokio::time::Instant::now();
-    let mut sent = 0;
     for mut f in frames {
-        let due = start
-            + Duration::from_secs_f64(f.capture_us.saturating_sub(first) as f64 / 1e6 / speed);
+        let due = start_us + (f.capture_us.saturating_sub(first) as f64 / speed) as u64;
+        let now = now_us();
+        if due + 500_000 < now {
+            report.skipped += 1;
+            continue;
+        }
         tokio::select! {
-            _ = tokio::time::sleep_until(due) => {}
+            _ = tokio::time::sleep(Duration::from_micros(due.saturating_sub(now))) => {}
             _ = &mut stop => break,
         }
-        if restamp {
-            f.capture_us = now_us();
+        if let ReplayClock::Real { .. } = clock {
+            f.capture_us = due;
         }
         agent.send(f)?;
-        sent += 1;
+        report.sent += 1;
     }
-    Ok(sent)
+    Ok(report)
 }

@@ -5,8 +5,8 @@ use clap::Parser;
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Duration;
-use v2x_agent::{open_session, replay, Agent, Link};
-use v2x_protocol::net::ZenohArgs;
+use v2x_agent::{now_us, replay, Agent, Link, ReplayClock};
+use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd, TokenTable};
 use v2x_protocol::{AgentKind, Frame, Uncertainty};
 
@@ -38,9 +38,15 @@ struct Cli {
     /// Playback speed factor (2 = twice as fast).
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
-    /// Stamp frames with this machine's clock when sent (a live sensor) instead of the data's.
+    /// Which clock stamps capture times: `real` maps the data's time onto this machine's clock
+    /// from --start-at (what a fuser with its default clock tolerance expects); `data` keeps the
+    /// data's own timestamps (for `v2x-fuser node --max-clock-skew-ms 0`).
+    #[arg(long, value_enum, default_value = "real")]
+    clock: ClockArg,
+    /// With --clock real: when the first frame is captured, in Unix seconds (default: now).
+    /// Give several agents the same value and they replay in step, their frames fused together.
     #[arg(long)]
-    live_clock: bool,
+    start_at: Option<f64>,
     /// Stds for boxes without std fields: mild, moderate, large or POS,SIZE,YAW_DEG.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<Uncertainty>,
@@ -64,6 +70,12 @@ struct Cli {
     seed: u64,
     #[command(flatten)]
     zenoh: ZenohArgs,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ClockArg {
+    Real,
+    Data,
 }
 
 fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
@@ -116,6 +128,21 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         )
         .with_writer(std::io::stderr)
         .init();
+    if !(cli.speed > 0.0 && cli.speed.is_finite()) {
+        bail!("--speed must be > 0");
+    }
+    if !(cli.wait_s >= 0.0 && cli.wait_s.is_finite()) {
+        bail!("--wait-s must be >= 0");
+    }
+    let clock = match (cli.clock, cli.start_at) {
+        (ClockArg::Data, Some(_)) => bail!("--start-at goes with --clock real"),
+        (ClockArg::Data, None) => ReplayClock::Data,
+        (ClockArg::Real, None) => ReplayClock::Real { start_us: now_us() },
+        (ClockArg::Real, Some(t)) if t > 0.0 && t.is_finite() => ReplayClock::Real {
+            start_us: (t * 1e6) as u64,
+        },
+        (ClockArg::Real, Some(t)) => bail!("--start-at must be a positive Unix time (got {t})"),
+    };
     let missing = cli
         .default_std
         .map_or(MissingStd::Error, MissingStd::Default);
@@ -134,7 +161,7 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
             .unwrap_or_default(),
     };
     if times.is_empty() {
-        if !(cli.hz > 0.0) {
+        if !(cli.hz > 0.0 && cli.hz.is_finite()) {
             bail!("--hz must be > 0");
         }
         tracing::warn!(
@@ -178,19 +205,23 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         .wait_for_subscriber(Duration::from_secs_f64(cli.wait_s))
         .await?;
     let n = frames.len();
-    let sent = replay(&mut agent, frames, cli.speed, cli.live_clock, async {
-        let _ = tokio::signal::ctrl_c().await;
-    })
+    let report = replay(
+        &mut agent,
+        frames,
+        cli.speed,
+        clock,
+        v2x_protocol::net::shutdown_signal(),
+    )
     .await?;
     // Let delayed publications leave before closing.
     tokio::time::sleep(Duration::from_millis(
-        (cli.latency_ms + cli.jitter_ms) as u64 + 200,
+        (cli.latency_ms.max(0.0) + cli.jitter_ms.max(0.0)) as u64 + 200,
     ))
     .await;
     let t = agent.counters().totals();
     eprintln!(
-        "{}: sent {sent} of {n} frames ({} dropped by the link), {} payload bytes",
-        cli.name, t.dropped, t.payload_bytes
+        "{}: sent {} of {n} frames ({} skipped: their time had passed; {} dropped by the link), {} payload bytes",
+        cli.name, report.sent, report.skipped, t.dropped, t.payload_bytes
     );
     drop(agent);
     session

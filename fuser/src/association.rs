@@ -266,10 +266,12 @@ pub fn pair_cost(p: &CsbaParams, a: &Detection, b: &Detection) -> Option<f64> {
         Dimension::Axes => dimension_score_axes(a, b),
     };
     let os = orientation_score(p.orientation, a, b);
-    Some(match p.combine {
+    let c = match p.combine {
         Combine::Sum => cost(p.weights, ds, cs, os),
         Combine::LogProduct => log_cost(p.weights, ds, cs, os),
-    })
+    };
+    // Validated inputs always give a finite cost; anything else is not a usable pair.
+    c.is_finite().then_some(c)
 }
 
 /// **[ours]** C = -(w_ds ln DS + w_cs ln CS + w_os ln OS) / (w_ds + w_cs + w_os).
@@ -392,14 +394,36 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     let absent = (nr.min(nc) + 1) as f64 * (largest + 1.0);
     let mut m = vec![absent; nr * nc];
     for e in comp {
-        let r = rows.binary_search(&e.a).expect("row of an edge");
-        let c = cols.binary_search(&e.b).expect("column of an edge");
-        m[r * nc + c] = e.cost;
+        // rows and cols hold every edge's ends, so both searches find them
+        if let (Ok(r), Ok(c)) = (rows.binary_search(&e.a), cols.binary_search(&e.b)) {
+            m[r * nc + c] = e.cost;
+        }
     }
-    let (rr, cc) = lsap::solve(nr, nc, &m, false).expect("finite cost matrix has an assignment");
-    for (r, c) in rr.into_iter().zip(cc) {
-        if m[r * nc + c] < absent {
-            pairs.push((rows[r], cols[c]));
+    match lsap::solve(nr, nc, &m, false) {
+        Ok((rr, cc)) => {
+            for (r, c) in rr.into_iter().zip(cc) {
+                if m[r * nc + c] < absent {
+                    pairs.push((rows[r], cols[c]));
+                }
+            }
+        }
+        // Finite costs always have an assignment; should the solver still refuse, match greedily
+        // by cost rather than lose the component.
+        Err(_) => greedy(comp, pairs),
+    }
+}
+
+/// Greedy matching by increasing cost: each edge is taken when both its ends are free.
+fn greedy(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
+    let mut order: Vec<&Edge> = comp.iter().collect();
+    order.sort_by(|x, y| x.cost.total_cmp(&y.cost));
+    let mut used_a = std::collections::HashSet::new();
+    let mut used_b = std::collections::HashSet::new();
+    for e in order {
+        if !used_a.contains(&e.a) && !used_b.contains(&e.b) {
+            used_a.insert(e.a);
+            used_b.insert(e.b);
+            pairs.push((e.a, e.b));
         }
     }
 }

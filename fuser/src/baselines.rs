@@ -204,7 +204,14 @@ fn hungarian_within(rows: usize, cols: usize, dist: &[f64], gate: f64) -> Vec<(u
     if rows == 0 || cols == 0 {
         return Vec::new();
     }
-    let (r, c) = lsap::solve(rows, cols, &dist.to_vec(), false).expect("finite distances");
+    // Distances of validated boxes are finite; a non-finite one is simply out of the gate.
+    let finite: Vec<f64> = dist
+        .iter()
+        .map(|d| if d.is_finite() { *d } else { f64::MAX / 4.0 })
+        .collect();
+    let Ok((r, c)) = lsap::solve(rows, cols, &finite, false) else {
+        return Vec::new();
+    };
     r.into_iter()
         .zip(c)
         .filter(|&(i, j)| dist[i * cols + j] <= gate)

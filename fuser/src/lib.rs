@@ -2,16 +2,19 @@
 //!
 //! The sans-IO core: [`association`] (CSBA-3D), [`fusion`] (WLS-3D), [`geometry`] and
 //! [`baselines`] (the comparison methods), [`method`] (the `Fuser` API: a [`Method`] value fuses
-//! one time step) and [`window`] (time alignment of frames). [`offline`] fuses nuScenes results
-//! files, and [`node`] is the thin Zenoh shell the `v2x-fuser` binary runs.
+//! one time step), [`window`] (time alignment of frames) and [`ingest`] (admission of frames:
+//! validation, clock tolerance, bounded agent table). [`offline`] fuses nuScenes results files,
+//! and [`node`] is the thin Zenoh shell the `v2x-fuser` binary runs.
 
 pub mod association;
 pub mod baselines;
 pub mod fusion;
 pub mod geometry;
+pub mod ingest;
 pub mod method;
 pub mod node;
 pub mod offline;
+pub mod ratelog;
 pub mod window;
 
 pub use method::{Method, METHODS};

@@ -61,11 +61,14 @@ enum Command {
         /// Longest wait for missing live agents after a window's first frame (ms).
         #[arg(long, default_value_t = 150.0)]
         max_wait_ms: f64,
+        #[command(flatten)]
+        limits: IngestArgs,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
         /// `v2x-sim eval` against the same ground truth.
         #[arg(long)]
         record: Option<PathBuf>,
-        /// Stop after this many seconds (default: run until Ctrl-C).
+        /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM, which both write
+        /// the recording and print the final statistics).
         #[arg(long)]
         duration_s: Option<f64>,
         #[command(flatten)]
@@ -82,6 +85,49 @@ enum Command {
         #[command(flatten)]
         zenoh: v2x_protocol::net::ZenohArgs,
     },
+}
+
+/// Admission limits of the fuser node.
+#[derive(clap::Args)]
+struct IngestArgs {
+    /// Reject frames stamped further than this from the fuser's clock, ahead or behind (ms);
+    /// 0 accepts any capture time (agents replaying data on its own clock, `v2x-agent --clock data`).
+    #[arg(long, default_value_t = 1000.0)]
+    max_clock_skew_ms: f64,
+    /// Most agents tracked at once; beyond, the least recently heard agent without a liveliness
+    /// token is forgotten to make room.
+    #[arg(long, default_value_t = 256)]
+    max_agents: usize,
+    /// Forget an agent with no frame and no liveliness token for this long (s).
+    #[arg(long, default_value_t = 60.0)]
+    forget_after_s: f64,
+    /// Closed windows that may wait for fusion; beyond, windows are dropped and counted.
+    #[arg(long, default_value_t = 16)]
+    fusion_queue: usize,
+    /// Interval of the rate-limited warning summaries (s).
+    #[arg(long, default_value_t = 10.0)]
+    log_interval_s: f64,
+}
+
+impl IngestArgs {
+    fn apply(&self, cfg: &mut node::NodeConfig) -> anyhow::Result<()> {
+        if !(self.max_clock_skew_ms >= 0.0 && self.max_clock_skew_ms.is_finite()) {
+            anyhow::bail!("--max-clock-skew-ms must be >= 0 (0 turns the check off)");
+        }
+        if !(self.forget_after_s > 0.0 && self.forget_after_s.is_finite()) {
+            anyhow::bail!("--forget-after-s must be > 0");
+        }
+        if self.max_agents == 0 || self.fusion_queue == 0 {
+            anyhow::bail!("--max-agents and --fusion-queue must be at least 1");
+        }
+        cfg.ingest.max_clock_skew_us =
+            (self.max_clock_skew_ms > 0.0).then_some((self.max_clock_skew_ms * 1000.0) as u64);
+        cfg.ingest.max_agents = self.max_agents;
+        cfg.ingest.forget_after_us = (self.forget_after_s * 1e6) as u64;
+        cfg.queue = self.fusion_queue;
+        cfg.log_interval_s = self.log_interval_s;
+        Ok(())
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -125,6 +171,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             method,
             window_ms,
             max_wait_ms,
+            limits,
             record,
             duration_s,
             zenoh,
@@ -134,20 +181,24 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .build()
                 .context("starting the async runtime")?;
             rt.block_on(async move {
-                let session = node::open_session(&zenoh).await?;
-                let cfg = node::NodeConfig {
-                    ns,
-                    method,
-                    window_ms,
-                    max_wait_ms,
-                };
+                if let Some(s) = duration_s {
+                    if !(s > 0.0 && s.is_finite()) {
+                        anyhow::bail!("--duration-s must be > 0");
+                    }
+                }
+                let mut cfg = node::NodeConfig::new(&ns, method);
+                cfg.window_ms = window_ms;
+                cfg.max_wait_ms = max_wait_ms;
+                limits.apply(&mut cfg)?;
+                let session = v2x_protocol::net::open_session(&zenoh).await?;
                 let mut recorded = Results::default();
                 let stop = async move {
                     match duration_s {
-                        Some(s) => tokio::time::sleep(std::time::Duration::from_secs_f64(s)).await,
-                        None => {
-                            let _ = tokio::signal::ctrl_c().await;
-                        }
+                        Some(s) => tokio::select! {
+                            _ = tokio::time::sleep(std::time::Duration::from_secs_f64(s)) => {}
+                            _ = node::shutdown_signal() => {}
+                        },
+                        None => node::shutdown_signal().await,
                     }
                 };
                 let stats = node::run(
@@ -190,7 +241,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .build()
                 .context("starting the async runtime")?;
             rt.block_on(async move {
-                let session = node::open_session(&zenoh).await?;
+                let session = v2x_protocol::net::open_session(&zenoh).await?;
                 let v =
                     node::query_stats(&session, &ns, std::time::Duration::from_secs_f64(timeout_s))
                         .await?;

@@ -1,13 +1,16 @@
-//! Time alignment of agents' frames (DESIGN §8), sans-IO: no clock, no network. The caller
-//! passes "now" (the fuser's own clock, microseconds) and the set of live agents.
+//! Time alignment of agents' frames, sans-IO: no clock, no network. The caller passes "now" on
+//! the fuser's clock, in the same time base as capture times (microseconds since the Unix epoch),
+//! and the set of agents a window waits for.
 //!
 //! A window is anchored at the capture time of the first frame that opens it and takes the frames
-//! whose capture time lies within delta t / 2 of the anchor, one per agent. It closes when every
-//! live agent has contributed, or when its deadline (first arrival + max wait, on the fuser's
-//! clock) passes; closing a window first closes every older one, so windows come out in capture
+//! whose capture time lies within delta t / 2 of the anchor, one per agent: of two frames of one
+//! agent, the one closer to the anchor stays and the other is counted as replaced. A window closes
+//! when every awaited agent has contributed, or when its deadline passes: max(first arrival,
+//! anchor) + max wait. Taking the later of the two means a frame stamped ahead of the fuser's
+//! clock holds only its own window until its time comes, and cannot close the windows of everyone
+//! else early. Closing a window first closes every older one, so windows come out in capture
 //! order. A frame for a closed window is late; a frame already seen (same agent, sequence number
-//! and capture time) or a second frame of one agent in one window is a duplicate. Both are
-//! counted and dropped by the caller, never fused twice.
+//! and capture time) is a duplicate. Both are counted and dropped by the caller, never fused twice.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use v2x_protocol::Frame;
@@ -17,9 +20,14 @@ use v2x_protocol::Frame;
 pub enum Verdict {
     /// Joined an open window.
     Accepted,
+    /// Joined an open window in place of the same agent's frame that lay farther from the
+    /// anchor (that one is dropped).
+    Replaced,
+    /// Dropped: the same agent's frame already in that window lies closer to the anchor.
+    Superseded,
     /// Its window was already closed.
     Late,
-    /// Already seen, or its agent already has a frame in that window.
+    /// Already seen (same agent, sequence number and capture time).
     Duplicate,
 }
 
@@ -30,7 +38,7 @@ pub struct Closed {
     pub anchor_us: u64,
     /// One frame per agent, by agent name.
     pub frames: BTreeMap<String, Frame>,
-    /// Whether every live agent contributed.
+    /// Whether every awaited agent contributed.
     pub complete: bool,
     /// When its first frame arrived (fuser clock, us).
     pub first_arrival_us: u64,
@@ -53,13 +61,14 @@ pub struct Windows {
     recent: HashMap<String, VecDeque<(u32, u64)>>,
 }
 
+/// How many (sequence, capture time) pairs per agent are remembered to spot duplicates.
 const RECENT: usize = 64;
 
 impl Windows {
     /// Windows of `delta_us` that wait at most `max_wait_us` after their first frame.
     pub fn new(delta_us: u64, max_wait_us: u64) -> Self {
         Windows {
-            delta_us: delta_us.max(1),
+            delta_us: delta_us.max(2),
             max_wait_us,
             open: Vec::new(),
             last_closed: None,
@@ -67,14 +76,31 @@ impl Windows {
         }
     }
 
-    /// Forgets an agent's recent sequence numbers (it restarted and counts from 0 again).
-    pub fn reset_agent(&mut self, agent: &str) {
+    /// Forgets an agent's recent sequence numbers (it restarted and counts from 0 again, or it
+    /// is no longer tracked).
+    pub fn forget_agent(&mut self, agent: &str) {
         self.recent.remove(agent);
+    }
+
+    /// Number of agents whose recent frames are remembered.
+    pub fn remembered_agents(&self) -> usize {
+        self.recent.len()
     }
 
     /// Number of open windows.
     pub fn open_windows(&self) -> usize {
         self.open.len()
+    }
+
+    /// Number of frames held in open windows.
+    pub fn open_frames(&self) -> usize {
+        self.open.iter().map(|w| w.frames.len()).sum()
+    }
+
+    fn deadline(&self, w: &Open) -> u64 {
+        w.first_arrival_us
+            .max(w.anchor_us)
+            .saturating_add(self.max_wait_us)
     }
 
     /// Offers a frame that arrived at `now_us`.
@@ -98,14 +124,24 @@ impl Windows {
         let nearest = self
             .open
             .iter_mut()
-            .filter(|w| w.anchor_us.abs_diff(t) < half.max(1))
+            .filter(|w| w.anchor_us.abs_diff(t) < half)
             .min_by_key(|w| w.anchor_us.abs_diff(t));
         match nearest {
             Some(w) => {
-                if w.frames.contains_key(&frame.agent) {
-                    return Verdict::Duplicate;
+                let anchor = w.anchor_us;
+                match w.frames.get_mut(&frame.agent) {
+                    Some(held) if held.capture_us.abs_diff(anchor) <= t.abs_diff(anchor) => {
+                        Verdict::Superseded
+                    }
+                    Some(held) => {
+                        *held = frame;
+                        Verdict::Replaced
+                    }
+                    None => {
+                        w.frames.insert(frame.agent.clone(), frame);
+                        Verdict::Accepted
+                    }
                 }
-                w.frames.insert(frame.agent.clone(), frame);
             }
             None => {
                 let pos = self.open.partition_point(|w| w.anchor_us <= t);
@@ -119,26 +155,32 @@ impl Windows {
                         frames,
                     },
                 );
+                Verdict::Accepted
             }
         }
-        Verdict::Accepted
     }
 
     /// When the next deadline falls (fuser clock, us), if any window is open.
     pub fn next_deadline(&self) -> Option<u64> {
-        self.open
-            .iter()
-            .map(|w| w.first_arrival_us.saturating_add(self.max_wait_us))
-            .min()
+        self.open.iter().map(|w| self.deadline(w)).min()
     }
 
-    /// Closes what is ready: the newest window that is complete (every agent of `live` in it) or
-    /// past its deadline, and every window older than it.
-    pub fn poll(&mut self, now_us: u64, live: &BTreeSet<String>) -> Vec<Closed> {
-        let complete = |w: &Open| !live.is_empty() && live.iter().all(|a| w.frames.contains_key(a));
-        let ready = self.open.iter().rposition(|w| {
-            complete(w) || now_us >= w.first_arrival_us.saturating_add(self.max_wait_us)
-        });
+    /// Half the window width (us): frames within it of an anchor join that window.
+    pub fn half_us(&self) -> u64 {
+        self.delta_us / 2
+    }
+
+    /// Closes what is ready: the newest window that is complete (every agent `awaited(anchor)`
+    /// names is in it) or past its deadline, and every window older than it.
+    pub fn poll(&mut self, now_us: u64, awaited: impl Fn(u64) -> BTreeSet<String>) -> Vec<Closed> {
+        let complete = |w: &Open| {
+            let want = awaited(w.anchor_us);
+            !want.is_empty() && want.iter().all(|a| w.frames.contains_key(a))
+        };
+        let ready = self
+            .open
+            .iter()
+            .rposition(|w| complete(w) || now_us >= self.deadline(w));
         let Some(last) = ready else {
             return Vec::new();
         };
@@ -157,8 +199,8 @@ impl Windows {
     }
 
     /// Closes every open window (at shutdown).
-    pub fn flush(&mut self, live: &BTreeSet<String>) -> Vec<Closed> {
-        self.poll(u64::MAX, live)
+    pub fn flush(&mut self, awaited: impl Fn(u64) -> BTreeSet<String>) -> Vec<Closed> {
+        self.poll(u64::MAX, awaited)
     }
 }
 
@@ -188,11 +230,11 @@ mod tests {
     fn closes_when_every_live_agent_contributed() {
         let mut w = Windows::new(100 * MS, 150 * MS);
         let l = live(&["a", "b"]);
-        assert_eq!(w.insert(f("a", 0, 1000), 0), Verdict::Accepted);
-        assert!(w.poll(1, &l).is_empty());
+        assert_eq!(w.insert(f("a", 0, 1000), 1000 * MS), Verdict::Accepted);
+        assert!(w.poll(1000 * MS + 1, |_| l.clone()).is_empty());
         // b's clock is 20 ms off: same window
-        assert_eq!(w.insert(f("b", 0, 1020), 5 * MS), Verdict::Accepted);
-        let c = w.poll(5 * MS, &l);
+        assert_eq!(w.insert(f("b", 0, 1020), 1005 * MS), Verdict::Accepted);
+        let c = w.poll(1005 * MS, |_| l.clone());
         assert_eq!(c.len(), 1);
         assert!(c[0].complete);
         assert_eq!(c[0].anchor_us, 1000 * MS);
@@ -203,29 +245,61 @@ mod tests {
     fn deadline_closes_an_incomplete_window() {
         let mut w = Windows::new(100 * MS, 150 * MS);
         let l = live(&["a", "b"]);
-        w.insert(f("a", 0, 1000), 0);
-        assert_eq!(w.next_deadline(), Some(150 * MS));
-        assert!(w.poll(149 * MS, &l).is_empty());
-        let c = w.poll(150 * MS, &l);
+        // arrives 30 ms after capture: the deadline counts from the arrival
+        w.insert(f("a", 0, 1000), 1030 * MS);
+        assert_eq!(w.next_deadline(), Some(1180 * MS));
+        assert!(w.poll(1179 * MS, |_| l.clone()).is_empty());
+        let c = w.poll(1180 * MS, |_| l.clone());
         assert_eq!(c.len(), 1);
         assert!(!c[0].complete);
         // b's frame comes after the window closed: late, never fused
-        assert_eq!(w.insert(f("b", 0, 1010), 160 * MS), Verdict::Late);
-        assert!(w.flush(&l).is_empty());
+        assert_eq!(w.insert(f("b", 0, 1010), 1190 * MS), Verdict::Late);
+        assert!(w.flush(|_| l.clone()).is_empty());
     }
 
     #[test]
-    fn duplicates_and_two_frames_of_one_agent() {
+    fn a_frame_stamped_ahead_holds_only_its_own_window() {
+        let mut w = Windows::new(100 * MS, 150 * MS);
+        let l = live(&["a", "b"]);
+        // a's clock is 900 ms ahead: its frame arrives now (t = 1000 ms) stamped 1900 ms.
+        assert_eq!(w.insert(f("a", 0, 1900), 1000 * MS), Verdict::Accepted);
+        assert_eq!(w.next_deadline(), Some(2050 * MS), "not 1150 ms");
+        assert!(w.poll(1200 * MS, |_| l.clone()).is_empty());
+        // honest frames keep flowing and fuse in their own windows
+        w.insert(f("b", 0, 1300), 1301 * MS);
+        let c = w.poll(1460 * MS, |_| l.clone());
+        assert_eq!(
+            c.iter().map(|c| c.anchor_us).collect::<Vec<_>>(),
+            vec![1300 * MS]
+        );
+        assert_eq!(w.insert(f("b", 1, 1400), 1461 * MS), Verdict::Accepted);
+        assert_eq!(w.open_windows(), 2);
+    }
+
+    #[test]
+    fn duplicates() {
         let mut w = Windows::new(100 * MS, 150 * MS);
         assert_eq!(w.insert(f("a", 0, 1000), 0), Verdict::Accepted);
         assert_eq!(w.insert(f("a", 0, 1000), 1), Verdict::Duplicate);
-        assert_eq!(
-            w.insert(f("a", 1, 1030), 2),
-            Verdict::Duplicate,
-            "second frame in the same window"
-        );
         // after a restart the agent counts from 0 again at a new capture time: fine
         assert_eq!(w.insert(f("a", 0, 1100), 3), Verdict::Accepted);
+    }
+
+    #[test]
+    fn of_two_frames_of_one_agent_the_closer_to_the_anchor_stays() {
+        let mut w = Windows::new(100 * MS, 150 * MS);
+        let l = live(&["fast", "slow"]);
+        // A 20 Hz agent with jitter puts two frames in one window anchored by the 10 Hz one.
+        assert_eq!(w.insert(f("slow", 0, 1000), 0), Verdict::Accepted);
+        assert_eq!(w.insert(f("fast", 0, 1040), 0), Verdict::Accepted);
+        assert_eq!(w.insert(f("fast", 1, 1010), 0), Verdict::Replaced);
+        assert_eq!(w.insert(f("fast", 2, 960), 0), Verdict::Superseded);
+        let c = w.poll(0, |_| l.clone());
+        assert_eq!(c.len(), 1);
+        assert_eq!(
+            c[0].frames["fast"].seq, 1,
+            "the frame 10 ms from the anchor"
+        );
     }
 
     #[test]
@@ -235,12 +309,12 @@ mod tests {
         w.insert(f("a", 1, 1100), 0);
         w.insert(f("a", 0, 1000), 1); // arrives after a newer one
         w.insert(f("b", 0, 1000), 2);
-        let c = w.poll(3, &l);
+        let c = w.poll(3, |_| l.clone());
         assert_eq!(c.len(), 1, "the older window is complete; the newer waits");
         assert_eq!(c[0].anchor_us, 1000 * MS);
         w.insert(f("b", 1, 1101), 4);
         // completing the newest closes it (and anything older)
-        let c = w.poll(5, &l);
+        let c = w.poll(5, |_| l.clone());
         assert_eq!(
             c.iter().map(|c| c.anchor_us).collect::<Vec<_>>(),
             vec![1100 * MS]
@@ -254,7 +328,7 @@ mod tests {
         w.insert(f("a", 0, 1000), 0); // b's frame for 1000 was lost
         w.insert(f("a", 1, 1100), 1);
         w.insert(f("b", 1, 1100), 2);
-        let c = w.poll(3, &l);
+        let c = w.poll(3, |_| l.clone());
         assert_eq!(c.len(), 2);
         assert_eq!((c[0].anchor_us, c[0].complete), (1000 * MS, false));
         assert_eq!((c[1].anchor_us, c[1].complete), (1100 * MS, true));
@@ -262,10 +336,23 @@ mod tests {
     }
 
     #[test]
-    fn with_no_live_agent_only_deadlines_close() {
+    fn with_no_awaited_agent_only_deadlines_close() {
         let mut w = Windows::new(100 * MS, 50 * MS);
         w.insert(f("a", 0, 0), 0);
-        assert!(w.poll(10, &BTreeSet::new()).is_empty());
-        assert_eq!(w.poll(50 * MS, &BTreeSet::new()).len(), 1);
+        assert!(w.poll(10, |_| BTreeSet::new()).is_empty());
+        assert_eq!(w.poll(50 * MS, |_| BTreeSet::new()).len(), 1);
+    }
+
+    #[test]
+    fn forgetting_an_agent_frees_its_memory() {
+        let mut w = Windows::new(100 * MS, 50 * MS);
+        for i in 0..100 {
+            w.insert(f(&format!("a{i}"), 0, 0), 0);
+        }
+        assert_eq!(w.remembered_agents(), 100);
+        for i in 0..100 {
+            w.forget_agent(&format!("a{i}"));
+        }
+        assert_eq!(w.remembered_agents(), 0);
     }
 }

@@ -7,6 +7,7 @@
 //! clock or file dependencies beyond reading and writing JSON files.
 
 pub mod keys;
+pub mod limits;
 pub mod net;
 pub mod nuscenes_json;
 mod types;

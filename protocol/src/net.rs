@@ -58,22 +58,65 @@ impl ZenohArgs {
     }
 }
 
-/// Opens a Zenoh session with the given options (the config file first, then the flags).
+/// Why a Zenoh session could not be opened; the message names the file or option at fault.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SessionError(pub String);
+
+impl std::fmt::Display for SessionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for SessionError {}
+
+/// The Zenoh configuration these options describe (the config file first, then the flags).
 #[cfg(feature = "session")]
-pub async fn open_session(args: &ZenohArgs) -> Result<zenoh::Session, String> {
+pub fn config(args: &ZenohArgs) -> Result<zenoh::Config, SessionError> {
     let mut config = match &args.zenoh_config {
-        Some(p) => zenoh::Config::from_file(p)
-            .map_err(|e| format!("{}: invalid Zenoh configuration: {e}", p.display()))?,
+        Some(p) => zenoh::Config::from_file(p).map_err(|e| {
+            SessionError(format!("{}: invalid Zenoh configuration: {e}", p.display()))
+        })?,
         None => zenoh::Config::default(),
     };
     for (key, value) in args.json5_pairs() {
         config
             .insert_json5(key, &value)
-            .map_err(|e| format!("Zenoh option {key} = {value}: {e}"))?;
+            .map_err(|e| SessionError(format!("Zenoh option {key} = {value}: {e}")))?;
     }
-    zenoh::open(config)
+    Ok(config)
+}
+
+/// Opens a Zenoh session with the given options (the config file first, then the flags).
+#[cfg(feature = "session")]
+pub async fn open_session(args: &ZenohArgs) -> Result<zenoh::Session, SessionError> {
+    zenoh::open(config(args)?)
         .await
-        .map_err(|e| format!("cannot open a Zenoh session: {e}"))
+        .map_err(|e| SessionError(format!("cannot open a Zenoh session: {e}")))
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM (systemd, `docker stop`, `timeout`).
+#[cfg(feature = "session")]
+pub async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
 }
 
 #[cfg(test)]

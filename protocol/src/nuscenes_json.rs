@@ -9,7 +9,7 @@
 //! is known, e.g. by the fuser node's recorder).
 //! Errors name the file, the sample token, the box index and the field.
 
-use crate::{wrap_angle, Class, Detection, Uncertainty, NO_ID};
+use crate::{limits, wrap_angle, Class, Detection, Uncertainty, NO_ID};
 use serde_json::{json, Map, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -257,9 +257,25 @@ fn parse_box(
         }
     }
     let center = ctx.required::<3>(obj, "translation")?;
+    if !center.iter().all(|c| limits::coord_in_range(*c)) {
+        return Err(ctx.err(
+            Some("translation"),
+            format!(
+                "coordinates must lie within {:e} m of the map origin",
+                limits::COORD_MAX
+            ),
+        ));
+    }
     let [w, l, h] = ctx.required::<3>(obj, "size")?;
-    if [w, l, h].iter().any(|s| *s <= 0.0) {
-        return Err(ctx.err(Some("size"), "sizes must be positive"));
+    if [w, l, h].iter().any(|s| !limits::size_in_range(*s)) {
+        return Err(ctx.err(
+            Some("size"),
+            format!(
+                "sizes must be positive, between {} and {} m",
+                limits::SIZE_MIN,
+                limits::SIZE_MAX
+            ),
+        ));
     }
     let q = ctx.required::<4>(obj, "rotation")?;
     if q.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
@@ -313,7 +329,11 @@ fn parse_box(
         size,
         yaw: yaw_std,
     };
-    if let Some(k) = std.as_array().iter().position(|s| *s <= 0.0) {
+    if let Some(k) = std
+        .as_array()
+        .iter()
+        .position(|s| !limits::std_in_range(*s))
+    {
         let field = [
             "translation_std",
             "translation_std",
@@ -323,22 +343,11 @@ fn parse_box(
             "size_std",
             "yaw_std",
         ][k];
-        return Err(ctx.err(Some(field), "standard deviations must be positive"));
+        return Err(ctx.err(Some(field), std_range_message()));
     }
     let pos_cov = match ctx.numbers::<9>(obj, "translation_cov")? {
         None => None,
-        Some(c) => {
-            let m = [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]];
-            let sym = (0..3)
-                .all(|i| (0..3).all(|j| (m[i][j] - m[j][i]).abs() <= 1e-9 * (1.0 + m[i][j].abs())));
-            if !sym || m[0][0] <= 0.0 || m[1][1] <= 0.0 || m[2][2] <= 0.0 {
-                return Err(ctx.err(
-                    Some("translation_cov"),
-                    "expected a symmetric covariance with a positive diagonal",
-                ));
-            }
-            Some(m)
-        }
+        Some(c) => Some(covariance(ctx, c)?),
     };
     let id = match (obj.get("instance_token"), obj.get("instance_id")) {
         (Some(v), _) if !v.is_null() => tokens.intern(
@@ -362,6 +371,50 @@ fn parse_box(
         pos_cov,
         id,
     })
+}
+
+fn std_range_message() -> String {
+    format!(
+        "standard deviations must lie in [{}, {:.0}] (metres or radians)",
+        limits::STD_MIN,
+        limits::std_max()
+    )
+}
+
+/// Checks a row-major 3x3 covariance: symmetric, positive definite (it has a Cholesky factor),
+/// and with every variance's std in the wire's std range.
+fn covariance(ctx: &Ctx, c: [f64; 9]) -> Result<[[f64; 3]; 3], JsonError> {
+    let field = Some("translation_cov");
+    let m = [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]];
+    let sym =
+        (0..3).all(|i| (0..3).all(|j| (m[i][j] - m[j][i]).abs() <= 1e-9 * (1.0 + m[i][j].abs())));
+    if !sym {
+        return Err(ctx.err(field, "expected a symmetric matrix"));
+    }
+    if !(0..3).all(|k| m[k][k] > 0.0 && limits::std_in_range(m[k][k].sqrt())) {
+        return Err(ctx.err(field, std_range_message() + " on the diagonal"));
+    }
+    // Cholesky: every pivot of a positive-definite matrix is positive. A relative floor keeps
+    // near-singular matrices (whose inverse would be meaningless) out too.
+    let mut l = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                let pivot = m[i][i] - s;
+                if !(pivot > 1e-12 * m[i][i]) {
+                    return Err(ctx.err(
+                        field,
+                        "expected a positive-definite covariance (it has no Cholesky factor)",
+                    ));
+                }
+                l[i][j] = pivot.sqrt();
+            } else {
+                l[i][j] = (m[i][j] - s) / l[j][j];
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// One box in nuScenes results form, with the extension fields.
@@ -541,7 +594,54 @@ mod tests {
             (
                 replaced(r#""yaw_std": 0.05"#, r#""yaw_std": -1"#),
                 Some("yaw_std"),
-                "positive",
+                "must lie in",
+            ),
+            (
+                // so small that its inverse overflows: the assignment would see infinite costs
+                replaced(r#""yaw_std": 0.05"#, r#""yaw_std": 1e-200"#),
+                Some("yaw_std"),
+                "must lie in",
+            ),
+            (
+                replaced(
+                    r#""translation_std": [0.5, 0.6, 0.7]"#,
+                    r#""translation_std": [0.5, 1e9, 0.7]"#,
+                ),
+                Some("translation_std"),
+                "must lie in",
+            ),
+            (
+                replaced(
+                    r#""size": [2.0, 4.5, 1.6]"#,
+                    r#""size": [2.0, 4500.0, 1.6]"#,
+                ),
+                Some("size"),
+                "between",
+            ),
+            (
+                replaced(
+                    r#""translation": [10.0, 20.0, 1.0]"#,
+                    r#""translation": [10.0, 2e12, 1.0]"#,
+                ),
+                Some("translation"),
+                "within",
+            ),
+            (
+                // symmetric with a positive diagonal, but not positive definite (eigenvalue -1)
+                replaced(
+                    r#""yaw_std": 0.05,"#,
+                    r#""yaw_std": 0.05, "translation_cov": [1, 2, 0, 2, 1, 0, 0, 0, 1],"#,
+                ),
+                Some("translation_cov"),
+                "positive-definite",
+            ),
+            (
+                replaced(
+                    r#""yaw_std": 0.05,"#,
+                    r#""yaw_std": 0.05, "translation_cov": [1, 0.5, 0, 0, 1, 0, 0, 0, 1],"#,
+                ),
+                Some("translation_cov"),
+                "symmetric",
             ),
             (
                 replaced(r#""sample_token": "s1""#, r#""sample_token": "s9""#),
@@ -566,6 +666,19 @@ mod tests {
                 "{shown}"
             );
         }
+    }
+
+    #[test]
+    fn a_positive_definite_covariance_is_kept() {
+        let text = replaced(
+            r#""yaw_std": 0.05,"#,
+            r#""yaw_std": 0.05, "translation_cov": [2, 1, 0, 1, 2, 0, 0, 0, 1],"#,
+        );
+        let r = parse_results(p(), &text, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        assert_eq!(
+            r.samples["s1"][0].pos_cov,
+            Some([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 1.0]])
+        );
     }
 
     #[test]

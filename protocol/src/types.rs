@@ -177,9 +177,11 @@ impl Uncertainty {
         }
     }
 
-    /// True when every std is finite and strictly positive.
+    /// True when every std lies in the wire's range ([`crate::limits::STD_MIN`] to about 10^4).
     pub fn is_valid(&self) -> bool {
-        self.as_array().iter().all(|s| s.is_finite() && *s > 0.0)
+        self.as_array()
+            .iter()
+            .all(|s| crate::limits::std_in_range(*s))
     }
 }
 
@@ -263,10 +265,21 @@ pub fn parse_std(s: &str) -> Result<Uncertainty, String> {
             format!("invalid std '{s}': expected mild, moderate, large or POS,SIZE,YAW_DEG")
         })?;
     match parts[..] {
-        [pos, size, yaw] if pos > 0.0 && size > 0.0 && yaw > 0.0 && yaw.is_finite() && pos.is_finite() && size.is_finite() => {
-            Ok(Uncertainty::uniform(pos, size, yaw.to_radians()))
+        [pos, size, yaw] => {
+            let u = Uncertainty::uniform(pos, size, yaw.to_radians());
+            if u.is_valid() {
+                Ok(u)
+            } else {
+                Err(format!(
+                    "invalid std '{s}': each value must lie in [{}, {:.0}] (metres, metres, degrees)",
+                    crate::limits::STD_MIN,
+                    crate::limits::std_max()
+                ))
+            }
         }
-        _ => Err(format!("invalid std '{s}': expected mild, moderate, large or three positive numbers POS,SIZE,YAW_DEG")),
+        _ => Err(format!(
+            "invalid std '{s}': expected mild, moderate, large or three numbers POS,SIZE,YAW_DEG"
+        )),
     }
 }
 
@@ -333,6 +346,23 @@ pub fn wrap_angle(a: f64) -> f64 {
         r + two_pi
     } else {
         r
+    }
+}
+
+impl Default for Detection {
+    /// A car at the origin with its class's typical size, score 0.5, stds of 1 (m, m, rad) and
+    /// no id: a starting point for building detections field by field.
+    fn default() -> Self {
+        Detection {
+            class: Class::Car,
+            center: [0.0; 3],
+            size: Class::Car.typical_size(),
+            yaw: 0.0,
+            score: 0.5,
+            std: Uncertainty::uniform(1.0, 1.0, 1.0),
+            pos_cov: None,
+            id: NO_ID,
+        }
     }
 }
 

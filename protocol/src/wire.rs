@@ -1,31 +1,41 @@
-//! The compact wire encoding of a [`Frame`] (DESIGN §8).
+//! The compact wire encoding of a [`Frame`]; `docs/wire-format.md` is its byte-level
+//! specification.
 //!
-//! A payload is one version byte followed by a postcard body. Values are quantized:
-//! positions in centimetres relative to the frame origin (zig-zag varints, so nearby objects
-//! cost two bytes an axis), sizes in centimetres as the difference from the class's typical size,
-//! yaw in 1/65536 turn (two fixed bytes), score in 1/250 steps, and standard deviations on a
-//! logarithmic scale (0.2% steps, so within 0.1% relative). A frame carries a default
-//! uncertainty; an object carries its own only when it differs, so uniform stds cost nothing per
-//! object. Decoding validates every field and returns a [`DecodeError`]; it never panics.
+//! A payload is one version byte followed by postcard-encoded fields: a header, the object count,
+//! then the objects. Values are quantized: positions in centimetres relative to the frame origin
+//! (zig-zag varints, so nearby objects cost two bytes an axis), sizes in centimetres as the
+//! difference from the class's typical size, yaw in 1/65536 turn (two fixed bytes), score in
+//! 1/250 steps, and standard deviations on a logarithmic scale (0.2% steps). A frame carries a
+//! default uncertainty; an object carries its own only when it differs, which a bit of its tag
+//! says.
+//!
+//! One validity domain ([`crate::limits`]): [`decode`] accepts exactly the frames [`encode`] can
+//! write, so a decoded frame always encodes again, and [`fit`] brings any computed frame (fused
+//! output) into the domain. Decoding checks the payload size and the object count before it
+//! reads a single object, validates every field, and returns a [`DecodeError`]; it never panics.
 
-use crate::{wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty};
+use crate::limits::{
+    coord_in_range, size_in_range, std_in_range, std_of_code, MAX_AGENT_NAME, MAX_OBJECTS,
+    MAX_PAYLOAD, STD_CODE_MAX, STD_MIN, STD_PER_UNIT,
+};
+use crate::{keys, wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The wire format version this crate writes and reads.
-pub const VERSION: u8 = 1;
-/// The most objects a frame may carry.
-pub const MAX_OBJECTS: usize = 4096;
-/// The longest agent name, in bytes.
-pub const MAX_AGENT_NAME: usize = 64;
+pub const VERSION: u8 = 2;
 
 const SCORE_STEPS: f64 = 250.0;
 const YAW_STEPS: f64 = 65536.0;
-/// Log-scale std code: std = STD_MIN * exp((code - 1) / STD_PER_UNIT); code 0 is invalid.
-const STD_MIN: f64 = 1e-4;
-const STD_PER_UNIT: f64 = 500.0;
-/// Largest |relative position| in cm that encodes (about 21 km).
-const MAX_REL_CM: f64 = i32::MAX as f64;
+/// Tag bits: the low four hold the class code.
+const TAG_CLASS: u8 = 0x0f;
+/// Tag bit: the object carries its own std codes.
+const TAG_STD: u8 = 0x10;
+/// The tag bits this version defines.
+const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD;
+/// Index meaning "the frame itself" in errors.
+const FRAME: usize = usize::MAX;
 
 /// Why a frame could not be encoded.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -51,9 +61,9 @@ pub enum EncodeError {
     /// More objects than [`MAX_OBJECTS`].
     #[error("frame has {0} objects, more than the limit {MAX_OBJECTS}")]
     TooManyObjects(usize),
-    /// The agent name is too long.
-    #[error("agent name is {0} bytes, more than the limit {MAX_AGENT_NAME}")]
-    AgentNameTooLong(usize),
+    /// The agent name is empty, too long or not a single key chunk.
+    #[error("agent name: {0}")]
+    BadAgentName(String),
 }
 
 /// Why a payload could not be decoded.
@@ -62,6 +72,9 @@ pub enum DecodeError {
     /// The payload is empty.
     #[error("empty payload")]
     Empty,
+    /// The payload is larger than any valid frame.
+    #[error("payload of {0} bytes, more than the limit {MAX_PAYLOAD}")]
+    TooLarge(usize),
     /// The version byte is not one this build reads.
     #[error("unknown wire version {0} (this build reads version {VERSION})")]
     UnknownVersion(u8),
@@ -76,32 +89,31 @@ pub enum DecodeError {
     TrailingBytes(usize),
     /// More objects than the limit.
     #[error("frame has {0} objects, more than the limit {MAX_OBJECTS}")]
-    TooManyObjects(usize),
-    /// A decoded value is not finite.
-    #[error("object {index}: field '{field}' is not finite")]
-    NonFinite {
-        /// Object index (usize::MAX for the frame).
-        index: usize,
-        /// The field name.
-        field: &'static str,
-    },
-    /// A decoded size is zero or negative.
-    #[error("object {index}: size '{field}' is not positive")]
-    NonPositiveSize {
+    TooManyObjects(u64),
+    /// The agent name is empty, too long or not a single key chunk.
+    #[error("agent name: {0}")]
+    BadAgentName(String),
+    /// A decoded size is outside the domain.
+    #[error("object {index}: size '{field}' is out of range ({cm} cm)")]
+    SizeOutOfRange {
         /// Object index.
         index: usize,
         /// The field name.
         field: &'static str,
+        /// The decoded size in centimetres.
+        cm: i64,
     },
-    /// A decoded standard deviation is zero (code 0).
-    #[error("object {index}: std '{field}' is not positive")]
-    NonPositiveStd {
+    /// A std code is zero or above the largest.
+    #[error("object {index}: std '{field}' has invalid code {code}")]
+    BadStdCode {
         /// Object index (usize::MAX for the frame default).
         index: usize,
         /// The field name.
         field: &'static str,
+        /// The code.
+        code: u16,
     },
-    /// A code is outside its range (class, kind, score, agent name).
+    /// A code is outside its range (class, kind, tag, score, coordinates).
     #[error("object {index}: field '{field}' is out of range ({value})")]
     OutOfRange {
         /// Object index (usize::MAX for the frame).
@@ -117,52 +129,113 @@ const STD_FIELDS: [&str; 7] = [
     "std.x", "std.y", "std.z", "std.l", "std.w", "std.h", "std.yaw",
 ];
 const SIZE_FIELDS: [&str; 3] = ["size.l", "size.w", "size.h"];
+const CENTER_FIELDS: [&str; 3] = ["center.x", "center.y", "center.z"];
 
-#[derive(Serialize, Deserialize, Debug, PartialEq)]
-struct WireFrame {
+/// The fields of a frame before its objects, in wire order.
+#[derive(Serialize, Deserialize, Debug, PartialEq, Clone)]
+struct Header {
     agent: String,
     kind: u8,
     seq: u32,
     capture_us: u64,
     origin_cm: [i64; 3],
     default_std: [u16; 7],
-    objects: Vec<WireObject>,
 }
 
-#[derive(Serialize, Deserialize, Debug, PartialEq)]
-struct WireObject {
-    /// Low 4 bits: class code; bit 4: a std override follows.
+/// One object as the wire holds it.
+#[derive(Debug, PartialEq, Clone)]
+struct Object {
     tag: u8,
     pos_cm: [i32; 3],
     size_delta_cm: [i32; 3],
     yaw: [u8; 2],
     score: u8,
     id: u32,
+    /// Present exactly when `tag & TAG_STD`.
     std: Option<[u16; 7]>,
+}
+
+/// Appends postcard encodings of values to a buffer.
+struct Writer(Vec<u8>);
+
+impl Writer {
+    fn put<T: Serialize + ?Sized>(&mut self, v: &T) {
+        self.0 = postcard::to_extend(v, std::mem::take(&mut self.0))
+            .expect("postcard serialization into a Vec cannot fail");
+    }
+}
+
+/// Reads postcard encodings of values off a byte slice.
+struct Reader<'a>(&'a [u8]);
+
+impl Reader<'_> {
+    fn take<T: DeserializeOwned>(&mut self) -> Result<T, DecodeError> {
+        let (v, rest) = postcard::take_from_bytes(self.0).map_err(|e| match e {
+            postcard::Error::DeserializeUnexpectedEnd => DecodeError::Truncated,
+            other => DecodeError::Malformed(other.to_string()),
+        })?;
+        self.0 = rest;
+        Ok(v)
+    }
+}
+
+impl Object {
+    fn write(&self, w: &mut Writer) {
+        w.put(&self.tag);
+        w.put(&self.pos_cm);
+        w.put(&self.size_delta_cm);
+        w.put(&self.yaw);
+        w.put(&self.score);
+        w.put(&self.id);
+        if let Some(s) = &self.std {
+            w.put(s);
+        }
+    }
+
+    fn read(r: &mut Reader) -> Result<Object, DecodeError> {
+        let tag: u8 = r.take()?;
+        Ok(Object {
+            tag,
+            pos_cm: r.take()?,
+            size_delta_cm: r.take()?,
+            yaw: r.take()?,
+            score: r.take()?,
+            id: r.take()?,
+            std: if tag & TAG_STD != 0 {
+                Some(r.take()?)
+            } else {
+                None
+            },
+        })
+    }
+}
+
+/// Writes a header and objects as a payload.
+fn assemble(header: &Header, objects: &[Object]) -> Vec<u8> {
+    let mut w = Writer(vec![VERSION]);
+    w.put(header);
+    w.put(&(objects.len() as u64));
+    for o in objects {
+        o.write(&mut w);
+    }
+    w.0
 }
 
 fn quantize_std(s: f64) -> u16 {
     let code = ((s / STD_MIN).ln() * STD_PER_UNIT).round() + 1.0;
-    code.clamp(1.0, u16::MAX as f64) as u16
+    code.clamp(1.0, STD_CODE_MAX as f64) as u16
 }
 
-fn dequantize_std(code: u16) -> f64 {
-    STD_MIN * ((code as f64 - 1.0) / STD_PER_UNIT).exp()
-}
-
-fn quantize_stds(u: &Uncertainty) -> [u16; 7] {
-    u.as_array().map(quantize_std)
-}
-
-fn check_stds(u: &Uncertainty, index: usize) -> Result<(), EncodeError> {
-    for (k, s) in u.as_array().into_iter().enumerate() {
+fn check_stds(u: &Uncertainty, index: usize) -> Result<[u16; 7], EncodeError> {
+    let a = u.as_array();
+    for (k, s) in a.into_iter().enumerate() {
         if !s.is_finite() {
             return Err(EncodeError::NonFinite {
                 index,
                 field: STD_FIELDS[k],
             });
         }
-        if !(STD_MIN..=1e6).contains(&s) {
+        if !std_in_range(s) {
             return Err(EncodeError::OutOfRange {
                 index,
                 field: STD_FIELDS[k],
@@ -170,19 +243,28 @@ fn check_stds(u: &Uncertainty, index: usize) -> Result<(), EncodeError> {
             });
         }
     }
-    Ok(())
+    Ok(a.map(quantize_std))
 }
 
-/// Encodes a frame into a payload (version byte + postcard body). The frame-level default
-/// uncertainty is the most common one among the objects.
+/// Checks an agent name the way both directions do: non-empty, at most [`MAX_AGENT_NAME`]
+/// bytes, one key chunk without wildcards.
+pub fn check_agent_name(name: &str) -> Result<(), String> {
+    if name.len() > MAX_AGENT_NAME {
+        return Err(format!(
+            "{} bytes, more than the limit {MAX_AGENT_NAME}",
+            name.len()
+        ));
+    }
+    keys::validate_chunk("agent name", name)
+}
+
+/// Encodes a frame into a payload. The frame-level default uncertainty is the most common one
+/// among the objects. Fails, naming the object and field, on any value outside the domain.
 pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
-    const FRAME: usize = usize::MAX;
     if frame.detections.len() > MAX_OBJECTS {
         return Err(EncodeError::TooManyObjects(frame.detections.len()));
     }
-    if frame.agent.len() > MAX_AGENT_NAME {
-        return Err(EncodeError::AgentNameTooLong(frame.agent.len()));
-    }
+    check_agent_name(&frame.agent).map_err(EncodeError::BadAgentName)?;
     let mut origin_cm = [0i64; 3];
     for k in 0..3 {
         let o = frame.origin[k];
@@ -192,7 +274,7 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
                 field: "origin",
             });
         }
-        if o.abs() > 1e12 {
+        if !coord_in_range(o) {
             return Err(EncodeError::OutOfRange {
                 index: FRAME,
                 field: "origin",
@@ -201,11 +283,9 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         }
         origin_cm[k] = (o * 100.0).round() as i64;
     }
-    // The default uncertainty: the most frequent quantized one (first seen wins ties).
     let mut codes = Vec::with_capacity(frame.detections.len());
     for (i, d) in frame.detections.iter().enumerate() {
-        check_stds(&d.std, i)?;
-        codes.push(quantize_stds(&d.std));
+        codes.push(check_stds(&d.std, i)?);
     }
     let default_std = most_common(&codes).unwrap_or([1; 7]);
 
@@ -217,14 +297,14 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
             if !c.is_finite() {
                 return Err(EncodeError::NonFinite {
                     index: i,
-                    field: ["center.x", "center.y", "center.z"][k],
+                    field: CENTER_FIELDS[k],
                 });
             }
-            let rel = (c * 100.0 - origin_cm[k] as f64).round();
-            if rel.abs() > MAX_REL_CM {
+            let rel = (c * 100.0).round() - origin_cm[k] as f64;
+            if !coord_in_range(c) || rel.abs() > i32::MAX as f64 {
                 return Err(EncodeError::OutOfRange {
                     index: i,
-                    field: ["center.x", "center.y", "center.z"][k],
+                    field: CENTER_FIELDS[k],
                     value: c,
                 });
             }
@@ -240,15 +320,14 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
                     field: SIZE_FIELDS[k],
                 });
             }
-            let cm = (s * 100.0).round();
-            if !(1.0..=100_000.0).contains(&cm) {
+            if !size_in_range(s) {
                 return Err(EncodeError::OutOfRange {
                     index: i,
                     field: SIZE_FIELDS[k],
                     value: s,
                 });
             }
-            size_delta_cm[k] = cm as i32 - (typical[k] * 100.0).round() as i32;
+            size_delta_cm[k] = (s * 100.0).round() as i32 - (typical[k] * 100.0).round() as i32;
         }
         if !d.yaw.is_finite() {
             return Err(EncodeError::NonFinite {
@@ -272,8 +351,8 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
             });
         }
         let std = (codes[i] != default_std).then_some(codes[i]);
-        objects.push(WireObject {
-            tag: d.class.code() | if std.is_some() { 0x10 } else { 0 },
+        objects.push(Object {
+            tag: d.class.code() | if std.is_some() { TAG_STD } else { 0 },
             pos_cm,
             size_delta_cm,
             yaw: yaw.to_le_bytes(),
@@ -282,7 +361,7 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
             std,
         });
     }
-    let wf = WireFrame {
+    let header = Header {
         agent: frame.agent.clone(),
         kind: match frame.kind {
             AgentKind::Vehicle => 0,
@@ -292,11 +371,8 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         capture_us: frame.capture_us,
         origin_cm,
         default_std,
-        objects,
     };
-    let mut out = vec![VERSION];
-    out.extend(postcard::to_stdvec(&wf).expect("postcard serialization into a Vec cannot fail"));
-    Ok(out)
+    Ok(assemble(&header, &objects))
 }
 
 fn most_common(codes: &[[u16; 7]]) -> Option<[u16; 7]> {
@@ -320,67 +396,78 @@ fn most_common(codes: &[[u16; 7]]) -> Option<[u16; 7]> {
 }
 
 fn decode_stds(codes: [u16; 7], index: usize) -> Result<Uncertainty, DecodeError> {
-    if let Some(k) = codes.iter().position(|&c| c == 0) {
-        return Err(DecodeError::NonPositiveStd {
+    if let Some(k) = codes.iter().position(|&c| c == 0 || c > STD_CODE_MAX) {
+        return Err(DecodeError::BadStdCode {
             index,
             field: STD_FIELDS[k],
+            code: codes[k],
         });
     }
-    Ok(Uncertainty::from_array(codes.map(dequantize_std)))
+    Ok(Uncertainty::from_array(codes.map(std_of_code)))
 }
 
-/// Decodes and validates a payload produced by [`encode`].
-pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
-    const FRAME: usize = usize::MAX;
+fn cm_in_range(cm: i64, index: usize, field: &'static str) -> Result<(), DecodeError> {
+    if coord_in_range(cm as f64 / 100.0) {
+        Ok(())
+    } else {
+        Err(DecodeError::OutOfRange {
+            index,
+            field,
+            value: cm,
+        })
+    }
+}
+
+/// Reads and checks the header and the object count, without reading any object.
+fn read_header(bytes: &[u8]) -> Result<(Header, usize, Reader<'_>), DecodeError> {
+    if bytes.len() > MAX_PAYLOAD {
+        return Err(DecodeError::TooLarge(bytes.len()));
+    }
     let (&version, body) = bytes.split_first().ok_or(DecodeError::Empty)?;
     if version != VERSION {
         return Err(DecodeError::UnknownVersion(version));
     }
-    let (wf, rest): (WireFrame, &[u8]) = postcard::take_from_bytes(body).map_err(|e| match e {
-        postcard::Error::DeserializeUnexpectedEnd => DecodeError::Truncated,
-        other => DecodeError::Malformed(other.to_string()),
-    })?;
-    if !rest.is_empty() {
-        return Err(DecodeError::TrailingBytes(rest.len()));
-    }
-    if wf.objects.len() > MAX_OBJECTS {
-        return Err(DecodeError::TooManyObjects(wf.objects.len()));
-    }
-    if wf.agent.is_empty() || wf.agent.len() > MAX_AGENT_NAME {
+    let mut r = Reader(body);
+    let header: Header = r.take()?;
+    check_agent_name(&header.agent).map_err(DecodeError::BadAgentName)?;
+    if header.kind > 1 {
         return Err(DecodeError::OutOfRange {
             index: FRAME,
-            field: "agent",
-            value: wf.agent.len() as i64,
+            field: "kind",
+            value: header.kind as i64,
         });
     }
-    let kind = match wf.kind {
-        0 => AgentKind::Vehicle,
-        1 => AgentKind::Infrastructure,
-        k => {
-            return Err(DecodeError::OutOfRange {
-                index: FRAME,
-                field: "kind",
-                value: k as i64,
-            })
-        }
-    };
-    let default_std = decode_stds(wf.default_std, FRAME)?;
-    let origin = wf.origin_cm.map(|c| c as f64 / 100.0);
-    if origin.iter().any(|o| !o.is_finite() || o.abs() > 1e12) {
-        return Err(DecodeError::NonFinite {
-            index: FRAME,
-            field: "origin",
-        });
+    for o in header.origin_cm {
+        cm_in_range(o, FRAME, "origin")?;
     }
-    let mut detections = Vec::with_capacity(wf.objects.len());
-    for (i, o) in wf.objects.into_iter().enumerate() {
-        let class = Class::from_code(o.tag & 0x0f).ok_or(DecodeError::OutOfRange {
+    decode_stds(header.default_std, FRAME)?;
+    let count: u64 = r.take()?;
+    if count > MAX_OBJECTS as u64 {
+        return Err(DecodeError::TooManyObjects(count));
+    }
+    Ok((header, count as usize, r))
+}
+
+/// Reads a payload's agent name and object count without decoding the objects (cheap checks
+/// before the full [`decode`]).
+pub fn peek(bytes: &[u8]) -> Result<(String, usize), DecodeError> {
+    let (h, n, _) = read_header(bytes)?;
+    Ok((h.agent, n))
+}
+
+/// Decodes and validates a payload.
+pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
+    let (header, count, mut r) = read_header(bytes)?;
+    let default_std = decode_stds(header.default_std, FRAME)?;
+    let mut detections = Vec::with_capacity(count);
+    for i in 0..count {
+        let o = Object::read(&mut r)?;
+        let class = Class::from_code(o.tag & TAG_CLASS).ok_or(DecodeError::OutOfRange {
             index: i,
             field: "class",
-            value: (o.tag & 0x0f) as i64,
+            value: (o.tag & TAG_CLASS) as i64,
         })?;
-        let has_std = o.tag & 0x10 != 0;
-        if o.tag & !0x1f != 0 || has_std != o.std.is_some() {
+        if o.tag & !TAG_KNOWN != 0 {
             return Err(DecodeError::OutOfRange {
                 index: i,
                 field: "tag",
@@ -391,10 +478,11 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
         let mut size = [0.0; 3];
         for k in 0..3 {
             let cm = (typical[k] * 100.0).round() as i64 + o.size_delta_cm[k] as i64;
-            if cm <= 0 {
-                return Err(DecodeError::NonPositiveSize {
+            if !size_in_range(cm as f64 / 100.0) {
+                return Err(DecodeError::SizeOutOfRange {
                     index: i,
                     field: SIZE_FIELDS[k],
+                    cm,
                 });
             }
             size[k] = cm as f64 / 100.0;
@@ -410,8 +498,12 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
             Some(codes) => decode_stds(codes, i)?,
             None => default_std,
         };
-        let center: [f64; 3] =
-            std::array::from_fn(|k| (wf.origin_cm[k] + o.pos_cm[k] as i64) as f64 / 100.0);
+        let mut center = [0.0; 3];
+        for k in 0..3 {
+            let cm = header.origin_cm[k] + o.pos_cm[k] as i64;
+            cm_in_range(cm, i, CENTER_FIELDS[k])?;
+            center[k] = cm as f64 / 100.0;
+        }
         let turn = u16::from_le_bytes(o.yaw) as f64 / YAW_STEPS;
         detections.push(Detection {
             class,
@@ -424,14 +516,117 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
             id: o.id,
         });
     }
+    if !r.0.is_empty() {
+        return Err(DecodeError::TrailingBytes(r.0.len()));
+    }
     Ok(Frame {
-        agent: wf.agent,
-        kind,
-        seq: wf.seq,
-        capture_us: wf.capture_us,
-        origin,
+        agent: header.agent,
+        kind: if header.kind == 0 {
+            AgentKind::Vehicle
+        } else {
+            AgentKind::Infrastructure
+        },
+        seq: header.seq,
+        capture_us: header.capture_us,
+        origin: header.origin_cm.map(|c| c as f64 / 100.0),
         detections,
     })
+}
+
+/// What [`fit`] changed to bring a frame into the wire's domain.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Fit {
+    /// Standard deviations raised to the floor or lowered to the ceiling of the std code.
+    pub stds_clamped: usize,
+    /// Sizes clamped into the size range.
+    pub sizes_clamped: usize,
+    /// Scores clamped into [0, 1].
+    pub scores_clamped: usize,
+    /// Objects dropped because a value was not finite or lay too far from the others.
+    pub objects_invalid: usize,
+    /// Objects dropped (the lowest scores) to stay within [`MAX_OBJECTS`].
+    pub objects_capped: usize,
+}
+
+impl Fit {
+    /// True when nothing changed.
+    pub fn is_clean(&self) -> bool {
+        *self == Fit::default()
+    }
+}
+
+/// Brings a computed frame (such as fused output) into the wire's domain so that [`encode`]
+/// succeeds: clamps stds, sizes and scores, sets the origin to the component-wise median of the
+/// centres, drops objects with non-finite values or out of reach of the origin, and keeps the
+/// [`MAX_OBJECTS`] highest-scoring objects. The agent name must already be valid.
+pub fn fit(frame: &mut Frame) -> Fit {
+    let mut fit = Fit::default();
+    let before = frame.detections.len();
+    frame.detections.retain(|d| {
+        d.center.iter().all(|c| coord_in_range(*c))
+            && d.size.iter().all(|s| s.is_finite())
+            && d.yaw.is_finite()
+            && d.score.is_finite()
+            && d.std.as_array().iter().all(|s| s.is_finite())
+    });
+    fit.objects_invalid = before - frame.detections.len();
+    for d in &mut frame.detections {
+        let mut a = d.std.as_array();
+        for s in &mut a {
+            if !std_in_range(*s) {
+                *s = crate::limits::clamp_std(*s);
+                fit.stds_clamped += 1;
+            }
+        }
+        d.std = Uncertainty::from_array(a);
+        for s in &mut d.size {
+            if !size_in_range(*s) {
+                *s = s.clamp(crate::limits::SIZE_MIN, crate::limits::SIZE_MAX);
+                fit.sizes_clamped += 1;
+            }
+        }
+        if !(0.0..=1.0).contains(&d.score) {
+            d.score = d.score.clamp(0.0, 1.0);
+            fit.scores_clamped += 1;
+        }
+    }
+    if frame.detections.len() > MAX_OBJECTS {
+        let mut order: Vec<usize> = (0..frame.detections.len()).collect();
+        order.sort_by(|&a, &b| {
+            frame.detections[b]
+                .score
+                .total_cmp(&frame.detections[a].score)
+                .then(a.cmp(&b))
+        });
+        let mut keep = vec![false; frame.detections.len()];
+        for &i in &order[..MAX_OBJECTS] {
+            keep[i] = true;
+        }
+        let mut i = 0;
+        frame.detections.retain(|_| {
+            i += 1;
+            keep[i - 1]
+        });
+        fit.objects_capped = order.len() - MAX_OBJECTS;
+    }
+    // Origin: the median centre, so that one far-away object cannot push the others out of reach.
+    if !frame.detections.is_empty() {
+        for k in 0..3 {
+            let mut v: Vec<f64> = frame.detections.iter().map(|d| d.center[k]).collect();
+            v.sort_by(f64::total_cmp);
+            frame.origin[k] = (v[v.len() / 2] * 100.0).round() / 100.0;
+        }
+    }
+    if !frame.origin.iter().all(|o| coord_in_range(*o)) {
+        frame.origin = [0.0; 3];
+    }
+    let before = frame.detections.len();
+    let origin = frame.origin;
+    frame.detections.retain(|d| {
+        (0..3).all(|k| ((d.center[k] - origin[k]) * 100.0).round().abs() <= i32::MAX as f64)
+    });
+    fit.objects_invalid += before - frame.detections.len();
+    fit
 }
 
 /// Encodes a frame as postcard of plain `f32` fields (no quantization), for size comparisons.

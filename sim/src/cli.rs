@@ -91,13 +91,25 @@ impl DataArgs {
     }
 }
 
+/// How the capture times of a replay map back to the data's time: the agents replayed from
+/// the data's first frame, captured at `start_us`, `speed` times faster than recorded.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct ReplayMap {
+    /// Wall-clock capture time of the data's first frame (us since the Unix epoch).
+    pub start_us: u64,
+    /// Playback speed factor.
+    pub speed: f64,
+}
+
 /// Scores a results file against the ground truth. Samples are matched by sample token, or by
-/// `t<microseconds>` keys (as the fuser node records them) against frame timestamps. Only frames
-/// present in the file are scored unless `all_frames`. Returns the metrics and a note on coverage.
+/// `t<microseconds>` keys (as the fuser node records them) against frame timestamps, mapped back
+/// through `replay` when the agents replayed on the real clock. Only frames present in the file
+/// are scored unless `all_frames`. Returns the metrics and a note on coverage.
 pub fn evaluate_file(
     gt: &GroundTruth,
     path: &Path,
     all_frames: bool,
+    replay: Option<ReplayMap>,
 ) -> anyhow::Result<(Metrics, String)> {
     let mut tokens = gt.tokens.clone();
     let results = read_results(
@@ -124,12 +136,20 @@ pub fn evaluate_file(
             .min_by_key(|(ts, _)| ts.abs_diff(t))
             .map(|&(_, i)| i)
     };
+    let first_us = gt.frames.iter().map(|f| f.timestamp_us).min().unwrap_or(0);
+    let to_data_time = |t: u64| -> u64 {
+        match replay {
+            Some(m) => (first_us as f64 + (t as f64 - m.start_us as f64) * m.speed).max(0.0) as u64,
+            None => t,
+        }
+    };
     let mut preds: Vec<Option<&[v2x_protocol::Detection]>> = vec![None; gt.frames.len()];
     let mut unknown = Vec::new();
     for (key, dets) in &results.samples {
         let frame = by_token.get(key.as_str()).copied().or_else(|| {
             key.strip_prefix('t')
                 .and_then(|t| t.parse::<u64>().ok())
+                .map(to_data_time)
                 .and_then(nearest)
         });
         match frame {
@@ -139,7 +159,7 @@ pub fn evaluate_file(
     }
     if !unknown.is_empty() {
         bail!(
-            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made?)",
+            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs --replay-start-at and --replay-speed)",
             path.display(),
             unknown.len(),
             unknown[0]

@@ -11,10 +11,10 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 use std::time::{Duration, Instant};
-use v2x_agent::{now_us, open_session, Agent, Link};
+use v2x_agent::{now_us, Agent, Link};
 use v2x_fuser::node::{self, Latency, NodeConfig};
 use v2x_fuser::Method;
-use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, NoiseProfile};
 
 /// What to run.
@@ -130,12 +130,9 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
     let fuser_session =
         open_session(&ZenohArgs::loopback(std::slice::from_ref(&endpoint), &[])).await?;
     let ns = "load";
-    let cfg = NodeConfig {
-        ns: ns.into(),
-        method: args.method,
-        window_ms: 1000.0 / args.hz,
-        max_wait_ms: 100.0,
-    };
+    let mut cfg = NodeConfig::new(ns, args.method);
+    cfg.window_ms = 1000.0 / args.hz;
+    cfg.max_wait_ms = 100.0;
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let fuser = tokio::spawn(async move {
         let r = node::run(&fuser_session, cfg, |_| {}, async {

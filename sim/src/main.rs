@@ -64,6 +64,13 @@ enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: Format,
+        /// For a fuser recording of `v2x-agent --clock real` replays: the agents' --start-at
+        /// (Unix seconds), so that capture times map back to the data's frames.
+        #[arg(long)]
+        replay_start_at: Option<f64>,
+        /// With --replay-start-at: the agents' --speed.
+        #[arg(long, default_value_t = 1.0, requires = "replay_start_at")]
+        replay_speed: f64,
         /// The results file to score.
         pred: PathBuf,
     },
@@ -234,10 +241,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             data,
             all_frames,
             format,
+            replay_start_at,
+            replay_speed,
             pred,
         } => {
+            let replay = match replay_start_at {
+                None => None,
+                Some(t)
+                    if t > 0.0
+                        && t.is_finite()
+                        && replay_speed > 0.0
+                        && replay_speed.is_finite() =>
+                {
+                    Some(v2x_sim::cli::ReplayMap {
+                        start_us: (t * 1e6) as u64,
+                        speed: replay_speed,
+                    })
+                }
+                Some(_) => {
+                    bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
+                }
+            };
             let gt = data.load()?;
-            let (m, note) = evaluate_file(&gt, &pred, all_frames)?;
+            let (m, note) = evaluate_file(&gt, &pred, all_frames, replay)?;
             eprintln!("{note}");
             match format {
                 Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),

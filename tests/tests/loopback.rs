@@ -66,7 +66,7 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
         &gt.tokens,
     )
     .unwrap();
-    let (m, _) = evaluate_file(&gt, &path, false).unwrap();
+    let (m, _) = evaluate_file(&gt, &path, false, None).unwrap();
     assert_eq!((m.tp, m.fp, m.fn_), (offline.tp, offline.fp, offline.fn_));
     for (a, b) in [
         (m.m_ate, offline.m_ate),

@@ -47,6 +47,15 @@ fn agents_and_fuser_as_separate_processes() {
     );
 
     let port = free_port().unwrap();
+    // Both agents replay on the real clock from the same start, so their frames meet in windows.
+    let start_at = format!(
+        "{:.3}",
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+            + 3.0
+    );
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let record = dir.join("fused.json");
     let mut fuser = Command::new(bin("v2x-fuser"))
@@ -87,6 +96,8 @@ fn agents_and_fuser_as_separate_processes() {
                 "procs",
                 "--speed",
                 "2",
+                "--start-at",
+                &start_at,
                 "--no-multicast-scouting",
                 "-e",
                 &endpoint,
@@ -114,7 +125,8 @@ fn agents_and_fuser_as_separate_processes() {
     assert_eq!(stats["agents"]["veh"]["fused"], 30);
 
     let out = Command::new(bin("v2x-sim"))
-        .args(["eval", "--format", "json"])
+        .args(["eval", "--format", "json", "--replay-speed", "2"])
+        .args(["--replay-start-at", &start_at])
         .args(town)
         .arg(&record)
         .output()

@@ -4,9 +4,9 @@
 use std::collections::BTreeSet;
 use std::time::Duration;
 use tokio::sync::mpsc;
-use v2x_agent::{open_session, Agent, Link};
+use v2x_agent::{now_us, Agent, Link};
 use v2x_fuser::node::{self, Fused, NodeConfig};
-use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{keys, wire, AgentKind, Class, Detection, Frame, Uncertainty};
 use v2x_sim::run::free_port;
 use v2x_tests::within;
@@ -24,12 +24,19 @@ fn det(x: f64, id: u32) -> Detection {
     }
 }
 
-fn frame(t_ms: u64) -> Frame {
+/// The capture time of the next window: now, and at least one window (100 ms) after the last.
+fn next_t(last: &mut u64) -> u64 {
+    *last = now_us().max(*last + 100_000);
+    *last
+}
+
+/// A frame captured at `t_us` (the sender's real-time clock, as the fuser expects).
+fn frame(t_us: u64) -> Frame {
     Frame {
         agent: String::new(),
         kind: AgentKind::Vehicle,
         seq: 0,
-        capture_us: t_ms * 1000,
+        capture_us: t_us,
         origin: [0.0; 3],
         detections: vec![det(10.0, 1), det(30.0, 2)],
     }
@@ -51,12 +58,8 @@ fn spawn_fuser(
 ) {
     let (tx, rx) = mpsc::unbounded_channel();
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let cfg = NodeConfig {
-        ns: ns.into(),
-        method: "csba-wls+".parse().unwrap(),
-        window_ms: 100.0,
-        max_wait_ms,
-    };
+    let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+    cfg.max_wait_ms = max_wait_ms;
     let task = tokio::spawn(async move {
         let stats = node::run(&session, cfg, |f| tx.send(f.clone()).unwrap(), async {
             let _ = stop_rx.await;
@@ -129,8 +132,10 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
         .unwrap();
     wait_live(&sa, ns, &["a", "b"]).await;
 
-    a.send(frame(0)).unwrap();
-    b.send(frame(0)).unwrap();
+    let mut last = 0;
+    let t = next_t(&mut last);
+    a.send(frame(t)).unwrap();
+    b.send(frame(t)).unwrap();
     let f = next_fused(&mut fused).await;
     assert_eq!(f.members, vec!["a", "b"]);
     assert!(f.complete);
@@ -144,7 +149,7 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
     drop(b);
     wait_live(&sa, ns, &["a"]).await;
     let t0 = std::time::Instant::now();
-    a.send(frame(100)).unwrap();
+    a.send(frame(next_t(&mut last))).unwrap();
     let f = next_fused(&mut fused).await;
     assert_eq!(f.members, vec!["a"]);
     assert!(f.complete, "b is gone, so a alone completes the window");
@@ -158,8 +163,9 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
         .await
         .unwrap();
     wait_live(&sa, ns, &["a", "b"]).await;
-    a.send(frame(200)).unwrap();
-    b.send(frame(200)).unwrap();
+    let t = next_t(&mut last);
+    a.send(frame(t)).unwrap();
+    b.send(frame(t)).unwrap();
     let f = next_fused(&mut fused).await;
     assert_eq!(f.members, vec!["a", "b"]);
 
@@ -193,7 +199,7 @@ async fn fusion_resumes_after_the_fuser_restarts() {
     let observer = sa.declare_subscriber(keys::fused(ns)).await.unwrap();
     let fuser_args = ZenohArgs::loopback(&[], &[endpoint(pa), endpoint(pb)]);
 
-    let mut t = 0u64;
+    let mut last = 0;
     for round in 0..2 {
         let (stop, mut fused, task) =
             spawn_fuser(open_session(&fuser_args).await.unwrap(), ns, 300.0);
@@ -206,23 +212,22 @@ async fn fusion_resumes_after_the_fuser_restarts() {
         wait_live(&sa, ns, &["a", "b"]).await;
         // The agents keep publishing as they would; the fuser fuses again.
         for _ in 0..3 {
+            let t = next_t(&mut last);
             a.send(frame(t)).unwrap();
             b.send(frame(t)).unwrap();
             let f = next_fused(&mut fused).await;
-            assert_eq!(f.frame.capture_us, t * 1000, "round {round}");
+            assert_eq!(f.frame.capture_us, t, "round {round}");
             assert_eq!(f.members, vec!["a", "b"]);
             let on_wire = within(10, "fused frame on the network", observer.recv_async())
                 .await
                 .unwrap();
             let decoded = wire::decode(&on_wire.payload().to_bytes()).unwrap();
-            assert_eq!(decoded.capture_us, t * 1000);
-            t += 100;
+            assert_eq!(decoded.capture_us, t);
         }
         stop.send(()).unwrap();
         within(10, "fuser shutdown", task).await.unwrap();
         // While no fuser runs, the agents keep sending into the void.
-        a.send(frame(t)).unwrap();
-        t += 100;
+        a.send(frame(next_t(&mut last))).unwrap();
     }
 }
 
@@ -248,8 +253,9 @@ async fn late_duplicate_out_of_order_and_malformed_frames() {
         }
     })
     .await;
+    let base = now_us();
     let enc = |seq: u32, t_ms: u64, agent: &str| {
-        let mut f = frame(t_ms);
+        let mut f = frame(base + t_ms * 1000);
         f.agent = agent.into();
         f.seq = seq;
         wire::encode(&f).unwrap()
@@ -268,12 +274,15 @@ async fn late_duplicate_out_of_order_and_malformed_frames() {
     }
     assert_eq!(
         anchors,
-        vec![100_000, 200_000],
+        vec![base + 100_000, base + 200_000],
         "both windows fused once, in capture order"
     );
     publisher.put(enc(3, 100, "x")).await.unwrap(); // late: its window is closed
     publisher.put(enc(4, 300, "x")).await.unwrap(); // and the fuser keeps going
-    assert_eq!(next_fused(&mut fused).await.frame.capture_us, 300_000);
+    assert_eq!(
+        next_fused(&mut fused).await.frame.capture_us,
+        base + 300_000
+    );
 
     let v = within(
         10,
@@ -284,7 +293,8 @@ async fn late_duplicate_out_of_order_and_malformed_frames() {
     .unwrap();
     let x = &v["agents"]["x"];
     assert_eq!(x["frames_in"], 8);
-    assert_eq!(x["invalid"], 3);
+    assert_eq!(x["invalid"], 2);
+    assert_eq!(x["wrong_agent"], 1);
     assert_eq!(x["duplicate"], 1);
     assert_eq!(x["late"], 1);
     assert_eq!(x["accepted"], 3);

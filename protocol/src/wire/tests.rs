@@ -1,4 +1,5 @@
 use super::*;
+use crate::limits;
 use proptest::prelude::*;
 
 fn det(class: Class, center: [f64; 3], size: [f64; 3], yaw: f64, id: u32) -> Detection {
@@ -152,37 +153,42 @@ fn encode_rejects_bad_values() {
     );
 }
 
-fn body(wf: &WireFrame) -> Vec<u8> {
-    let mut v = vec![VERSION];
-    v.extend(postcard::to_stdvec(wf).unwrap());
-    v
+fn parts(f: &Frame) -> (Header, Vec<Object>) {
+    let bytes = encode(f).unwrap();
+    let (header, count, mut r) = read_header(&bytes).unwrap();
+    let objects = (0..count).map(|_| Object::read(&mut r).unwrap()).collect();
+    (header, objects)
 }
 
-fn valid_wire() -> WireFrame {
-    let bytes = encode(&sample_frame(2)).unwrap();
-    postcard::from_bytes(&bytes[1..]).unwrap()
+fn valid() -> (Header, Vec<Object>) {
+    parts(&sample_frame(2))
 }
 
 #[test]
 fn decode_reports_each_invalid_field() {
     assert_eq!(decode(&[]), Err(DecodeError::Empty));
     assert_eq!(decode(&[7, 1, 2]), Err(DecodeError::UnknownVersion(7)));
+    assert_eq!(
+        decode(&vec![VERSION; MAX_PAYLOAD + 1]),
+        Err(DecodeError::TooLarge(MAX_PAYLOAD + 1))
+    );
 
-    let mut b = body(&valid_wire());
+    let (h, o) = valid();
+    let mut b = assemble(&h, &o);
     b.push(0);
     assert_eq!(decode(&b), Err(DecodeError::TrailingBytes(1)));
 
-    let mut wf = valid_wire();
-    wf.kind = 5;
+    let (mut h, o) = valid();
+    h.kind = 5;
     assert!(matches!(
-        decode(&body(&wf)),
+        decode(&assemble(&h, &o)),
         Err(DecodeError::OutOfRange { field: "kind", .. })
     ));
 
-    let mut wf = valid_wire();
-    wf.objects[1].tag = 12;
+    let (h, mut o) = valid();
+    o[1].tag = 12;
     assert_eq!(
-        decode(&body(&wf)),
+        decode(&assemble(&h, &o)),
         Err(DecodeError::OutOfRange {
             index: 1,
             field: "class",
@@ -190,81 +196,174 @@ fn decode_reports_each_invalid_field() {
         })
     );
 
-    let mut wf = valid_wire();
-    wf.objects[0].tag |= 0x10; // says an override follows, but none does
+    let (h, mut o) = valid();
+    o[0].tag |= 0x80; // a bit this version does not define
     assert!(matches!(
-        decode(&body(&wf)),
+        decode(&assemble(&h, &o)),
         Err(DecodeError::OutOfRange { field: "tag", .. })
     ));
 
-    let mut wf = valid_wire();
-    wf.objects[0].size_delta_cm[1] = -10_000;
+    let (h, mut o) = valid();
+    o[0].size_delta_cm[1] = -10_000;
     assert_eq!(
-        decode(&body(&wf)),
-        Err(DecodeError::NonPositiveSize {
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::SizeOutOfRange {
             index: 0,
-            field: "size.w"
+            field: "size.w",
+            cm: (Class::Car.typical_size()[1] * 100.0).round() as i64 - 10_000
         })
     );
 
-    let mut wf = valid_wire();
-    wf.objects[1].score = 251;
+    // A size above 1 km decodes nowhere: the encoder could not write it back.
+    let (h, mut o) = valid();
+    o[0].size_delta_cm[0] = 100_000;
     assert!(matches!(
-        decode(&body(&wf)),
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::SizeOutOfRange {
+            field: "size.l",
+            ..
+        })
+    ));
+
+    let (h, mut o) = valid();
+    o[1].score = 251;
+    assert!(matches!(
+        decode(&assemble(&h, &o)),
         Err(DecodeError::OutOfRange { field: "score", .. })
     ));
 
-    let mut wf = valid_wire();
-    wf.default_std[6] = 0;
+    let (mut h, o) = valid();
+    h.default_std[6] = 0;
     assert_eq!(
-        decode(&body(&wf)),
-        Err(DecodeError::NonPositiveStd {
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::BadStdCode {
             index: usize::MAX,
-            field: "std.yaw"
+            field: "std.yaw",
+            code: 0
         })
     );
 
-    let mut wf = valid_wire();
-    wf.objects[0].tag |= 0x10;
-    wf.objects[0].std = Some([5, 5, 0, 5, 5, 5, 5]);
+    let (h, mut o) = valid();
+    o[0].tag |= TAG_STD;
+    o[0].std = Some([5, 5, STD_CODE_MAX + 1, 5, 5, 5, 5]);
     assert_eq!(
-        decode(&body(&wf)),
-        Err(DecodeError::NonPositiveStd {
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::BadStdCode {
             index: 0,
-            field: "std.z"
+            field: "std.z",
+            code: STD_CODE_MAX + 1
         })
     );
 
-    let mut wf = valid_wire();
-    wf.agent = String::new();
-    assert!(matches!(
-        decode(&body(&wf)),
-        Err(DecodeError::OutOfRange { field: "agent", .. })
-    ));
+    for name in ["", "a/b", "x*", &"n".repeat(MAX_AGENT_NAME + 1)] {
+        let (mut h, o) = valid();
+        h.agent = name.into();
+        assert!(
+            matches!(decode(&assemble(&h, &o)), Err(DecodeError::BadAgentName(_))),
+            "{name}"
+        );
+    }
 
-    let mut wf = valid_wire();
-    let o = wf.objects.pop().unwrap();
-    wf.objects = (0..MAX_OBJECTS + 1)
-        .map(|_| WireObject {
-            std: None,
-            tag: o.tag & 0x0f,
-            ..o
-        })
-        .collect();
-    assert_eq!(
-        decode(&body(&wf)),
-        Err(DecodeError::TooManyObjects(MAX_OBJECTS + 1))
-    );
-
-    let mut wf = valid_wire();
-    wf.origin_cm[0] = i64::MAX;
+    let (mut h, o) = valid();
+    h.origin_cm[0] = i64::MAX;
     assert!(matches!(
-        decode(&body(&wf)),
-        Err(DecodeError::NonFinite {
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::OutOfRange {
             field: "origin",
             ..
         })
     ));
+
+    // An origin at the edge of the domain with an object pushed beyond it.
+    let (mut h, mut o) = valid();
+    h.origin_cm[1] = (limits::COORD_MAX * 100.0) as i64;
+    o[1].pos_cm[1] = 1;
+    assert!(matches!(
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::OutOfRange {
+            index: 1,
+            field: "center.y",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn the_object_count_is_checked_before_any_object_is_read() {
+    let (h, _) = valid();
+    // Claims 5,000 objects and carries none: refused as too many, not read as truncated.
+    let mut w = Writer(vec![VERSION]);
+    w.put(&h);
+    w.put(&5_000u64);
+    assert_eq!(decode(&w.0), Err(DecodeError::TooManyObjects(5_000)));
+    assert_eq!(peek(&w.0), Err(DecodeError::TooManyObjects(5_000)));
+    let (h, o) = valid();
+    assert_eq!(peek(&assemble(&h, &o)), Ok(("veh1".to_string(), 2)));
+}
+
+#[test]
+fn encode_rejects_what_decode_rejects() {
+    let mut f = sample_frame(1);
+    f.agent = String::new();
+    assert!(matches!(encode(&f), Err(EncodeError::BadAgentName(_))));
+    let mut f = sample_frame(1);
+    f.detections[0].size[0] = 1000.5;
+    assert!(matches!(
+        encode(&f),
+        Err(EncodeError::OutOfRange {
+            field: "size.l",
+            ..
+        })
+    ));
+    let mut f = sample_frame(1);
+    f.detections[0].std.pos[0] = limits::STD_MIN / 2.0;
+    assert!(matches!(
+        encode(&f),
+        Err(EncodeError::OutOfRange { field: "std.x", .. })
+    ));
+    let mut f = sample_frame(1);
+    f.origin[2] = 2e9;
+    assert!(matches!(
+        encode(&f),
+        Err(EncodeError::OutOfRange {
+            field: "origin",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn fit_makes_any_fused_frame_encodable() {
+    // Two agents at the format's minimum std: WLS halves the variance, below the floor.
+    let mut f = sample_frame(3);
+    for d in &mut f.detections {
+        d.std = Uncertainty::uniform(limits::STD_MIN / 2f64.sqrt(), 0.1, 0.1);
+    }
+    assert!(encode(&f).is_err());
+    let report = fit(&mut f);
+    assert_eq!(report.stds_clamped, 9);
+    assert!(encode(&f).is_ok());
+
+    // Too many objects: the lowest scores go.
+    let mut f = sample_frame(MAX_OBJECTS + 10);
+    for (i, d) in f.detections.iter_mut().enumerate() {
+        d.score = if i < 10 { 0.01 } else { 0.9 };
+    }
+    let report = fit(&mut f);
+    assert_eq!(report.objects_capped, 10);
+    assert_eq!(f.detections.len(), MAX_OBJECTS);
+    assert!(f.detections.iter().all(|d| d.score == 0.9));
+    assert!(encode(&f).is_ok());
+
+    // One object 1e8 m away cannot take the others out of reach: it alone is dropped.
+    let mut f = sample_frame(5);
+    f.detections[2].center = [1e8, 1e8, 0.0];
+    f.detections[3].center[0] = f64::NAN;
+    let report = fit(&mut f);
+    assert_eq!(report.objects_invalid, 2);
+    assert_eq!(f.detections.len(), 3);
+    assert!(encode(&f).is_ok());
+    assert!(fit(&mut f).is_clean());
 }
 
 #[test]
@@ -282,6 +381,15 @@ fn every_truncation_is_an_error() {
                 "prefix {n}: {r:?}"
             );
         }
+    }
+}
+
+/// The one-domain property: whatever decodes encodes again, to a payload that decodes to the
+/// same frame.
+pub(crate) fn assert_decoded_reencodes(bytes: &[u8]) {
+    if let Ok(f) = decode(bytes) {
+        let again = encode(&f).unwrap_or_else(|e| panic!("decoded frame does not encode: {e}"));
+        assert_eq!(decode(&again).unwrap(), f);
     }
 }
 
@@ -338,17 +446,17 @@ proptest! {
 
     #[test]
     fn random_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..300)) {
-        let _ = decode(&bytes);
+        assert_decoded_reencodes(&bytes);
         let mut v = vec![VERSION];
         v.extend(&bytes);
-        let _ = decode(&v);
+        assert_decoded_reencodes(&v);
     }
 
     #[test]
-    fn corrupted_frames_never_panic(pos in 0usize..400, val in any::<u8>()) {
+    fn corrupted_frames_never_panic_and_reencode(pos in 0usize..400, val in any::<u8>()) {
         let mut bytes = encode(&sample_frame(20)).unwrap();
         let p = pos % bytes.len();
         bytes[p] = val;
-        let _ = decode(&bytes);
+        assert_decoded_reencodes(&bytes);
     }
 }

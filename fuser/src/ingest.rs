@@ -1,0 +1,634 @@
+//! Admission of agents' frames, sans-IO: every payload that reaches the fuser passes here before
+//! it may join a window. The caller passes the agent name taken from the key, the payload, and
+//! "now" on the fuser's clock (microseconds since the Unix epoch).
+//!
+//! - **Bounded state.** At most `max_agents` agents are tracked. An agent not heard from (no
+//!   frame, no liveliness token) for `forget_after` is forgotten; when the table is full, the
+//!   least recently heard agent without a token makes room, and if every agent holds a token the
+//!   newcomer is refused and counted.
+//! - **Validation.** The payload is checked for size and object count before its objects are
+//!   decoded, then decoded and validated; the frame must name the agent of its key.
+//! - **Clock.** Capture times are the sender's real-time clock. A frame stamped more than
+//!   `max_clock_skew` ahead of the fuser's clock, or older than that, is rejected, so no single
+//!   frame can move the window state. Each agent's lag (arrival minus capture: latency plus
+//!   clock offset) is kept over its recent frames and reported as a median.
+//! - **Who is awaited.** A window waits for the agents that hold a liveliness token and are
+//!   expected in it: an agent whose frame period is known (the median spacing of its recent
+//!   captures) is expected in a window anchored a whole number of periods after its last capture,
+//!   so a slow agent is not waited for between its frames. An agent that is expected and missing
+//!   in [`MAX_MISSES`] windows in a row is no longer waited for until it sends again, so a token
+//!   alone, or an agent that stopped sending, costs at most that many incomplete windows.
+//!
+//! Every rejection is counted per agent and in totals by reason.
+
+use crate::window::Verdict;
+use serde::Serialize;
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use v2x_protocol::{wire, Frame};
+
+/// Admission limits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IngestConfig {
+    /// Largest accepted |capture time - fuser clock| (us); `None` accepts any capture time
+    /// (replays of recorded data on their own clock).
+    pub max_clock_skew_us: Option<u64>,
+    /// Most agents tracked at once.
+    pub max_agents: usize,
+    /// An agent with no frame and no token for this long is forgotten (us).
+    pub forget_after_us: u64,
+}
+
+impl Default for IngestConfig {
+    fn default() -> Self {
+        IngestConfig {
+            max_clock_skew_us: Some(1_000_000),
+            max_agents: 256,
+            forget_after_us: 60_000_000,
+        }
+    }
+}
+
+/// Why a payload was not admitted.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Rejection {
+    /// The key's agent name is not a valid agent name.
+    BadKey,
+    /// The agent table is full of agents holding tokens.
+    AgentCap,
+    /// The payload does not decode or validate.
+    Invalid(wire::DecodeError),
+    /// The frame names another agent than its key.
+    WrongAgent(String),
+    /// Stamped this many us ahead of the fuser's clock, beyond the tolerance.
+    Future(u64),
+    /// Stamped this many us behind the fuser's clock, beyond the tolerance.
+    Stale(u64),
+}
+
+impl Rejection {
+    /// The counter name of the reason.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            Rejection::BadKey => "bad_key",
+            Rejection::AgentCap => "agent_cap",
+            Rejection::Invalid(_) => "invalid",
+            Rejection::WrongAgent(_) => "wrong_agent",
+            Rejection::Future(_) => "future",
+            Rejection::Stale(_) => "stale",
+        }
+    }
+}
+
+impl std::fmt::Display for Rejection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Rejection::BadKey => write!(f, "the key's agent name is not valid"),
+            Rejection::AgentCap => write!(f, "too many agents tracked"),
+            Rejection::Invalid(e) => write!(f, "invalid frame: {e}"),
+            Rejection::WrongAgent(a) => write!(f, "the frame claims to be from '{a}'"),
+            Rejection::Future(us) => write!(
+                f,
+                "stamped {:.1} s ahead of the fuser's clock",
+                *us as f64 / 1e6
+            ),
+            Rejection::Stale(us) => write!(
+                f,
+                "stamped {:.1} s behind the fuser's clock",
+                *us as f64 / 1e6
+            ),
+        }
+    }
+}
+
+/// Per-agent counters (the `agents` entries of the stats).
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct AgentStats {
+    /// Frames received (valid or not).
+    pub frames_in: u64,
+    /// Frames that joined a window.
+    pub accepted: u64,
+    /// Frames fused into a published window.
+    pub fused: u64,
+    /// Frames that failed to decode or validate.
+    pub invalid: u64,
+    /// Frames naming another agent than their key.
+    pub wrong_agent: u64,
+    /// Frames stamped too far ahead of the fuser's clock.
+    pub future: u64,
+    /// Frames stamped too far behind the fuser's clock.
+    pub stale: u64,
+    /// Frames for a window already closed.
+    pub late: u64,
+    /// Frames seen before (same sequence number and capture time).
+    pub duplicate: u64,
+    /// Frames dropped for another frame of the same agent closer to a window's anchor.
+    pub replaced: u64,
+    /// Payload bytes received.
+    pub payload_bytes: u64,
+    /// Objects received in accepted frames.
+    pub objects: u64,
+    /// Median arrival minus capture time over recent frames (ms): latency plus clock offset.
+    pub clock_lag_ms: Option<f64>,
+    /// Whether the agent holds a liveliness token.
+    pub token: bool,
+}
+
+#[derive(Clone, Debug, Default)]
+struct AgentState {
+    stats: AgentStats,
+    token: bool,
+    last_heard_us: u64,
+    /// Recent capture times of accepted frames, oldest first.
+    captures: VecDeque<u64>,
+    /// Windows in a row the agent was expected in and missing.
+    misses: u32,
+    lags: VecDeque<i64>,
+}
+
+impl AgentState {
+    /// The frame period: the median spacing of the recent captures, once there are two.
+    fn period_us(&self) -> Option<u64> {
+        let mut d: Vec<u64> = self
+            .captures
+            .iter()
+            .zip(self.captures.iter().skip(1))
+            .map(|(a, b)| b - a)
+            .filter(|&d| d > 0)
+            .collect();
+        d.sort_unstable();
+        d.get(d.len() / 2).copied()
+    }
+
+    /// Whether a frame of this agent is expected in a window anchored at `anchor_us` of
+    /// half-width `half_us`.
+    fn expected(&self, anchor_us: u64, half_us: u64) -> bool {
+        if self.misses >= MAX_MISSES {
+            return false;
+        }
+        let (Some(&last), Some(p)) = (self.captures.back(), self.period_us()) else {
+            return true;
+        };
+        if anchor_us <= last {
+            return true;
+        }
+        let k = ((anchor_us - last) as f64 / p as f64).round().max(1.0);
+        let next = last as f64 + k * p as f64;
+        (anchor_us as f64 - next).abs() <= half_us as f64 + p as f64 / 8.0
+    }
+}
+
+/// How many recent lags per agent the median is taken over.
+const LAGS: usize = 32;
+/// How many recent captures per agent the frame period is taken over.
+const CAPTURES: usize = 9;
+/// Windows in a row an awaited agent may miss before it is no longer waited for.
+pub const MAX_MISSES: u32 = 3;
+
+/// The admission state.
+#[derive(Debug)]
+pub struct Ingest {
+    cfg: IngestConfig,
+    agents: BTreeMap<String, AgentState>,
+    rejected: BTreeMap<&'static str, u64>,
+    forgotten: u64,
+    evicted: Vec<String>,
+}
+
+impl Ingest {
+    /// Empty state with the given limits.
+    pub fn new(cfg: IngestConfig) -> Self {
+        Ingest {
+            cfg,
+            agents: BTreeMap::new(),
+            rejected: BTreeMap::new(),
+            forgotten: 0,
+            evicted: Vec::new(),
+        }
+    }
+
+    /// The limits.
+    pub fn config(&self) -> &IngestConfig {
+        &self.cfg
+    }
+
+    fn reject(&mut self, r: Rejection) -> Rejection {
+        *self.rejected.entry(r.reason()).or_default() += 1;
+        r
+    }
+
+    /// Finds or makes room for an agent; `None` when the table is full of token holders.
+    fn entry(&mut self, agent: &str, now_us: u64) -> Option<&mut AgentState> {
+        if !self.agents.contains_key(agent) {
+            if self.agents.len() >= self.cfg.max_agents {
+                let victim = self
+                    .agents
+                    .iter()
+                    .filter(|(_, s)| !s.token)
+                    .min_by_key(|(_, s)| s.last_heard_us)
+                    .map(|(n, _)| n.clone())?;
+                self.agents.remove(&victim);
+                self.forgotten += 1;
+                self.evicted.push(victim);
+            }
+            self.agents.insert(
+                agent.to_string(),
+                AgentState {
+                    last_heard_us: now_us,
+                    ..Default::default()
+                },
+            );
+        }
+        self.agents.get_mut(agent)
+    }
+
+    /// Admits or rejects a payload received on `agent`'s detections key at `now_us`.
+    pub fn offer(&mut self, agent: &str, payload: &[u8], now_us: u64) -> Result<Frame, Rejection> {
+        if wire::check_agent_name(agent).is_err() {
+            return Err(self.reject(Rejection::BadKey));
+        }
+        let skew = self.cfg.max_clock_skew_us;
+        let Some(st) = self.entry(agent, now_us) else {
+            return Err(self.reject(Rejection::AgentCap));
+        };
+        st.last_heard_us = now_us;
+        st.stats.frames_in += 1;
+        st.stats.payload_bytes += payload.len() as u64;
+        let result = match wire::decode(payload) {
+            Err(e) => {
+                st.stats.invalid += 1;
+                Err(Rejection::Invalid(e))
+            }
+            Ok(f) if f.agent != agent => {
+                st.stats.wrong_agent += 1;
+                Err(Rejection::WrongAgent(f.agent))
+            }
+            Ok(f) => match skew {
+                Some(tol) if f.capture_us > now_us.saturating_add(tol) => {
+                    st.stats.future += 1;
+                    Err(Rejection::Future(f.capture_us - now_us))
+                }
+                Some(tol) if f.capture_us.saturating_add(tol) < now_us => {
+                    st.stats.stale += 1;
+                    Err(Rejection::Stale(now_us - f.capture_us))
+                }
+                _ => {
+                    st.lags.push_back(now_us as i64 - f.capture_us as i64);
+                    if st.lags.len() > LAGS {
+                        st.lags.pop_front();
+                    }
+                    Ok(f)
+                }
+            },
+        };
+        result.map_err(|r| self.reject(r))
+    }
+
+    /// Records what the window did with an admitted frame of `agent` captured at `capture_us`.
+    pub fn record(&mut self, agent: &str, verdict: Verdict, objects: usize, capture_us: u64) {
+        let Some(st) = self.agents.get_mut(agent) else {
+            return;
+        };
+        match verdict {
+            Verdict::Accepted | Verdict::Replaced => {
+                st.stats.accepted += 1;
+                st.stats.objects += objects as u64;
+                if verdict == Verdict::Replaced {
+                    st.stats.replaced += 1;
+                }
+                if st.captures.back().is_none_or(|&last| capture_us > last) {
+                    st.captures.push_back(capture_us);
+                    if st.captures.len() > CAPTURES {
+                        st.captures.pop_front();
+                    }
+                }
+                st.misses = 0;
+            }
+            Verdict::Superseded => st.stats.replaced += 1,
+            Verdict::Late => st.stats.late += 1,
+            Verdict::Duplicate => st.stats.duplicate += 1,
+        }
+        let reason = match verdict {
+            Verdict::Accepted => return,
+            Verdict::Replaced | Verdict::Superseded => "replaced",
+            Verdict::Late => "late",
+            Verdict::Duplicate => "duplicate",
+        };
+        *self.rejected.entry(reason).or_default() += 1;
+    }
+
+    /// Counts a published window's frames as fused.
+    pub fn fused(&mut self, agents: &[String]) {
+        for a in agents {
+            if let Some(st) = self.agents.get_mut(a) {
+                st.stats.fused += 1;
+            }
+        }
+    }
+
+    /// A liveliness token of `agent` appeared (`live`) or went away. Returns false when the
+    /// agent could not be tracked (invalid name, or the table is full of token holders).
+    pub fn token(&mut self, agent: &str, live: bool, now_us: u64) -> bool {
+        if wire::check_agent_name(agent).is_err() {
+            *self.rejected.entry(Rejection::BadKey.reason()).or_default() += 1;
+            return false;
+        }
+        if !live && !self.agents.contains_key(agent) {
+            return true;
+        }
+        let Some(st) = self.entry(agent, now_us) else {
+            *self
+                .rejected
+                .entry(Rejection::AgentCap.reason())
+                .or_default() += 1;
+            return false;
+        };
+        st.token = live;
+        st.last_heard_us = now_us;
+        if live {
+            // A new token is a new life: awaited again, its frame period learnt again.
+            st.captures.clear();
+            st.misses = 0;
+        }
+        true
+    }
+
+    /// Counts a closed window against the awaited agents missing from it.
+    pub fn window_closed(&mut self, anchor_us: u64, half_us: u64, members: &[&String]) {
+        for (name, st) in self.agents.iter_mut() {
+            if st.token && st.expected(anchor_us, half_us) && !members.contains(&name) {
+                st.misses += 1;
+            }
+        }
+    }
+
+    /// The agents a window anchored at `anchor_us` (half-width `half_us`) waits for: holding a
+    /// token and expected in it.
+    pub fn awaited(&self, anchor_us: u64, half_us: u64) -> BTreeSet<String> {
+        self.agents
+            .iter()
+            .filter(|(_, s)| s.token && s.expected(anchor_us, half_us))
+            .map(|(n, _)| n.clone())
+            .collect()
+    }
+
+    /// The agents holding a liveliness token.
+    pub fn tokens(&self) -> Vec<String> {
+        self.agents
+            .iter()
+            .filter(|(_, s)| s.token)
+            .map(|(n, _)| n.clone())
+            .collect()
+    }
+
+    /// Forgets agents with no token not heard from for `forget_after`; returns their names and
+    /// those of agents evicted to make room since the last call.
+    pub fn prune(&mut self, now_us: u64) -> Vec<String> {
+        let limit = self.cfg.forget_after_us;
+        let idle: Vec<String> = self
+            .agents
+            .iter()
+            .filter(|(_, s)| !s.token && now_us.saturating_sub(s.last_heard_us) > limit)
+            .map(|(n, _)| n.clone())
+            .collect();
+        for n in &idle {
+            self.agents.remove(n);
+        }
+        self.forgotten += idle.len() as u64;
+        let mut gone = std::mem::take(&mut self.evicted);
+        gone.extend(idle);
+        gone
+    }
+
+    /// Whether an agent is tracked now.
+    pub fn tracks(&self, agent: &str) -> bool {
+        self.agents.contains_key(agent)
+    }
+
+    /// Number of agents tracked now.
+    pub fn tracked(&self) -> usize {
+        self.agents.len()
+    }
+
+    /// Agents forgotten so far (idle, or to make room).
+    pub fn forgotten(&self) -> u64 {
+        self.forgotten
+    }
+
+    /// Rejections so far by reason, forgotten agents included.
+    pub fn rejected(&self) -> &BTreeMap<&'static str, u64> {
+        &self.rejected
+    }
+
+    /// Counters of every tracked agent, with their clock lag medians.
+    pub fn agent_stats(&self) -> BTreeMap<String, AgentStats> {
+        self.agents
+            .iter()
+            .map(|(n, s)| {
+                let mut st = s.stats.clone();
+                st.token = s.token;
+                st.clock_lag_ms = median(&s.lags).map(|us| us / 1000.0);
+                (n.clone(), st)
+            })
+            .collect()
+    }
+}
+
+fn median(v: &VecDeque<i64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s: Vec<i64> = v.iter().copied().collect();
+    s.sort_unstable();
+    let n = s.len();
+    Some(if n % 2 == 1 {
+        s[n / 2] as f64
+    } else {
+        (s[n / 2 - 1] as f64 + s[n / 2] as f64) / 2.0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use v2x_protocol::{AgentKind, Detection};
+
+    const S: u64 = 1_000_000;
+    const NOW: u64 = 1_700_000_000 * S;
+
+    fn payload(agent: &str, capture_us: u64) -> Vec<u8> {
+        wire::encode(&Frame {
+            agent: agent.into(),
+            kind: AgentKind::Vehicle,
+            seq: 0,
+            capture_us,
+            origin: [0.0; 3],
+            detections: vec![Detection::default()],
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn frames_far_from_the_fuser_clock_are_rejected_and_counted() {
+        let mut i = Ingest::new(IngestConfig::default());
+        assert!(i.offer("a", &payload("a", NOW - 30_000), NOW).is_ok());
+        assert_eq!(
+            i.offer("a", &payload("a", NOW + 3600 * S), NOW),
+            Err(Rejection::Future(3600 * S))
+        );
+        assert!(matches!(
+            i.offer("a", &payload("a", u64::MAX), NOW),
+            Err(Rejection::Future(_))
+        ));
+        assert!(matches!(
+            i.offer("a", &payload("a", 0), NOW),
+            Err(Rejection::Stale(_))
+        ));
+        // within the tolerance either way
+        assert!(i.offer("a", &payload("a", NOW + S - 1), NOW).is_ok());
+        assert!(i.offer("a", &payload("a", NOW - S + 1), NOW).is_ok());
+        let st = &i.agent_stats()["a"];
+        assert_eq!((st.frames_in, st.future, st.stale), (6, 2, 1));
+        assert_eq!(i.rejected()["future"], 2);
+        // no tolerance: a replay on its data's clock
+        let mut i = Ingest::new(IngestConfig {
+            max_clock_skew_us: None,
+            ..Default::default()
+        });
+        assert!(i.offer("a", &payload("a", 0), NOW).is_ok());
+    }
+
+    #[test]
+    fn the_lag_median_reports_latency_plus_offset() {
+        let mut i = Ingest::new(IngestConfig::default());
+        for (k, lag_ms) in [20u64, 25, 30, 500, 22].iter().enumerate() {
+            let now = NOW + k as u64 * 100_000;
+            i.offer("a", &payload("a", now - lag_ms * 1000), now)
+                .unwrap();
+        }
+        assert_eq!(i.agent_stats()["a"].clock_lag_ms, Some(25.0));
+    }
+
+    #[test]
+    fn wrong_names_and_bad_payloads() {
+        let mut i = Ingest::new(IngestConfig::default());
+        assert_eq!(
+            i.offer("a", &payload("b", NOW), NOW),
+            Err(Rejection::WrongAgent("b".into()))
+        );
+        assert!(matches!(
+            i.offer("a", &[2, 0xff], NOW),
+            Err(Rejection::Invalid(_))
+        ));
+        assert_eq!(
+            i.offer("a*b", &payload("a", NOW), NOW),
+            Err(Rejection::BadKey)
+        );
+        let st = &i.agent_stats()["a"];
+        assert_eq!((st.wrong_agent, st.invalid), (1, 1));
+        assert!(!i.tracks("a*b"));
+    }
+
+    #[test]
+    fn the_table_stays_bounded_and_keeps_token_holders() {
+        let mut i = Ingest::new(IngestConfig {
+            max_agents: 10,
+            ..Default::default()
+        });
+        assert!(i.token("honest", true, NOW));
+        for k in 0..1000u64 {
+            let name = format!("x{k}");
+            let _ = i.offer(&name, &payload(&name, NOW), NOW + k);
+        }
+        assert_eq!(i.tracked(), 10);
+        assert!(i.tracks("honest"), "a token holder is never evicted");
+        assert_eq!(i.forgotten(), 1000 - 9);
+        assert_eq!(
+            i.prune(NOW).len(),
+            1000 - 9,
+            "evicted names are handed out once"
+        );
+        assert!(i.prune(NOW).is_empty());
+        // token holders fill the table: newcomers are refused
+        let mut i = Ingest::new(IngestConfig {
+            max_agents: 3,
+            ..Default::default()
+        });
+        for k in 0..3 {
+            assert!(i.token(&format!("t{k}"), true, NOW));
+        }
+        assert!(!i.token("t9", true, NOW));
+        assert_eq!(
+            i.offer("z", &payload("z", NOW), NOW),
+            Err(Rejection::AgentCap)
+        );
+        assert_eq!(i.rejected()["agent_cap"], 2);
+    }
+
+    #[test]
+    fn idle_agents_are_forgotten() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.offer("a", &payload("a", NOW), NOW).unwrap();
+        i.token("b", true, NOW);
+        assert!(i.prune(NOW + 59 * S).is_empty());
+        assert_eq!(i.prune(NOW + 61 * S), vec!["a".to_string()]);
+        assert!(i.tracks("b"), "a token keeps an agent");
+        i.token("b", false, NOW + 62 * S);
+        assert_eq!(i.prune(NOW + 123 * S), vec!["b".to_string()]);
+        assert_eq!(i.forgotten(), 2);
+    }
+
+    fn send(i: &mut Ingest, agent: &str, t: u64) {
+        i.offer(agent, &payload(agent, t), t).unwrap();
+        i.record(agent, Verdict::Accepted, 1, t);
+    }
+
+    const H: u64 = 50_000; // half of a 100 ms window
+
+    #[test]
+    fn a_token_alone_is_awaited_for_three_windows_at_most() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.token("silent", true, NOW);
+        i.token("a", true, NOW);
+        send(&mut i, "raw", NOW); // frames, but no token: never awaited
+        for k in 0..3 {
+            let t = NOW + k * 100_000;
+            send(&mut i, "a", t);
+            let awaited = i.awaited(t, H);
+            assert_eq!(awaited.into_iter().collect::<Vec<_>>(), vec!["a", "silent"]);
+            let a = "a".to_string();
+            i.window_closed(t, H, &[&a]);
+        }
+        assert_eq!(
+            i.awaited(NOW + 300_000, H).into_iter().collect::<Vec<_>>(),
+            vec!["a"]
+        );
+        // it sends: awaited again
+        send(&mut i, "silent", NOW + 310_000);
+        assert!(i.awaited(NOW + 400_000, H).contains("silent"));
+    }
+
+    #[test]
+    fn a_slow_agent_is_awaited_only_where_its_frames_fall() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.token("slow", true, NOW);
+        for k in 0..3 {
+            send(&mut i, "slow", NOW + k * S); // 1 Hz
+        }
+        let last = NOW + 2 * S;
+        assert!(!i.awaited(last + 300_000, H).contains("slow"));
+        assert!(!i.awaited(last + 700_000, H).contains("slow"));
+        assert!(i.awaited(last + S, H).contains("slow"));
+        assert!(i.awaited(last + S + 40_000, H).contains("slow"), "jitter");
+        assert!(
+            i.awaited(last + 2 * S, H).contains("slow"),
+            "one frame lost"
+        );
+        // it stops sending: three missed windows where it was expected, then no more waiting
+        for k in 1..=3 {
+            let anchor = last + k * S;
+            assert!(i.awaited(anchor, H).contains("slow"));
+            i.window_closed(anchor, H, &[]);
+        }
+        assert!(!i.awaited(last + 4 * S, H).contains("slow"));
+    }
+}

@@ -1,0 +1,444 @@
+//! The fuser node: the thin Zenoh shell around [`crate::ingest`], [`crate::window`] and a
+//! [`Method`].
+//!
+//! The receive loop subscribes to `v2x/NS/det/*` and `v2x/NS/alive/*`, admits each frame
+//! ([`Ingest`]: size, count, validity, clock tolerance, bounded agent table), feeds the window
+//! state machine, and hands each closed window to the fusion [`worker`] through a bounded queue;
+//! the worker fuses, fits the result to the wire's domain, and publishes it on `v2x/NS/fused`.
+//! The loop also answers `v2x/NS/fuser/stats` with [`NodeStats`] as JSON, logs rejections at a
+//! bounded rate ([`RateLog`]), and forgets idle agents.
+
+mod stats;
+mod worker;
+
+pub use stats::{FitStats, Latency, NodeStats};
+pub use v2x_protocol::net::shutdown_signal;
+pub use worker::fuse_window;
+
+use crate::ingest::{Ingest, IngestConfig, Rejection};
+use crate::ratelog::RateLog;
+use crate::window::{Closed, Windows};
+use crate::Method;
+use anyhow::anyhow;
+use std::future::Future;
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+use v2x_protocol::{keys, Frame};
+use zenoh::bytes::Encoding;
+use zenoh::sample::SampleKind;
+
+/// How the node runs.
+#[derive(Clone, Debug)]
+pub struct NodeConfig {
+    /// Scenario namespace.
+    pub ns: String,
+    /// Fusion method.
+    pub method: Method,
+    /// Window width delta t (ms).
+    pub window_ms: f64,
+    /// Longest wait for missing agents after a window's first frame (ms).
+    pub max_wait_ms: f64,
+    /// Admission limits: clock tolerance, agent table.
+    pub ingest: IngestConfig,
+    /// Closed windows that may wait for fusion; beyond, windows are dropped and counted.
+    pub queue: usize,
+    /// Interval of the rate-limited log summaries (s).
+    pub log_interval_s: f64,
+}
+
+impl NodeConfig {
+    /// The defaults: windows of 100 ms waiting at most 150 ms, 1 s clock tolerance, 256 agents,
+    /// a fusion queue of 16 windows, log summaries every 10 s.
+    pub fn new(ns: &str, method: Method) -> Self {
+        NodeConfig {
+            ns: ns.to_string(),
+            method,
+            window_ms: 100.0,
+            max_wait_ms: 150.0,
+            ingest: IngestConfig::default(),
+            queue: 16,
+            log_interval_s: 10.0,
+        }
+    }
+}
+
+/// A fused window as published.
+#[derive(Clone, Debug)]
+pub struct Fused {
+    /// The fused frame (agent "fuser", capture time = the window's anchor).
+    pub frame: Frame,
+    /// Agents whose frames were fused.
+    pub members: Vec<String>,
+    /// Whether every awaited agent contributed.
+    pub complete: bool,
+}
+
+/// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in
+/// microseconds since the Unix epoch (the time base of capture times).
+#[derive(Clone, Copy, Debug)]
+pub struct Clock {
+    wall0_us: u64,
+    mono0: Instant,
+}
+
+impl Clock {
+    /// Starts now.
+    pub fn start() -> Self {
+        Clock {
+            wall0_us: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as u64),
+            mono0: Instant::now(),
+        }
+    }
+
+    /// Now, in microseconds since the Unix epoch.
+    pub fn now_us(&self) -> u64 {
+        self.wall0_us + self.mono0.elapsed().as_micros() as u64
+    }
+}
+
+const MAX_LATENCY_SAMPLES: usize = 200_000;
+
+struct State {
+    ns: String,
+    clock: Clock,
+    ingest: Ingest,
+    windows: Windows,
+    log: RateLog,
+    stats: NodeStats,
+    e2e: Vec<f64>,
+    fusion: Vec<f64>,
+    queued: usize,
+    last_prune_us: u64,
+}
+
+impl State {
+    fn snapshot(&self) -> NodeStats {
+        let now = self.clock.now_us();
+        let mut s = self.stats.clone();
+        s.live = self.ingest.tokens();
+        s.awaited = self
+            .ingest
+            .awaited(now, self.windows.half_us())
+            .into_iter()
+            .collect();
+        s.agents = self.ingest.agent_stats();
+        s.agents_tracked = self.ingest.tracked();
+        s.agents_forgotten = self.ingest.forgotten();
+        s.rejected = self
+            .ingest
+            .rejected()
+            .iter()
+            .map(|(k, v)| (k.to_string(), *v))
+            .collect();
+        s.open_windows = self.windows.open_windows();
+        s.fusion_queue = self.queued;
+        s.e2e_latency_ms = Latency::of(&self.e2e);
+        s.fusion_latency_ms = Latency::of(&self.fusion);
+        s
+    }
+
+    fn warn(&mut self, r: &Rejection, key: &str) {
+        if let Some(line) = self.log.note(r.reason(), &format!("{key}: {r}")) {
+            tracing::warn!("{line}");
+        }
+    }
+
+    fn on_payload(&mut self, key: &str, payload: &[u8]) {
+        let Some(agent) = keys::agent_of_detections(&self.ns, key) else {
+            return;
+        };
+        let now = self.clock.now_us();
+        match self.ingest.offer(&agent, payload, now) {
+            Ok(frame) => {
+                let (n, t) = (frame.detections.len(), frame.capture_us);
+                let verdict = self.windows.insert(frame, now);
+                self.ingest.record(&agent, verdict, n, t);
+            }
+            Err(r) => self.warn(&r, key),
+        }
+    }
+
+    fn on_token(&mut self, agent: &str, live: bool) {
+        let now = self.clock.now_us();
+        if live {
+            // A new token is a restart: its sequence numbers start again.
+            self.windows.forget_agent(agent);
+        }
+        if self.ingest.token(agent, live, now) {
+            tracing::info!("agent {agent} {}", if live { "is live" } else { "left" });
+        } else {
+            let r = Rejection::AgentCap;
+            if let Some(line) = self
+                .log
+                .note(r.reason(), &format!("token of '{agent}' ignored: {r}"))
+            {
+                tracing::warn!("{line}");
+            }
+        }
+    }
+
+    /// Forgets idle agents (once a second) and logs the interval's summaries.
+    fn housekeeping(&mut self) {
+        let now = self.clock.now_us();
+        if now.saturating_sub(self.last_prune_us) >= 1_000_000 {
+            self.last_prune_us = now;
+            for agent in self.ingest.prune(now) {
+                self.windows.forget_agent(&agent);
+            }
+        }
+        for line in self.log.tick(now) {
+            tracing::warn!("{line}");
+        }
+    }
+
+    fn on_done(&mut self, d: worker::Done, on_fused: &mut impl FnMut(&Fused)) {
+        self.queued = self.queued.saturating_sub(1);
+        self.stats.fit.add(&d.fit);
+        if !d.fit.is_clean() {
+            if let Some(line) = self.log.note(
+                "fit",
+                &format!(
+                    "fused frame {} changed to fit the wire: {:?}",
+                    d.fused.frame.seq, d.fit
+                ),
+            ) {
+                tracing::warn!("{line}");
+            }
+        }
+        if let Some(e) = &d.error {
+            self.stats.windows_unpublished += 1;
+            if let Some(line) = self.log.note(
+                "unpublished",
+                &format!("fused frame {} not published: {e}", d.fused.frame.seq),
+            ) {
+                tracing::warn!("{line}");
+            }
+            return;
+        }
+        self.ingest.fused(&d.fused.members);
+        self.stats.windows += 1;
+        if !d.fused.complete {
+            self.stats.windows_incomplete += 1;
+        }
+        self.stats.fused_objects += d.fused.frame.detections.len() as u64;
+        if self.fusion.len() < MAX_LATENCY_SAMPLES {
+            self.fusion
+                .push(d.done_at_us.saturating_sub(d.closed_at_us) as f64 / 1000.0);
+            self.e2e
+                .push((d.done_at_us as f64 - d.fused.frame.capture_us as f64) / 1000.0);
+        }
+        on_fused(&d.fused);
+    }
+
+    /// Closes the windows ready at `now_us` and counts them against the awaited agents missing.
+    fn close_ready(&mut self, now_us: u64) -> Vec<Closed> {
+        let half = self.windows.half_us();
+        let ingest = &self.ingest;
+        let closed = self
+            .windows
+            .poll(now_us, |anchor| ingest.awaited(anchor, half));
+        for c in &closed {
+            let members: Vec<&String> = c.frames.keys().collect();
+            self.ingest.window_closed(c.anchor_us, half, &members);
+        }
+        closed
+    }
+
+    /// Queues closed windows for fusion; a full queue drops the window (counted).
+    fn enqueue(&mut self, closed: Vec<Closed>, jobs: &mpsc::Sender<worker::Job>) {
+        let now = self.clock.now_us();
+        for c in closed {
+            let anchor = c.anchor_us;
+            match jobs.try_send(worker::Job {
+                closed: c,
+                closed_at_us: now,
+            }) {
+                Ok(()) => self.queued += 1,
+                Err(_) => {
+                    self.stats.windows_dropped += 1;
+                    if let Some(line) = self.log.note(
+                        "fusion_backlog",
+                        &format!("window at {anchor} us dropped: the fusion queue is full"),
+                    ) {
+                        tracing::warn!("{line}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Runs the fuser on `session` until `shutdown` resolves; `on_fused` sees every published
+/// window, in capture order. Returns the final statistics.
+pub async fn run(
+    session: &zenoh::Session,
+    cfg: NodeConfig,
+    mut on_fused: impl FnMut(&Fused),
+    shutdown: impl Future<Output = ()>,
+) -> anyhow::Result<NodeStats> {
+    keys::validate_chunk("namespace", &cfg.ns).map_err(|e| anyhow!(e))?;
+    let window_ok = cfg.window_ms > 0.0 && cfg.window_ms.is_finite();
+    let wait_ok = cfg.max_wait_ms >= 0.0 && cfg.max_wait_ms.is_finite();
+    if !window_ok || !wait_ok {
+        anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
+    }
+    if cfg.ingest.max_agents == 0 || cfg.queue == 0 {
+        anyhow::bail!("the agent table and the fusion queue must hold at least one entry");
+    }
+    let ns = cfg.ns.clone();
+    let z = |e: zenoh::Error| anyhow!("{e}");
+    let det = session
+        .declare_subscriber(keys::all_detections(&ns))
+        .await
+        .map_err(z)?;
+    let alive = session
+        .liveliness()
+        .declare_subscriber(keys::all_alive(&ns))
+        .history(true)
+        .await
+        .map_err(z)?;
+    let queryable = session
+        .declare_queryable(keys::fuser_stats(&ns))
+        .await
+        .map_err(z)?;
+    let publisher = session
+        .declare_publisher(keys::fused(&ns))
+        .encoding(
+            Encoding::APPLICATION_OCTET_STREAM
+                .with_schema(format!("v2x-frame/{}", v2x_protocol::wire::VERSION)),
+        )
+        .await
+        .map_err(z)?;
+    let _token = session
+        .liveliness()
+        .declare_token(keys::fuser_alive(&ns))
+        .await
+        .map_err(z)?;
+    let clock = Clock::start();
+    let (job_tx, job_rx) = mpsc::channel(cfg.queue);
+    let (done_tx, mut done_rx) = mpsc::unbounded_channel();
+    let worker = tokio::spawn(worker::run(cfg.method, publisher, clock, job_rx, done_tx));
+    let now = clock.now_us();
+    let mut st = State {
+        ns: ns.clone(),
+        clock,
+        ingest: Ingest::new(cfg.ingest.clone()),
+        windows: Windows::new(
+            (cfg.window_ms * 1000.0) as u64,
+            (cfg.max_wait_ms * 1000.0) as u64,
+        ),
+        log: RateLog::new((cfg.log_interval_s.max(0.1) * 1e6) as u64, now),
+        stats: NodeStats {
+            ns: ns.clone(),
+            method: cfg.method.name(),
+            ..Default::default()
+        },
+        e2e: Vec::new(),
+        fusion: Vec::new(),
+        queued: 0,
+        last_prune_us: now,
+    };
+    tracing::info!(
+        "fuser on v2x/{ns}: method {}, window {} ms",
+        st.stats.method,
+        cfg.window_ms
+    );
+    tokio::pin!(shutdown);
+    loop {
+        // Wake for the next deadline, and at least once a second for housekeeping.
+        let wait = st
+            .windows
+            .next_deadline()
+            .map_or(Duration::from_secs(1), |d| {
+                Duration::from_micros(d.saturating_sub(st.clock.now_us()))
+                    .min(Duration::from_secs(1))
+            });
+        tokio::select! {
+            s = det.recv_async() => match s {
+                Ok(s) => st.on_payload(s.key_expr().as_str(), &s.payload().to_bytes()),
+                Err(_) => break,
+            },
+            s = alive.recv_async() => match s {
+                Ok(s) => if let Some(agent) = keys::agent_of_alive(&ns, s.key_expr().as_str()) {
+                    st.on_token(&agent, s.kind() == SampleKind::Put);
+                },
+                Err(_) => break,
+            },
+            q = queryable.recv_async() => if let Ok(q) = q {
+                match serde_json::to_vec(&st.snapshot()) {
+                    Ok(body) => {
+                        if let Err(e) = q
+                            .reply(keys::fuser_stats(&ns), body)
+                            .encoding(Encoding::APPLICATION_JSON)
+                            .await
+                        {
+                            tracing::warn!("stats reply failed: {e}");
+                        }
+                    }
+                    Err(e) => tracing::warn!("stats do not serialize: {e}"),
+                }
+            },
+            d = done_rx.recv() => if let Some(d) = d {
+                st.on_done(d, &mut on_fused);
+            },
+            _ = tokio::time::sleep(wait) => {}
+            _ = &mut shutdown => break,
+        }
+        let now = st.clock.now_us();
+        let ready = st.close_ready(now);
+        st.enqueue(ready, &job_tx);
+        st.housekeeping();
+    }
+    // Stop: flush every open window through the worker, then let it finish.
+    st.stats.open_windows_at_stop = st.windows.open_windows();
+    let now = st.clock.now_us();
+    for closed in st.close_ready(u64::MAX) {
+        st.queued += 1;
+        if job_tx
+            .send(worker::Job {
+                closed,
+                closed_at_us: now,
+            })
+            .await
+            .is_err()
+        {
+            st.queued -= 1;
+            st.stats.windows_dropped += 1;
+        }
+    }
+    drop(job_tx);
+    while let Some(d) = done_rx.recv().await {
+        st.on_done(d, &mut on_fused);
+    }
+    let _ = worker.await;
+    for line in st.log.flush(st.clock.now_us()) {
+        tracing::warn!("{line}");
+    }
+    let mut stats = st.snapshot();
+    stats.fusion_samples = std::mem::take(&mut st.fusion);
+    Ok(stats)
+}
+
+/// Asks a running fuser for its statistics.
+pub async fn query_stats(
+    session: &zenoh::Session,
+    ns: &str,
+    timeout: Duration,
+) -> anyhow::Result<serde_json::Value> {
+    let replies = session
+        .get(keys::fuser_stats(ns))
+        .timeout(timeout)
+        .await
+        .map_err(|e| anyhow!("{e}"))?;
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result() {
+            return Ok(serde_json::from_slice(&sample.payload().to_bytes())?);
+        }
+    }
+    anyhow::bail!(
+        "no fuser answered on {} within {timeout:?}",
+        keys::fuser_stats(ns)
+    )
+}

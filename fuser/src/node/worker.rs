@@ -1,0 +1,112 @@
+//! The fusion worker: closed windows come in through a bounded queue, are fused on a blocking
+//! thread (so a heavy window never stalls the receive loop), brought into the wire's domain,
+//! encoded and published on `v2x/NS/fused`, in the order they closed. Each outcome goes back to
+//! the receive loop, which keeps the statistics.
+
+use super::{Clock, Fused};
+use crate::window::Closed;
+use crate::Method;
+use tokio::sync::mpsc;
+use v2x_protocol::wire::{self, Fit};
+use v2x_protocol::{AgentKind, Detection, Frame};
+
+/// A closed window to fuse.
+pub(super) struct Job {
+    pub closed: Closed,
+    /// When it closed (fuser clock, us).
+    pub closed_at_us: u64,
+}
+
+/// What became of a job.
+pub(super) struct Done {
+    pub fused: Fused,
+    pub fit: Fit,
+    /// Why it was not published, if it was not.
+    pub error: Option<String>,
+    pub closed_at_us: u64,
+    pub done_at_us: u64,
+}
+
+/// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire).
+pub fn fuse_window(method: &Method, closed: Closed, seq: u32) -> Fused {
+    let members: Vec<String> = closed.frames.keys().cloned().collect();
+    let lists: Vec<Vec<Detection>> = closed.frames.into_values().map(|f| f.detections).collect();
+    let detections = method.fuse(&lists);
+    Fused {
+        frame: Frame {
+            agent: "fuser".into(),
+            kind: AgentKind::Infrastructure,
+            seq,
+            capture_us: closed.anchor_us,
+            origin: [0.0; 3],
+            detections,
+        },
+        members,
+        complete: closed.complete,
+    }
+}
+
+/// Runs the worker until its queue closes.
+pub(super) async fn run(
+    method: Method,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    clock: Clock,
+    mut jobs: mpsc::Receiver<Job>,
+    done: mpsc::UnboundedSender<Done>,
+) {
+    let mut seq = 0u32;
+    while let Some(job) = jobs.recv().await {
+        let Job {
+            closed,
+            closed_at_us,
+        } = job;
+        let this_seq = seq;
+        seq = seq.wrapping_add(1);
+        let (anchor, members, complete) = (
+            closed.anchor_us,
+            closed.frames.keys().cloned().collect::<Vec<_>>(),
+            closed.complete,
+        );
+        let work = tokio::task::spawn_blocking(move || {
+            let mut fused = fuse_window(&method, closed, this_seq);
+            let fit = wire::fit(&mut fused.frame);
+            let bytes = wire::encode(&fused.frame);
+            (fused, fit, bytes)
+        })
+        .await;
+        let (fused, fit, error) = match work {
+            Ok((fused, fit, Ok(bytes))) => {
+                let error = publisher.put(bytes).await.err().map(|e| e.to_string());
+                (fused, fit, error)
+            }
+            Ok((fused, fit, Err(e))) => (fused, fit, Some(format!("does not encode: {e}"))),
+            // The fusion panicked: the window is lost (and counted), the worker goes on.
+            Err(e) => (
+                Fused {
+                    frame: Frame {
+                        agent: "fuser".into(),
+                        kind: AgentKind::Infrastructure,
+                        seq: this_seq,
+                        capture_us: anchor,
+                        origin: [0.0; 3],
+                        detections: Vec::new(),
+                    },
+                    members,
+                    complete,
+                },
+                Fit::default(),
+                Some(format!("fusion failed: {e}")),
+            ),
+        };
+        let outcome = Done {
+            fused,
+            fit,
+            error,
+            closed_at_us,
+            done_at_us: clock.now_us(),
+        };
+        if done.send(outcome).is_err() {
+            break;
+        }
+    }
+}

@@ -1,0 +1,303 @@
+//! `v2x-sim run`: a scenario over Zenoh. With no `--role`, every role runs in this process on
+//! loopback: the fuser listens on a free local port and each agent reaches it through a small
+//! byte-counting TCP relay ([`relay`]), which is how wire bytes are measured. With `--role NAME`
+//! only those roles run, each with the endpoints its scenario entry gives, so one file drives a
+//! multi-machine experiment (one role per host).
+//!
+//! Agents replay the ground truth's frames on a shared [`schedule`]: frame k is captured at
+//! epoch + k x period / speed on each agent's (possibly offset) clock. The fuser role fixes the
+//! epoch and answers it ([`epoch`]); agent roles ask for it, and an agent that joins late starts
+//! at the current frame. At the end the fuser role maps each fused window back to its
+//! ground-truth frame and prints the [`summary`]. SIGINT and SIGTERM end a run early, with the
+//! recording and the summary of what ran.
+
+pub mod epoch;
+pub mod relay;
+pub mod roles;
+pub mod schedule;
+pub mod summary;
+
+pub use relay::{counting_relay, free_port};
+pub use roles::{agent_role, agent_view, fuser_role, FuserOutcome};
+pub use schedule::Schedule;
+pub use summary::{print_table, recorded, summarize, Bandwidth, Counts, Summary};
+
+use crate::dataset::GroundTruth;
+use crate::scenario::Scenario;
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::watch;
+use v2x_agent::now_us;
+use v2x_protocol::net::{open_session, shutdown_signal, ZenohArgs};
+use v2x_protocol::nuscenes_json::write_results;
+
+/// Output format of the summary.
+#[derive(Copy, Clone, Debug, ValueEnum, PartialEq, Eq)]
+pub enum RunFormat {
+    /// Human-readable tables.
+    Table,
+    /// One JSON object (fields in the README).
+    Json,
+}
+
+/// `v2x-sim run` arguments.
+#[derive(Args, Clone, Debug)]
+pub struct RunArgs {
+    /// Scenario file (TOML); without it, the embedded default scenario.
+    pub scenario: Option<PathBuf>,
+    /// Run only these roles: `fuser` or an agent's name (repeatable). Default: every role, here.
+    #[arg(long = "role")]
+    pub roles: Vec<String>,
+    /// Summary format.
+    #[arg(long, value_enum, default_value = "table")]
+    pub format: RunFormat,
+    /// Record the fused output as a nuScenes results file (ground-truth sample tokens).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+}
+
+/// The `run` subcommand.
+#[derive(clap::Subcommand, Clone, Debug)]
+pub enum RunCommand {
+    /// Run a scenario over Zenoh (whole, or only the named roles) and report metrics, bandwidth
+    /// and latency.
+    Run(RunArgs),
+}
+
+/// A stop flag that turns true on SIGINT or SIGTERM.
+fn stop_on_signal() -> watch::Receiver<bool> {
+    let (tx, rx) = watch::channel(false);
+    tokio::spawn(async move {
+        shutdown_signal().await;
+        eprintln!("stopping: the recording and the summary cover what ran");
+        let _ = tx.send(true);
+    });
+    rx
+}
+
+/// Resolves when the stop flag turns true.
+async fn stopped(mut stop: watch::Receiver<bool>) {
+    let _ = stop.wait_for(|s| *s).await;
+}
+
+/// Runs every role of a scenario in this process over loopback.
+pub async fn run_local(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+) -> anyhow::Result<(Summary, FuserOutcome)> {
+    run_local_until(scenario, gt, watch::channel(false).1).await
+}
+
+async fn run_local_until(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<(Summary, FuserOutcome)> {
+    let schedule = Schedule::of(gt, scenario.duration_s);
+    let fuser_port = free_port()?;
+    let fuser_session = open_session(&ZenohArgs::loopback(
+        &[format!("tcp/127.0.0.1:{fuser_port}")],
+        &[],
+    ))
+    .await?;
+    let mut agent_sessions = Vec::new();
+    let mut wire = Vec::new();
+    for _ in &scenario.agents {
+        let counter = Arc::new(AtomicU64::new(0));
+        let port = counting_relay(fuser_port, counter.clone()).await?;
+        agent_sessions.push(
+            open_session(&ZenohArgs::loopback(
+                &[],
+                &[format!("tcp/127.0.0.1:{port}")],
+            ))
+            .await?,
+        );
+        wire.push(counter);
+    }
+    let start = std::time::Instant::now();
+    let epoch = now_us() + 1_000_000;
+    let (done_tx, done_rx) = tokio::sync::oneshot::channel::<()>();
+    let max_wait = scenario.fuser.max_wait_ms;
+    let fuser_stop = {
+        let stop = stop.clone();
+        async move {
+            tokio::select! {
+                _ = done_rx => {}
+                _ = stopped(stop) => {}
+            }
+            tokio::time::sleep(Duration::from_secs_f64(max_wait / 1000.0 + 0.3)).await;
+        }
+    };
+    let fuser = fuser_role(&fuser_session, scenario, &schedule, epoch, fuser_stop);
+    let agents = async {
+        let runs = scenario.agents.iter().enumerate().map(|(idx, _)| {
+            agent_role(
+                &agent_sessions[idx],
+                scenario,
+                gt,
+                &schedule,
+                idx,
+                epoch,
+                stop.clone(),
+            )
+        });
+        let results = futures::future::join_all(runs).await;
+        let _ = done_tx.send(());
+        results
+    };
+    let (outcome, results) = tokio::join!(fuser, agents);
+    let outcome = outcome?;
+    let mut totals = BTreeMap::new();
+    for ((a, r), w) in scenario.agents.iter().zip(results).zip(&wire) {
+        totals.insert(
+            a.name.clone(),
+            (
+                r.with_context(|| format!("agent {}", a.name))?,
+                Some(w.load(Ordering::Relaxed)),
+            ),
+        );
+    }
+    for s in agent_sessions {
+        let _ = s.close().await;
+    }
+    let _ = fuser_session.close().await;
+    let summary = summarize(
+        scenario,
+        gt,
+        &schedule,
+        &outcome,
+        &totals,
+        start.elapsed().as_secs_f64(),
+    );
+    Ok((summary, outcome))
+}
+
+/// Entry point of `v2x-sim run`.
+pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
+    let RunCommand::Run(args) = cmd;
+    let scenario = match &args.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::parse(crate::scenario::DEFAULT, "the default scenario", None)?,
+    };
+    let gt = scenario.dataset.data_args().load()?;
+    for r in &args.roles {
+        if r != "fuser" && !scenario.agents.iter().any(|a| &a.name == r) {
+            let names: Vec<_> = scenario.agents.iter().map(|a| a.name.as_str()).collect();
+            bail!(
+                "--role {r}: not a role of this scenario (roles: fuser, {})",
+                names.join(", ")
+            );
+        }
+    }
+    let schedule = Schedule::of(&gt, scenario.duration_s);
+    let stop = stop_on_signal();
+    let summary_and_outcome = if args.roles.is_empty() {
+        eprintln!(
+            "running {} agents and the fuser in this process over loopback ({} frames)...",
+            scenario.agents.len(),
+            schedule.frames.len()
+        );
+        Some(run_local_until(&scenario, &gt, stop).await?)
+    } else {
+        run_roles(&scenario, &gt, &schedule, &args.roles, stop).await?
+    };
+    if let Some((summary, outcome)) = summary_and_outcome {
+        if let Some(path) = &args.record {
+            let r = recorded(&gt, &schedule, &outcome);
+            write_results(path, &r, &gt.tokens)?;
+            eprintln!(
+                "recorded {} fused frames -> {}",
+                r.samples.len(),
+                path.display()
+            );
+        }
+        match args.format {
+            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&summary)?),
+            RunFormat::Table => print_table(&summary),
+        }
+    }
+    Ok(())
+}
+
+/// Runs the named roles with the scenario's endpoints; returns the summary if the fuser ran here.
+async fn run_roles(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    roles: &[String],
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<Option<(Summary, FuserOutcome)>> {
+    let start = std::time::Instant::now();
+    let run_fuser = roles.iter().any(|r| r == "fuser");
+    let fuser_stop = stop.clone();
+    let fuser = async {
+        if !run_fuser {
+            return anyhow::Ok(None);
+        }
+        let session = open_session(&scenario.fuser.zenoh).await?;
+        let epoch = now_us() + 3_000_000;
+        let end = schedule.due_us(epoch, schedule.frames.len(), scenario.speed)
+            + 2_000_000
+            + (scenario.fuser.max_wait_ms * 1000.0) as u64;
+        eprintln!(
+            "fuser: epoch in 3 s, running for {:.1} s",
+            (end - now_us()) as f64 / 1e6
+        );
+        let until = async move {
+            tokio::select! {
+                _ = tokio::time::sleep(Duration::from_micros(end.saturating_sub(now_us()))) => {}
+                _ = stopped(fuser_stop) => {}
+            }
+        };
+        let outcome = fuser_role(&session, scenario, schedule, epoch, until).await?;
+        let _ = session.close().await;
+        Ok(Some(outcome))
+    };
+    let agents = async {
+        let mut out = BTreeMap::new();
+        let runs = scenario
+            .agents
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| roles.contains(&a.name))
+            .map(|(idx, a)| {
+                let stop = stop.clone();
+                async move {
+                    let session = open_session(&a.zenoh).await?;
+                    let epoch =
+                        epoch::query_epoch(&session, &scenario.namespace, Duration::from_secs(60))
+                            .await?;
+                    let t = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
+                    let _ = session.close().await;
+                    eprintln!(
+                        "agent {}: sent {} frames ({} dropped by the link), {} payload bytes",
+                        a.name, t.frames, t.dropped, t.payload_bytes
+                    );
+                    anyhow::Ok((a.name.clone(), t))
+                }
+            });
+        for r in futures::future::join_all(runs).await {
+            let (name, t) = r?;
+            out.insert(name, (t, None));
+        }
+        anyhow::Ok(out)
+    };
+    let (outcome, totals) = tokio::join!(fuser, agents);
+    let totals = totals?;
+    Ok(outcome?.map(|o| {
+        let s = summarize(
+            scenario,
+            gt,
+            schedule,
+            &o,
+            &totals,
+            start.elapsed().as_secs_f64(),
+        );
+        (s, o)
+    }))
+}

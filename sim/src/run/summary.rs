@@ -1,0 +1,251 @@
+//! The summary of a run: metrics of the fused output and of each agent alone, bandwidth, frame
+//! counts and latencies, as one JSON object (fields in the README) or as tables.
+
+use super::roles::{agent_view, FuserOutcome};
+use super::schedule::Schedule;
+use crate::dataset::GroundTruth;
+use crate::metrics::{Accumulator, Metrics};
+use crate::scenario::Scenario;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use v2x_agent::AgentTotals;
+use v2x_fuser::node::Latency;
+use v2x_protocol::nuscenes_json::Results;
+
+/// Bandwidth of one agent.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Bandwidth {
+    /// Frames published.
+    pub frames: u64,
+    /// Mean objects per frame.
+    pub objects_per_frame: f64,
+    /// Mean payload bytes per frame.
+    pub payload_bytes_per_frame: f64,
+    /// Mean payload bytes per object.
+    pub payload_bytes_per_object: f64,
+    /// Mean bytes on the wire per frame (all of the agent's TCP bytes towards the fuser, Zenoh
+    /// framing and session traffic included), when measured.
+    pub wire_bytes_per_frame: Option<f64>,
+    /// Wire (or, unmeasured, payload) rate in kbit/s over the run.
+    pub kbit_s: f64,
+}
+
+/// Frame counts of one agent.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Counts {
+    /// Frames the agent produced.
+    pub sent: u64,
+    /// Frames its link dropped.
+    pub dropped_by_link: u64,
+    /// Frames the fuser received.
+    pub received: u64,
+    /// Frames fused.
+    pub fused: u64,
+    /// Late frames (window already closed).
+    pub late: u64,
+    /// Duplicate frames.
+    pub duplicate: u64,
+    /// Invalid frames (including frames naming another agent).
+    pub invalid: u64,
+    /// Frames stamped too far from the fuser's clock (ahead or behind).
+    pub clock_rejected: u64,
+    /// Frames dropped for a frame of the same agent closer to a window's anchor.
+    pub replaced: u64,
+}
+
+/// The summary of a run (`--format json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// Namespace.
+    pub namespace: String,
+    /// Method.
+    pub method: String,
+    /// Agents' noise, in order.
+    pub noise: String,
+    /// Ground-truth frames scheduled.
+    pub frames_scheduled: usize,
+    /// Fused windows published.
+    pub windows: u64,
+    /// Windows closed by deadline with a live agent missing.
+    pub windows_incomplete: u64,
+    /// Wall-clock length of the run (s).
+    pub wall_s: f64,
+    /// Metrics of the fused output over the fused frames.
+    pub fused: Metrics,
+    /// Metrics of each agent alone over the same frames.
+    pub agents: BTreeMap<String, Metrics>,
+    /// Bandwidth per agent.
+    pub bandwidth: BTreeMap<String, Bandwidth>,
+    /// Frame counts per agent.
+    pub counts: BTreeMap<String, Counts>,
+    /// Capture to fused publish (ms).
+    pub e2e_latency_ms: Latency,
+    /// Window close to fused publish (ms).
+    pub fusion_latency_ms: Latency,
+}
+
+/// Builds the summary from what the roles produced.
+pub fn summarize(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+    totals: &BTreeMap<String, (AgentTotals, Option<u64>)>,
+    wall_s: f64,
+) -> Summary {
+    let mut fused_acc = Accumulator::new();
+    let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
+    for (&k, dets) in &outcome.fused {
+        let gi = schedule.frames[k];
+        let objects = &gt.frames[gi].objects;
+        fused_acc.add_frame(objects, dets);
+        for (idx, acc) in agent_acc.iter_mut().enumerate() {
+            acc.add_frame(objects, &agent_view(scenario, gt, gi, idx).0);
+        }
+    }
+    let mut bandwidth = BTreeMap::new();
+    let mut counts = BTreeMap::new();
+    for a in &scenario.agents {
+        let st = outcome
+            .stats
+            .agents
+            .get(&a.name)
+            .cloned()
+            .unwrap_or_default();
+        let (t, wire) = totals.get(&a.name).copied().unwrap_or_default();
+        let frames = if t.published > 0 {
+            t.published
+        } else {
+            st.frames_in
+        };
+        let payload = if t.payload_bytes > 0 {
+            t.payload_bytes
+        } else {
+            st.payload_bytes
+        };
+        let objects = if t.objects > 0 { t.objects } else { st.objects };
+        let per = |x: u64, n: u64| if n > 0 { x as f64 / n as f64 } else { 0.0 };
+        let secs =
+            (schedule.frames.len() as f64 * schedule.period_us as f64 / 1e6 / scenario.speed)
+                .max(1e-9);
+        bandwidth.insert(
+            a.name.clone(),
+            Bandwidth {
+                frames,
+                objects_per_frame: per(objects, frames),
+                payload_bytes_per_frame: per(payload, frames),
+                payload_bytes_per_object: per(payload, objects),
+                wire_bytes_per_frame: wire.map(|w| per(w, frames)),
+                kbit_s: wire.unwrap_or(payload) as f64 * 8.0 / 1000.0 / secs,
+            },
+        );
+        counts.insert(
+            a.name.clone(),
+            Counts {
+                sent: t.frames,
+                dropped_by_link: t.dropped,
+                received: st.frames_in,
+                fused: st.fused,
+                late: st.late,
+                duplicate: st.duplicate,
+                invalid: st.invalid + st.wrong_agent,
+                clock_rejected: st.future + st.stale,
+                replaced: st.replaced,
+            },
+        );
+    }
+    Summary {
+        namespace: scenario.namespace.clone(),
+        method: scenario.method().name(),
+        noise: scenario.noise().name,
+        frames_scheduled: schedule.frames.len(),
+        windows: outcome.stats.windows,
+        windows_incomplete: outcome.stats.windows_incomplete,
+        wall_s,
+        fused: fused_acc.summary(),
+        agents: scenario
+            .agents
+            .iter()
+            .zip(&agent_acc)
+            .map(|(a, acc)| (a.name.clone(), acc.summary()))
+            .collect(),
+        bandwidth,
+        counts,
+        e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
+        fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
+    }
+}
+
+/// The fused output as a results file keyed by the ground truth's sample tokens.
+pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -> Results {
+    let mut r = Results::default();
+    for (&k, dets) in &outcome.fused {
+        r.samples.insert(
+            gt.frames[schedule.frames[k]].sample_token.clone(),
+            dets.clone(),
+        );
+    }
+    r
+}
+
+/// Prints the summary as tables.
+pub fn print_table(s: &Summary) {
+    println!("scenario {} · method {} · noise {} · {} frames scheduled · {} windows fused ({} incomplete) · {:.1} s", s.namespace, s.method, s.noise, s.frames_scheduled, s.windows, s.windows_incomplete, s.wall_s);
+    println!();
+    let mut rows = vec![crate::bench::Row {
+        noise: s.noise.clone(),
+        method: format!("fused ({})", s.method),
+        metrics: s.fused.clone(),
+    }];
+    for (n, m) in &s.agents {
+        rows.push(crate::bench::Row {
+            noise: s.noise.clone(),
+            method: format!("{n} alone"),
+            metrics: m.clone(),
+        });
+    }
+    print!("{}", crate::bench::table(&rows));
+    println!();
+    println!("| agent | frames | objects/frame | payload B/frame | payload B/object | wire B/frame | kbit/s | late | duplicate | invalid | dropped by link |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for (n, b) in &s.bandwidth {
+        let c = &s.counts[n];
+        let wire = b
+            .wire_bytes_per_frame
+            .map_or("-".into(), |w| format!("{w:.0}"));
+        println!(
+            "| {n} | {} | {:.1} | {:.0} | {:.1} | {wire} | {:.1} | {} | {} | {} | {} |",
+            b.frames,
+            b.objects_per_frame,
+            b.payload_bytes_per_frame,
+            b.payload_bytes_per_object,
+            b.kbit_s,
+            c.late,
+            c.duplicate,
+            c.invalid,
+            c.dropped_by_link
+        );
+    }
+    println!("(late-fusion reference in the paper: 2^9 = 512 bytes per frame)");
+    println!();
+    let l = |x: &Latency| {
+        format!(
+            "p50 {} · p95 {} · p99 {} ms",
+            f(x.p50_ms),
+            f(x.p95_ms),
+            f(x.p99_ms)
+        )
+    };
+    println!(
+        "end-to-end latency (capture to fused publish): {}",
+        l(&s.e2e_latency_ms)
+    );
+    println!(
+        "fusion latency (window close to publish):      {}",
+        l(&s.fusion_latency_ms)
+    );
+}
+
+fn f(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.2}"))
+}
