@@ -7,47 +7,14 @@
 use anyhow::{anyhow, Context};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use v2x_protocol::{keys, wire, AgentKind, Frame};
 
-/// The simulated link and sensor clock of an agent.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Link {
-    /// Fixed one-way latency (ms).
-    pub latency_ms: f64,
-    /// Uniform jitter added to the latency, in [0, jitter_ms] (ms).
-    pub jitter_ms: f64,
-    /// Probability that a frame is lost, in [0, 1].
-    pub drop_rate: f64,
-    /// Offset of the sensor clock from true time (ms), added to every capture time.
-    pub clock_offset_ms: f64,
-}
-
-impl Link {
-    /// Checks the values are usable, naming the bad field.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.latency_ms.is_finite() && self.latency_ms >= 0.0) {
-            return Err(format!("latency_ms must be >= 0 (got {})", self.latency_ms));
-        }
-        if !(self.jitter_ms.is_finite() && self.jitter_ms >= 0.0) {
-            return Err(format!("jitter_ms must be >= 0 (got {})", self.jitter_ms));
-        }
-        if !(0.0..=1.0).contains(&self.drop_rate) {
-            return Err(format!(
-                "drop_rate must be in [0, 1] (got {})",
-                self.drop_rate
-            ));
-        }
-        if !self.clock_offset_ms.is_finite() {
-            return Err("clock_offset_ms must be finite".into());
-        }
-        Ok(())
-    }
-}
+mod link;
+pub use link::Link;
 
 /// Counters of what an agent sent.
 #[derive(Debug, Default)]
@@ -100,6 +67,7 @@ pub struct Agent {
     rng: ChaCha8Rng,
     seq: u32,
     publisher: Arc<zenoh::pubsub::Publisher<'static>>,
+    outbox: tokio::sync::mpsc::UnboundedSender<link::InFlight>,
     _token: zenoh::liveliness::LivelinessToken,
     counters: Arc<AgentCounters>,
 }
@@ -127,15 +95,19 @@ impl Agent {
             .declare_token(keys::alive(ns, name))
             .await
             .map_err(|e| anyhow!("agent {name}: cannot declare its liveliness token: {e}"))?;
+        let publisher = Arc::new(publisher);
+        let counters = Arc::new(AgentCounters::default());
+        let outbox = link::spawn(publisher.clone(), counters.clone(), name.to_string());
         Ok(Agent {
             name: name.to_string(),
             kind,
             link,
             rng: ChaCha8Rng::seed_from_u64(seed),
             seq: 0,
-            publisher: Arc::new(publisher),
+            publisher,
+            outbox,
             _token: token,
-            counters: Arc::new(AgentCounters::default()),
+            counters,
         })
     }
 
@@ -196,24 +168,11 @@ impl Agent {
                 0.0
             };
         let len = payload.len();
-        let objects = frame.detections.len() as u64;
-        let publisher = self.publisher.clone();
-        let counters = self.counters.clone();
-        let name = self.name.clone();
-        tokio::spawn(async move {
-            if delay_ms > 0.0 {
-                tokio::time::sleep(Duration::from_secs_f64(delay_ms / 1000.0)).await;
-            }
-            match publisher.put(payload).await {
-                Ok(()) => {
-                    counters.published.fetch_add(1, Ordering::Relaxed);
-                    counters
-                        .payload_bytes
-                        .fetch_add(len as u64, Ordering::Relaxed);
-                    counters.objects.fetch_add(objects, Ordering::Relaxed);
-                }
-                Err(e) => tracing::warn!("agent {name}: publish failed: {e}"),
-            }
+        let _ = self.outbox.send(link::InFlight {
+            due: tokio::time::Instant::now() + Duration::from_secs_f64(delay_ms / 1000.0),
+            order: self.seq as u64,
+            objects: frame.detections.len() as u64,
+            payload,
         });
         Ok(Some(len))
     }

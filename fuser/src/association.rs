@@ -296,8 +296,27 @@ pub struct Edge {
     pub cost: f64,
 }
 
-/// All eligible pairs. Candidates are found by a sorted sweep along x with a bound that no
-/// eligible pair can exceed (|dx| <= lambda_max sqrt(Sa_xx + Sb_xx)), then scored exactly.
+/// The most eligible partners kept per detection of the first list (the cheapest). Honest scenes
+/// stay far below it even with the paper's wide gate; it bounds memory and time when boxes are
+/// piled up (thousands of co-located boxes), where the association is no longer exact.
+pub const MAX_CANDIDATES: usize = 128;
+/// The largest component (rows x columns) solved exactly; a larger one is matched greedily by
+/// cost, which bounds the time a pile of boxes can take.
+pub const MAX_EXACT_CELLS: usize = 1 << 20;
+
+static CAPPED_ROWS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+static GREEDY_COMPONENTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// How often, in this process so far, the bounds above applied: (detections whose candidates
+/// were capped, components matched greedily).
+pub fn bounds_applied() -> (u64, u64) {
+    use std::sync::atomic::Ordering::Relaxed;
+    (CAPPED_ROWS.load(Relaxed), GREEDY_COMPONENTS.load(Relaxed))
+}
+
+/// All eligible pairs (at most [`MAX_CANDIDATES`] per detection of `a`, the cheapest).
+/// Candidates are found by a sorted sweep along x with a bound that no eligible pair can exceed
+/// (|dx| <= lambda_max sqrt(Sa_xx + Sb_xx)), then scored exactly.
 pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<Edge> {
     let mut edges = Vec::new();
     // b sorted by (class, x)
@@ -325,6 +344,7 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
         let lo = da.center[0] - radius;
         let hi = da.center[0] + radius;
         let start = keys.partition_point(|&(c, x)| c < da.class || (c == da.class && x < lo));
+        let row_start = edges.len();
         for (k, &(c, x)) in keys.iter().enumerate().skip(start) {
             if c != da.class || x > hi {
                 break;
@@ -333,6 +353,14 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
             if let Some(cost) = pair_cost(p, da, &b[ib]) {
                 edges.push(Edge { a: ia, b: ib, cost });
             }
+        }
+        let row = &mut edges[row_start..];
+        if row.len() > MAX_CANDIDATES {
+            row.select_nth_unstable_by(MAX_CANDIDATES, |x, y| {
+                x.cost.total_cmp(&y.cost).then(x.b.cmp(&y.b))
+            });
+            edges.truncate(row_start + MAX_CANDIDATES);
+            CAPPED_ROWS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
     }
     edges
@@ -389,6 +417,11 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     cols.sort_unstable();
     cols.dedup();
     let (nr, nc) = (rows.len(), cols.len());
+    if nr.saturating_mul(nc) > MAX_EXACT_CELLS {
+        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        greedy(comp, pairs);
+        return;
+    }
     // (min(nr, nc) + 1) x (largest cost + 1) outweighs any set of present costs.
     let largest = comp.iter().map(|e| e.cost).fold(0.0, f64::max);
     let absent = (nr.min(nc) + 1) as f64 * (largest + 1.0);

@@ -380,6 +380,11 @@ impl Ingest {
             .collect()
     }
 
+    /// The agents evicted to make room since the last call.
+    pub fn take_evicted(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.evicted)
+    }
+
     /// Forgets agents with no token not heard from for `forget_after`; returns their names and
     /// those of agents evicted to make room since the last call.
     pub fn prune(&mut self, now_us: u64) -> Vec<String> {

@@ -76,10 +76,19 @@ impl Windows {
         }
     }
 
-    /// Forgets an agent's recent sequence numbers (it restarted and counts from 0 again, or it
-    /// is no longer tracked).
+    /// Forgets an agent's recent sequence numbers (it restarted and counts from 0 again).
+    pub fn reset_agent(&mut self, agent: &str) {
+        self.recent.remove(agent);
+    }
+
+    /// Forgets an agent entirely (it is no longer tracked): its recent sequence numbers and its
+    /// frames in open windows, so that memory stays bounded by the agents tracked.
     pub fn forget_agent(&mut self, agent: &str) {
         self.recent.remove(agent);
+        for w in &mut self.open {
+            w.frames.remove(agent);
+        }
+        self.open.retain(|w| !w.frames.is_empty());
     }
 
     /// Number of agents whose recent frames are remembered.
@@ -350,9 +359,11 @@ mod tests {
             w.insert(f(&format!("a{i}"), 0, 0), 0);
         }
         assert_eq!(w.remembered_agents(), 100);
+        assert_eq!(w.open_frames(), 100);
         for i in 0..100 {
             w.forget_agent(&format!("a{i}"));
         }
         assert_eq!(w.remembered_agents(), 0);
+        assert_eq!((w.open_frames(), w.open_windows()), (0, 0));
     }
 }

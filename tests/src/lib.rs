@@ -1,5 +1,5 @@
 //! Helpers for the end-to-end tests in `tests/tests/`: locating the workspace's binaries,
-//! building small scenarios, and waiting with a timeout.
+//! building small scenarios, waiting with a timeout, and driving a fuser node ([`fuser`]).
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -55,4 +55,111 @@ pub fn tempdir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("create temp dir");
     d
+}
+
+/// A fuser node in the test process, and frames to feed it.
+pub mod fuser {
+    use crate::within;
+    use std::collections::BTreeSet;
+    use std::time::Duration;
+    use tokio::sync::mpsc;
+    use v2x_agent::now_us;
+    use v2x_fuser::node::{self, Fused, NodeConfig};
+    use v2x_protocol::{AgentKind, Class, Detection, Frame, Uncertainty};
+
+    /// A car at (x, 0) with mild stds and the given id.
+    pub fn det(x: f64, id: u32) -> Detection {
+        Detection {
+            class: Class::Car,
+            center: [x, 0.0, 0.8],
+            size: [4.5, 1.9, 1.6],
+            yaw: 0.0,
+            score: 0.8,
+            std: Uncertainty::uniform(0.5, 0.1, 0.1),
+            pos_cov: None,
+            id,
+        }
+    }
+
+    /// The capture time of the next window: now, and at least one window (100 ms) after the last.
+    pub fn next_t(last: &mut u64) -> u64 {
+        *last = now_us().max(*last + 100_000);
+        *last
+    }
+
+    /// A frame captured at `t_us` (the sender's real-time clock, as the fuser expects).
+    pub fn frame(t_us: u64) -> Frame {
+        Frame {
+            agent: String::new(),
+            kind: AgentKind::Vehicle,
+            seq: 0,
+            capture_us: t_us,
+            origin: [0.0; 3],
+            detections: vec![det(10.0, 1), det(30.0, 2)],
+        }
+    }
+
+    /// The loopback TCP endpoint of a port.
+    pub fn endpoint(port: u16) -> String {
+        format!("tcp/127.0.0.1:{port}")
+    }
+
+    /// A running fuser node: stop it, read its fused windows, await its final statistics.
+    pub type FuserHandle = (
+        tokio::sync::oneshot::Sender<()>,
+        mpsc::UnboundedReceiver<Fused>,
+        tokio::task::JoinHandle<node::NodeStats>,
+    );
+
+    /// Starts a csba-wls+ fuser node with the default limits and the given wait.
+    pub fn spawn_fuser(session: zenoh::Session, ns: &str, max_wait_ms: f64) -> FuserHandle {
+        let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+        cfg.max_wait_ms = max_wait_ms;
+        spawn_fuser_with(session, cfg)
+    }
+
+    /// Starts a fuser node that reports fused windows on a channel; returns (stop, reports, task).
+    pub fn spawn_fuser_with(session: zenoh::Session, cfg: NodeConfig) -> FuserHandle {
+        let (tx, rx) = mpsc::unbounded_channel();
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let task = tokio::spawn(async move {
+            let stats = node::run(&session, cfg, |f| tx.send(f.clone()).unwrap(), async {
+                let _ = stop_rx.await;
+            })
+            .await
+            .unwrap();
+            session.close().await.unwrap();
+            stats
+        });
+        (stop_tx, rx, task)
+    }
+
+    /// Waits (20 s at most) until the fuser's stats list exactly these live agents.
+    pub async fn wait_live(session: &zenoh::Session, ns: &str, want: &[&str]) {
+        let want: BTreeSet<String> = want.iter().map(|s| s.to_string()).collect();
+        within(20, &format!("fuser sees live agents {want:?}"), async {
+            loop {
+                if let Ok(v) = node::query_stats(session, ns, Duration::from_secs(2)).await {
+                    let live: BTreeSet<String> = v["live"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|x| x.as_str().unwrap().to_string())
+                        .collect();
+                    if live == want {
+                        return;
+                    }
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        })
+        .await
+    }
+
+    /// The next fused window (10 s at most).
+    pub async fn next_fused(rx: &mut mpsc::UnboundedReceiver<Fused>) -> Fused {
+        within(10, "a fused window", rx.recv())
+            .await
+            .expect("fuser running")
+    }
 }

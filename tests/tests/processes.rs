@@ -143,3 +143,111 @@ fn agents_and_fuser_as_separate_processes() {
     let ate = m["mATE"].as_f64().unwrap();
     assert!(ate < 0.8, "{ate}");
 }
+
+fn sigterm(child: &std::process::Child) {
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success(), "kill -TERM");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn sigterm_makes_the_fuser_node_write_its_recording_and_statistics() {
+    use v2x_agent::{Agent, Link};
+    use v2x_protocol::net::{open_session, ZenohArgs};
+    use v2x_protocol::AgentKind;
+    use v2x_tests::fuser::{endpoint, frame, next_t, wait_live};
+    use v2x_tests::within;
+
+    let dir = tempdir("sigterm-node");
+    let record = dir.join("fused.json");
+    let port = free_port().unwrap();
+    let mut fuser = Command::new(bin("v2x-fuser"))
+        .args(["node", "--ns", "term", "--no-multicast-scouting", "-l"])
+        .arg(endpoint(port))
+        .arg("--record")
+        .arg(&record)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let session = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let mut a = Agent::start(
+        &session,
+        "term",
+        "a",
+        AgentKind::Vehicle,
+        Link::default(),
+        1,
+    )
+    .await
+    .unwrap();
+    a.wait_for_subscriber(Duration::from_secs(20))
+        .await
+        .unwrap();
+    wait_live(&session, "term", &["a"]).await;
+    let mut last = 0;
+    for _ in 0..4 {
+        a.send(frame(next_t(&mut last))).unwrap();
+    }
+    within(20, "four windows fused", async {
+        loop {
+            if let Ok(v) =
+                v2x_fuser::node::query_stats(&session, "term", Duration::from_secs(2)).await
+            {
+                if v["windows"] == 4 {
+                    return;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await;
+    sigterm(&fuser);
+    let status = wait_exit(&mut fuser, 20, "the fuser after SIGTERM");
+    assert!(status.success(), "{status:?}");
+    let mut out = String::new();
+    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let stats: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(stats["windows"], 4, "{stats}");
+    let rec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();
+    assert_eq!(rec["results"].as_object().unwrap().len(), 4);
+}
+
+#[test]
+fn sigterm_makes_a_scenario_run_write_its_recording_and_summary() {
+    use std::io::BufRead;
+    let dir = tempdir("sigterm-run");
+    let record = dir.join("fused.json");
+    let mut run = Command::new(bin("v2x-sim"))
+        .args(["run", "--format", "json", "--record"])
+        .arg(&record)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The default scenario runs 20 s; stop it a few seconds in.
+    let mut err = std::io::BufReader::new(run.stderr.take().unwrap());
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.starts_with("running"), "{line}");
+    std::thread::sleep(Duration::from_secs(3));
+    sigterm(&run);
+    let status = wait_exit(&mut run, 30, "the run after SIGTERM");
+    assert!(status.success(), "{status:?}");
+    let mut out = String::new();
+    std::io::Read::read_to_string(run.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let windows = summary["windows"].as_u64().unwrap();
+    assert!(
+        (5..150).contains(&windows),
+        "{windows} windows before the stop"
+    );
+    let rec: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();
+    assert_eq!(rec["results"].as_object().unwrap().len() as u64, windows);
+}

@@ -1,103 +1,14 @@
 //! The fuser under stress, over loopback Zenoh: an agent that leaves and rejoins, a fuser
 //! restarted mid-run, and late, duplicate, out-of-order and malformed frames.
 
-use std::collections::BTreeSet;
 use std::time::Duration;
-use tokio::sync::mpsc;
 use v2x_agent::{now_us, Agent, Link};
-use v2x_fuser::node::{self, Fused, NodeConfig};
+use v2x_fuser::node;
 use v2x_protocol::net::{open_session, ZenohArgs};
-use v2x_protocol::{keys, wire, AgentKind, Class, Detection, Frame, Uncertainty};
+use v2x_protocol::{keys, wire, AgentKind};
 use v2x_sim::run::free_port;
+use v2x_tests::fuser::{endpoint, frame, next_fused, next_t, spawn_fuser, wait_live};
 use v2x_tests::within;
-
-fn det(x: f64, id: u32) -> Detection {
-    Detection {
-        class: Class::Car,
-        center: [x, 0.0, 0.8],
-        size: [4.5, 1.9, 1.6],
-        yaw: 0.0,
-        score: 0.8,
-        std: Uncertainty::uniform(0.5, 0.1, 0.1),
-        pos_cov: None,
-        id,
-    }
-}
-
-/// The capture time of the next window: now, and at least one window (100 ms) after the last.
-fn next_t(last: &mut u64) -> u64 {
-    *last = now_us().max(*last + 100_000);
-    *last
-}
-
-/// A frame captured at `t_us` (the sender's real-time clock, as the fuser expects).
-fn frame(t_us: u64) -> Frame {
-    Frame {
-        agent: String::new(),
-        kind: AgentKind::Vehicle,
-        seq: 0,
-        capture_us: t_us,
-        origin: [0.0; 3],
-        detections: vec![det(10.0, 1), det(30.0, 2)],
-    }
-}
-
-fn endpoint(port: u16) -> String {
-    format!("tcp/127.0.0.1:{port}")
-}
-
-/// Starts a fuser node that reports fused windows on a channel; returns (stop, reports, task).
-fn spawn_fuser(
-    session: zenoh::Session,
-    ns: &str,
-    max_wait_ms: f64,
-) -> (
-    tokio::sync::oneshot::Sender<()>,
-    mpsc::UnboundedReceiver<Fused>,
-    tokio::task::JoinHandle<node::NodeStats>,
-) {
-    let (tx, rx) = mpsc::unbounded_channel();
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
-    cfg.max_wait_ms = max_wait_ms;
-    let task = tokio::spawn(async move {
-        let stats = node::run(&session, cfg, |f| tx.send(f.clone()).unwrap(), async {
-            let _ = stop_rx.await;
-        })
-        .await
-        .unwrap();
-        session.close().await.unwrap();
-        stats
-    });
-    (stop_tx, rx, task)
-}
-
-async fn wait_live(session: &zenoh::Session, ns: &str, want: &[&str]) {
-    let want: BTreeSet<String> = want.iter().map(|s| s.to_string()).collect();
-    within(20, &format!("fuser sees live agents {want:?}"), async {
-        loop {
-            if let Ok(v) = node::query_stats(session, ns, Duration::from_secs(2)).await {
-                let live: BTreeSet<String> = v["live"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|x| x.as_str().unwrap().to_string())
-                    .collect();
-                if live == want {
-                    return;
-                }
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    })
-    .await
-}
-
-async fn next_fused(rx: &mut mpsc::UnboundedReceiver<Fused>) -> Fused {
-    within(10, "a fused window", rx.recv())
-        .await
-        .expect("fuser running")
-}
 
 #[tokio::test(flavor = "multi_thread")]
 async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {

@@ -150,7 +150,11 @@ impl State {
             return;
         };
         let now = self.clock.now_us();
-        match self.ingest.offer(&agent, payload, now) {
+        let result = self.ingest.offer(&agent, payload, now);
+        for gone in self.ingest.take_evicted() {
+            self.windows.forget_agent(&gone);
+        }
+        match result {
             Ok(frame) => {
                 let (n, t) = (frame.detections.len(), frame.capture_us);
                 let verdict = self.windows.insert(frame, now);
@@ -164,9 +168,13 @@ impl State {
         let now = self.clock.now_us();
         if live {
             // A new token is a restart: its sequence numbers start again.
-            self.windows.forget_agent(agent);
+            self.windows.reset_agent(agent);
         }
-        if self.ingest.token(agent, live, now) {
+        let tracked = self.ingest.token(agent, live, now);
+        for gone in self.ingest.take_evicted() {
+            self.windows.forget_agent(&gone);
+        }
+        if tracked {
             tracing::info!("agent {agent} {}", if live { "is live" } else { "left" });
         } else {
             let r = Rejection::AgentCap;

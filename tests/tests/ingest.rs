@@ -1,0 +1,330 @@
+//! Robust ingest over loopback Zenoh: every fault an outside client or a broken agent can
+//! produce is counted under its reason while the honest agents' fusion goes on.
+
+use std::time::Duration;
+use v2x_agent::{now_us, Agent, Link};
+use v2x_fuser::node::{self, NodeConfig};
+use v2x_protocol::net::{open_session, ZenohArgs};
+use v2x_protocol::{keys, limits, wire, AgentKind, Detection, Frame, Uncertainty};
+use v2x_sim::run::free_port;
+use v2x_tests::fuser::{det, endpoint, frame, next_fused, next_t, spawn_fuser_with, wait_live};
+use v2x_tests::within;
+use zenoh::qos::CongestionControl;
+
+/// A fuser listening on a fresh port, and two agents `a` and `b` connected to it and seen live.
+struct Setup {
+    port: u16,
+    a: Agent,
+    b: Agent,
+    sa: zenoh::Session,
+    _sb: zenoh::Session,
+    fuser: v2x_tests::fuser::FuserHandle,
+}
+
+async fn setup(ns: &'static str, cfg: NodeConfig) -> Setup {
+    let port = free_port().unwrap();
+    let fs = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
+        .await
+        .unwrap();
+    let fuser = spawn_fuser_with(fs, cfg);
+    let sa = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let sb = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let a = Agent::start(&sa, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap();
+    let b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
+        .await
+        .unwrap();
+    a.wait_for_subscriber(Duration::from_secs(10))
+        .await
+        .unwrap();
+    b.wait_for_subscriber(Duration::from_secs(10))
+        .await
+        .unwrap();
+    wait_live(&sa, ns, &["a", "b"]).await;
+    Setup {
+        port,
+        a,
+        b,
+        sa,
+        _sb: sb,
+        fuser,
+    }
+}
+
+fn cfg(ns: &str, max_wait_ms: f64) -> NodeConfig {
+    let mut c = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+    c.max_wait_ms = max_wait_ms;
+    c
+}
+
+async fn stats(s: &zenoh::Session, ns: &str) -> serde_json::Value {
+    within(
+        10,
+        "stats",
+        node::query_stats(s, ns, Duration::from_secs(5)),
+    )
+    .await
+    .unwrap()
+}
+
+/// Polls the stats until `cond` holds (10 s at most).
+async fn stats_until(
+    s: &zenoh::Session,
+    ns: &str,
+    what: &str,
+    cond: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    within(10, what, async {
+        loop {
+            if let Ok(v) = node::query_stats(s, ns, Duration::from_secs(2)).await {
+                if cond(&v) {
+                    return v;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+}
+
+/// One round of both honest agents; returns the fused window.
+async fn honest_round(s: &mut Setup, last: &mut u64) -> node::Fused {
+    let t = next_t(last);
+    s.a.send(frame(t)).unwrap();
+    s.b.send(frame(t)).unwrap();
+    next_fused(&mut s.fuser.1).await
+}
+
+async fn finish(s: Setup) -> node::NodeStats {
+    s.fuser.0.send(()).unwrap();
+    within(30, "fuser shutdown", s.fuser.2).await.unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn frames_stamped_far_ahead_are_rejected_and_fusion_goes_on() {
+    let ns = "future";
+    let mut s = setup(ns, cfg(ns, 300.0)).await;
+    // Agent a's clock goes wrong for two frames: an hour ahead, then the largest stamp there is.
+    let raw =
+        s.sa.declare_publisher(keys::detections(ns, "a"))
+            .await
+            .unwrap();
+    for capture in [now_us() + 3_600_000_000, u64::MAX] {
+        let mut f = frame(capture);
+        f.agent = "a".into();
+        f.seq = 1000;
+        raw.put(wire::encode(&f).unwrap()).await.unwrap();
+    }
+    let v = stats_until(&s.sa, ns, "two future frames counted", |v| {
+        v["agents"]["a"]["future"] == 2
+    })
+    .await;
+    assert_eq!(v["rejected"]["future"], 2);
+    let mut last = 0;
+    for _ in 0..3 {
+        let f = honest_round(&mut s, &mut last).await;
+        assert_eq!(f.members, vec!["a", "b"]);
+        assert!(f.complete);
+    }
+    let st = finish(s).await;
+    assert_eq!(st.windows, 3);
+    assert_eq!(st.agents["a"].fused, 3);
+    assert_eq!(
+        st.agents["a"].late, 0,
+        "no honest frame was pushed out as late"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn two_agents_at_the_minimum_std_are_fused_and_published() {
+    let ns = "minstd";
+    let mut s = setup(ns, cfg(ns, 300.0)).await;
+    let observer = s.sa.declare_subscriber(keys::fused(ns)).await.unwrap();
+    let mut d = det(10.0, 7);
+    d.std = Uncertainty::uniform(limits::STD_MIN, limits::STD_MIN, limits::STD_MIN);
+    let t = now_us();
+    for agent in [&mut s.a, &mut s.b] {
+        agent
+            .send(Frame {
+                detections: vec![d.clone()],
+                ..frame(t)
+            })
+            .unwrap();
+    }
+    let f = next_fused(&mut s.fuser.1).await;
+    assert_eq!(f.frame.detections.len(), 1);
+    // WLS halves the variance, below the format's floor: the published std is the floor.
+    assert_eq!(f.frame.detections[0].std.pos[0], limits::STD_MIN);
+    let on_wire = within(10, "the fused frame", observer.recv_async())
+        .await
+        .unwrap();
+    let decoded = wire::decode(&on_wire.payload().to_bytes()).unwrap();
+    assert_eq!(decoded.detections[0].std.pos[0], limits::STD_MIN);
+    let st = finish(s).await;
+    assert_eq!((st.windows, st.windows_unpublished), (1, 0));
+    assert_eq!(st.fit.stds_clamped, 7, "x, y, z, l, w, h and yaw");
+}
+
+fn rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/statm")
+        .ok()
+        .and_then(|s| s.split_whitespace().nth(1)?.parse::<f64>().ok())
+        .map_or(0.0, |pages| pages * 4096.0 / (1024.0 * 1024.0))
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn ten_thousand_agent_names_leave_the_fuser_bounded() {
+    let ns = "names";
+    let mut s = setup(ns, cfg(ns, 300.0)).await;
+    let rss_before = rss_mib();
+    let spam = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
+        .await
+        .unwrap();
+    let t = now_us();
+    for k in 0..10_000 {
+        let name = format!("spam{k}");
+        let mut f = frame(t);
+        f.agent = name.clone();
+        spam.put(keys::detections(ns, &name), wire::encode(&f).unwrap())
+            .congestion_control(CongestionControl::Block)
+            .await
+            .unwrap();
+    }
+    let v = stats_until(&s.sa, ns, "the flood of names processed and fused", |v| {
+        v["agents_forgotten"].as_u64().unwrap_or(0) >= 10_000 - 256
+            && v["open_windows"] == 0
+            && v["fusion_queue"] == 0
+    })
+    .await;
+    while s.fuser.1.try_recv().is_ok() {} // the spam's own windows
+    let reply = serde_json::to_vec(&v).unwrap().len();
+    eprintln!(
+        "10,000 agent names: {} tracked, {} forgotten, stats reply {reply} bytes, RSS {rss_before:.1} MiB before, {:.1} MiB after",
+        v["agents_tracked"],
+        v["agents_forgotten"],
+        rss_mib()
+    );
+    assert!(v["agents_tracked"].as_u64().unwrap() <= 256);
+    assert!(reply < 256 * 1024, "stats reply of {reply} bytes");
+    assert!(v["agents"]["a"]["token"] == true && v["agents"]["b"]["token"] == true);
+    // The honest agents are still fused together.
+    let mut last = now_us();
+    for _ in 0..3 {
+        let f = honest_round(&mut s, &mut last).await;
+        assert!(f.members.contains(&"a".to_string()) && f.members.contains(&"b".to_string()));
+    }
+    let st = finish(s).await;
+    assert!(st.agents_tracked <= 256);
+    assert_eq!(st.agents["a"].fused, 3);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_token_without_frames_costs_three_windows_at_most() {
+    let ns = "ghost";
+    let mut s = setup(ns, cfg(ns, 300.0)).await;
+    let ghost =
+        s.sa.liveliness()
+            .declare_token(keys::alive(ns, "ghost"))
+            .await
+            .unwrap();
+    wait_live(&s.sa, ns, &["a", "b", "ghost"]).await;
+    let mut last = 0;
+    let mut complete = Vec::new();
+    for _ in 0..6 {
+        complete.push(honest_round(&mut s, &mut last).await.complete);
+    }
+    assert_eq!(complete, [false, false, false, true, true, true]);
+    drop(ghost);
+    let st = finish(s).await;
+    assert_eq!((st.windows, st.windows_incomplete), (6, 3));
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn of_a_fast_agents_frames_the_closest_to_the_anchor_is_fused() {
+    let ns = "mixed";
+    let mut s = setup(ns, cfg(ns, 2000.0)).await;
+    // One session sends for three agents in a known order: slow (10 Hz) opens the window, fast
+    // (20 Hz, with jitter) puts two frames in it, and a third agent completes it.
+    let raw = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
+        .await
+        .unwrap();
+    let mut tokens = Vec::new();
+    for name in ["slow", "fast", "third"] {
+        tokens.push(
+            raw.liveliness()
+                .declare_token(keys::alive(ns, name))
+                .await
+                .unwrap(),
+        );
+    }
+    wait_live(&s.sa, ns, &["a", "b", "slow", "fast", "third"]).await;
+    drop(s.a);
+    drop(s.b);
+    wait_live(&s.sa, ns, &["slow", "fast", "third"]).await;
+    let t = now_us();
+    let put = |name: &str, seq: u32, capture: u64, x: f64| {
+        let f = Frame {
+            agent: name.into(),
+            seq,
+            detections: vec![det(x, seq)],
+            ..frame(capture)
+        };
+        raw.put(keys::detections(ns, name), wire::encode(&f).unwrap())
+    };
+    put("slow", 0, t, 10.0).await.unwrap();
+    put("fast", 0, t - 45_000, 10.0).await.unwrap();
+    put("fast", 1, t + 5_000, 10.0).await.unwrap();
+    put("third", 0, t, 10.0).await.unwrap();
+    let f = next_fused(&mut s.fuser.1).await;
+    assert_eq!(f.members, vec!["fast", "slow", "third"]);
+    let st = stats(&s.sa, ns).await;
+    assert_eq!(st["agents"]["fast"]["replaced"], 1);
+    assert_eq!(st["agents"]["fast"]["duplicate"], 0);
+    assert_eq!(st["agents"]["fast"]["accepted"], 2);
+    s.fuser.0.send(()).unwrap();
+    let stats = within(30, "fuser shutdown", s.fuser.2).await.unwrap();
+    assert_eq!(stats.windows, 1);
+    drop(tokens);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn piles_of_boxes_do_not_block_the_receive_loop() {
+    let ns = "flood";
+    let mut s = setup(ns, cfg(ns, 300.0)).await;
+    // Frames of 4,096 boxes piled on one spot: each window costs the worker about a second.
+    let pile: Vec<Detection> = (0..limits::MAX_OBJECTS)
+        .map(|i| det(10.0 + 0.001 * i as f64, i as u32))
+        .collect();
+    let mut last = 0;
+    for _ in 0..3 {
+        let t = next_t(&mut last);
+        for agent in [&mut s.a, &mut s.b] {
+            agent
+                .send(Frame {
+                    detections: pile.clone(),
+                    ..frame(t)
+                })
+                .unwrap();
+        }
+    }
+    // The loop answers while fusion is still busy with the piles.
+    let v = stats_until(&s.sa, ns, "the piles queued for fusion", |v| {
+        v["fusion_queue"].as_u64().unwrap_or(0) >= 1
+    })
+    .await;
+    assert_eq!(v["agents"]["a"]["accepted"], 3);
+    for _ in 0..3 {
+        let f = within(60, "a fused pile", s.fuser.1.recv()).await.unwrap();
+        assert_eq!(f.frame.detections.len(), limits::MAX_OBJECTS);
+    }
+    let f = honest_round(&mut s, &mut last).await;
+    assert_eq!(f.frame.detections.len(), 2);
+    assert!(v2x_fuser::association::bounds_applied().0 > 0);
+    let st = finish(s).await;
+    assert_eq!(st.windows, 4);
+}
