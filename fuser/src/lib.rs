@@ -9,6 +9,7 @@
 pub mod association;
 pub mod baselines;
 pub mod fusion;
+pub mod fuzzing;
 pub mod geometry;
 pub mod ingest;
 pub mod method;

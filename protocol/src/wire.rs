@@ -301,7 +301,7 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
                 });
             }
             let rel = (c * 100.0).round() - origin_cm[k] as f64;
-            if !coord_in_range(c) || rel.abs() > i32::MAX as f64 {
+            if !coord_in_range(c) || !(i32::MIN as f64..=i32::MAX as f64).contains(&rel) {
                 return Err(EncodeError::OutOfRange {
                     index: i,
                     field: CENTER_FIELDS[k],
@@ -623,7 +623,10 @@ pub fn fit(frame: &mut Frame) -> Fit {
     let before = frame.detections.len();
     let origin = frame.origin;
     frame.detections.retain(|d| {
-        (0..3).all(|k| ((d.center[k] - origin[k]) * 100.0).round().abs() <= i32::MAX as f64)
+        (0..3).all(|k| {
+            let rel = (d.center[k] * 100.0).round() - (origin[k] * 100.0).round();
+            (i32::MIN as f64..=i32::MAX as f64).contains(&rel)
+        })
     });
     fit.objects_invalid += before - frame.detections.len();
     fit
