@@ -74,6 +74,14 @@ enum Command {
         #[command(flatten)]
         zenoh: v2x_protocol::net::ZenohArgs,
     },
+    /// Run a Zenoh router: the access-control point of a secure deployment (mutual TLS and the
+    /// ACL come from its --zenoh-config, as `v2x-sim certs` writes it), until Ctrl-C or SIGTERM.
+    /// Agents, fuser and observers connect to it as clients. Access control holds only through
+    /// a router: in peer mode sessions talk to each other directly.
+    Router {
+        #[command(flatten)]
+        zenoh: v2x_protocol::net::ZenohArgs,
+    },
     /// Ask a running fuser for its statistics (JSON).
     Stats {
         /// Scenario namespace.
@@ -228,6 +236,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .close()
                     .await
                     .map_err(|e| anyhow::anyhow!("closing the session: {e}"))?;
+                Ok(())
+            })
+        }
+        Command::Router { mut zenoh } => {
+            if zenoh.mode.is_none() {
+                zenoh.mode = Some("router".into());
+            }
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            rt.block_on(async move {
+                let config = v2x_protocol::net::config(&zenoh)?;
+                let secure = config
+                    .get_json("access_control/enabled")
+                    .is_ok_and(|v| v == "true");
+                let session = zenoh::open(config)
+                    .await
+                    .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
+                eprintln!(
+                    "router {} running ({}); Ctrl-C or SIGTERM stops it",
+                    session.zid(),
+                    if secure {
+                        "access control on"
+                    } else {
+                        "no access control: any client may publish anything"
+                    }
+                );
+                v2x_protocol::net::shutdown_signal().await;
+                session
+                    .close()
+                    .await
+                    .map_err(|e| anyhow::anyhow!("closing the router: {e}"))?;
                 Ok(())
             })
         }

@@ -6,6 +6,7 @@
 //! files with their uncertainty extension fields ([`nuscenes_json`]). This crate has no network,
 //! clock or file dependencies beyond reading and writing JSON files.
 
+pub mod acl;
 pub mod fuzzing;
 pub mod keys;
 pub mod limits;

@@ -6,6 +6,7 @@
 //! over Zenoh.
 
 pub mod bench;
+pub mod certs;
 pub mod cli;
 pub mod dataset;
 pub mod load;

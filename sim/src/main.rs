@@ -123,6 +123,31 @@ enum Command {
     },
     #[command(flatten)]
     Run(v2x_sim::run::RunCommand),
+    /// Make a certificate authority, certificates for every role (common name = agent name,
+    /// `fuser`, `observer`, and a server certificate for the router) and the Zenoh
+    /// configuration of each role: the router with mutual TLS and the access-control policy,
+    /// the others as its clients. Give each command its file with --zenoh-config.
+    Certs {
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Namespace the access-control policy covers.
+        #[arg(long, default_value = "default")]
+        ns: String,
+        /// Endpoints the router listens on.
+        #[arg(long, default_value = "tls/0.0.0.0:7447")]
+        listen: Vec<String>,
+        /// Endpoints the clients connect to; their hosts are written into the router's
+        /// certificate (with localhost and 127.0.0.1).
+        #[arg(long, default_value = "tls/localhost:7447")]
+        router: Vec<String>,
+        /// Days the certificates are valid.
+        #[arg(long, default_value_t = 365)]
+        days: u32,
+        /// The agents' names, one certificate each.
+        #[arg(required = true)]
+        agents: Vec<String>,
+    },
     /// Load test: N agents x M objects at a fixed rate to one fuser over loopback; reports
     /// fusion latency, backlog, CPU and memory.
     Load(v2x_sim::load::LoadArgs),
@@ -384,6 +409,46 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .build()
                 .context("starting the async runtime")?;
             rt.block_on(v2x_sim::run::run_command(cmd))?;
+        }
+        Command::Certs {
+            out,
+            ns,
+            listen,
+            router,
+            days,
+            agents,
+        } => {
+            let issued = v2x_sim::certs::issue(&v2x_sim::certs::CertsConfig {
+                out,
+                ns,
+                agents,
+                listen,
+                connect: router,
+                days,
+            })?;
+            println!(
+                "wrote certificates and Zenoh configurations to {}:",
+                issued.dir.display()
+            );
+            println!(
+                "  router:   v2x-fuser router --zenoh-config {}",
+                issued.router.display()
+            );
+            println!(
+                "  fuser:    v2x-fuser node --zenoh-config {} ...",
+                issued.fuser.display()
+            );
+            for (a, p) in &issued.agents {
+                println!(
+                    "  agent {a}: v2x-agent FILE --name {a} --zenoh-config {} ...",
+                    p.display()
+                );
+            }
+            println!(
+                "  observer: v2x-fuser stats --zenoh-config {}",
+                issued.observer.display()
+            );
+            println!("keep ca-key.pem and the *-key.pem files private");
         }
         Command::Plot {
             data,

@@ -85,6 +85,41 @@ impl Default for FuserSpec {
     }
 }
 
+/// How the roles talk to each other.
+#[derive(Copy, Clone, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum SecurityMode {
+    /// Plain TCP between peers, no access control.
+    #[default]
+    Plain,
+    /// Mutual TLS through a Zenoh router that holds the access-control policy; every role is a
+    /// client of the router.
+    Mtls,
+}
+
+impl SecurityMode {
+    /// The mode's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            SecurityMode::Plain => "plain",
+            SecurityMode::Mtls => "mtls",
+        }
+    }
+}
+
+/// Security of a run.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct SecuritySpec {
+    /// `plain` or `mtls`.
+    pub mode: SecurityMode,
+    /// A directory written by `v2x-sim certs` (relative to the scenario file); required when
+    /// roles run on separate hosts. A one-process run without it makes its own certificates.
+    pub certs: Option<PathBuf>,
+    /// The router role's Zenoh options (used with `--role router`).
+    pub router: ZenohArgs,
+}
+
 /// One agent role.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -129,6 +164,9 @@ pub struct Scenario {
     /// The fuser.
     #[serde(default)]
     pub fuser: FuserSpec,
+    /// Plain, or mutual TLS through a router with access control.
+    #[serde(default)]
+    pub security: SecuritySpec,
     /// The agents, in fusion order.
     pub agents: Vec<AgentSpec>,
 }
@@ -153,6 +191,11 @@ impl Scenario {
         if let (Some(root), Some(base)) = (&s.dataset.dataroot, base) {
             if root.is_relative() {
                 s.dataset.dataroot = Some(base.join(root));
+            }
+        }
+        if let (Some(certs), Some(base)) = (&s.security.certs, base) {
+            if certs.is_relative() {
+                s.security.certs = Some(base.join(certs));
             }
         }
         s.check().map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
@@ -187,8 +230,11 @@ impl Scenario {
         let mut names = std::collections::BTreeSet::new();
         for a in &self.agents {
             keys::validate_chunk("agent name", &a.name).map_err(|e| format!("agents: {e}"))?;
-            if a.name == "fuser" {
-                return Err("agents: the name 'fuser' is the fuser's role".into());
+            if a.name == "fuser" || v2x_protocol::acl::reserved(&a.name) {
+                return Err(format!(
+                    "agents: the name '{}' belongs to another role",
+                    a.name
+                ));
             }
             if !names.insert(a.name.clone()) {
                 return Err(format!("agents: the name '{}' is used twice", a.name));

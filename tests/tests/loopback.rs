@@ -97,3 +97,34 @@ async fn two_agents_over_loopback_score_as_offline() {
 async fn four_agents_over_loopback_score_as_offline() {
     network_equals_offline("e2e-four", 4, &["mild", "moderate", "large", "moderate"]).await;
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_secure_run_scores_as_the_plain_one() {
+    let plain = scenario_toml("e2e-plain", &["mild", "large"], 2, 3.0, 2.0, "csba-wls+");
+    let secure = format!(
+        "{}\n[security]\nmode = \"mtls\"\n",
+        plain.replace("e2e-plain", "e2e-secure")
+    );
+    let mut summaries = Vec::new();
+    for (name, text) in [("plain", plain), ("secure", secure)] {
+        let scenario = Scenario::parse(&text, name, None).unwrap();
+        let gt = scenario.dataset.data_args().load().unwrap();
+        let (summary, _) = within(90, "the loopback run", run_local(&scenario, &gt))
+            .await
+            .unwrap();
+        assert_eq!(summary.windows, 30, "{name}");
+        summaries.push(summary);
+    }
+    assert_eq!(summaries[0].security.mode, "plain");
+    assert_eq!(summaries[1].security.mode, "mtls");
+    assert_eq!(
+        summaries[0].fused, summaries[1].fused,
+        "the same fused output"
+    );
+    for (agent, b) in &summaries[1].bandwidth {
+        let p = &summaries[0].bandwidth[agent];
+        assert_eq!(b.payload_bytes_per_frame, p.payload_bytes_per_frame);
+        // TLS records cost bytes on the wire
+        assert!(b.wire_bytes_per_frame.unwrap() > p.wire_bytes_per_frame.unwrap());
+    }
+}

@@ -15,17 +15,19 @@ pub mod epoch;
 pub mod relay;
 pub mod roles;
 pub mod schedule;
+pub mod secure;
 pub mod summary;
 
 pub use relay::{counting_relay, free_port};
 pub use roles::{agent_role, agent_view, fuser_role, FuserOutcome};
 pub use schedule::Schedule;
-pub use summary::{print_table, recorded, summarize, Bandwidth, Counts, Summary};
+pub use summary::{print_table, recorded, summarize, Bandwidth, Counts, SecurityReport, Summary};
 
 use crate::dataset::GroundTruth;
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, SecurityMode};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
+use secure::Role;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -99,24 +101,59 @@ async fn run_local_until(
     stop: watch::Receiver<bool>,
 ) -> anyhow::Result<(Summary, FuserOutcome)> {
     let schedule = Schedule::of(gt, scenario.duration_s);
-    let fuser_port = free_port()?;
-    let fuser_session = open_session(&ZenohArgs::loopback(
-        &[format!("tcp/127.0.0.1:{fuser_port}")],
-        &[],
-    ))
-    .await?;
+    // Plain: the fuser listens and agents connect to it. Mutual TLS: a router listens, holding
+    // the access-control policy, and the fuser and the agents are its clients.
+    let hub_port = free_port()?;
+    let (router_session, fuser_session, certs) = match scenario.security.mode {
+        SecurityMode::Plain => {
+            let hub = format!("tcp/127.0.0.1:{hub_port}");
+            (
+                None,
+                open_session(&ZenohArgs::loopback(&[hub], &[])).await?,
+                None,
+            )
+        }
+        SecurityMode::Mtls => {
+            let hub = format!("tls/127.0.0.1:{hub_port}");
+            let dir = secure::local_certs(scenario, &hub)?;
+            let listen = ZenohArgs {
+                listen: vec![hub.clone()],
+                ..Default::default()
+            };
+            let router = open_session(&secure::with_certs(&listen, &dir, Role::Router)?).await?;
+            let connect = ZenohArgs {
+                connect: vec![hub],
+                ..Default::default()
+            };
+            let fuser = open_session(&secure::with_certs(&connect, &dir, Role::Fuser)?).await?;
+            (Some(router), fuser, Some(dir))
+        }
+    };
     let mut agent_sessions = Vec::new();
     let mut wire = Vec::new();
-    for _ in &scenario.agents {
+    let mut setup = Vec::new();
+    for a in &scenario.agents {
         let counter = Arc::new(AtomicU64::new(0));
-        let port = counting_relay(fuser_port, counter.clone()).await?;
-        agent_sessions.push(
-            open_session(&ZenohArgs::loopback(
-                &[],
-                &[format!("tcp/127.0.0.1:{port}")],
-            ))
-            .await?,
-        );
+        let port = counting_relay(hub_port, counter.clone()).await?;
+        let opened = std::time::Instant::now();
+        let session = match &certs {
+            None => {
+                open_session(&ZenohArgs::loopback(
+                    &[],
+                    &[format!("tcp/127.0.0.1:{port}")],
+                ))
+                .await?
+            }
+            Some(dir) => {
+                let connect = ZenohArgs {
+                    connect: vec![format!("tls/127.0.0.1:{port}")],
+                    ..Default::default()
+                };
+                open_session(&secure::with_certs(&connect, dir, Role::Agent(&a.name))?).await?
+            }
+        };
+        setup.push(opened.elapsed().as_secs_f64() * 1000.0);
+        agent_sessions.push(session);
         wire.push(counter);
     }
     let start = std::time::Instant::now();
@@ -166,7 +203,10 @@ async fn run_local_until(
         let _ = s.close().await;
     }
     let _ = fuser_session.close().await;
-    let summary = summarize(
+    if let Some(r) = router_session {
+        let _ = r.close().await;
+    }
+    let mut summary = summarize(
         scenario,
         gt,
         &schedule,
@@ -174,6 +214,7 @@ async fn run_local_until(
         &totals,
         start.elapsed().as_secs_f64(),
     );
+    summary.security.session_setup_ms = Some(setup.iter().sum::<f64>() / setup.len() as f64);
     Ok((summary, outcome))
 }
 
@@ -185,11 +226,17 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         None => Scenario::parse(crate::scenario::DEFAULT, "the default scenario", None)?,
     };
     let gt = scenario.dataset.data_args().load()?;
+    let secure = scenario.security.mode == SecurityMode::Mtls;
     for r in &args.roles {
-        if r != "fuser" && !scenario.agents.iter().any(|a| &a.name == r) {
-            let names: Vec<_> = scenario.agents.iter().map(|a| a.name.as_str()).collect();
+        let is_agent = scenario.agents.iter().any(|a| &a.name == r);
+        if !(r == "fuser" || (secure && r == "router") || is_agent) {
+            let mut names: Vec<_> = scenario.agents.iter().map(|a| a.name.as_str()).collect();
+            names.insert(0, "fuser");
+            if secure {
+                names.insert(0, "router");
+            }
             bail!(
-                "--role {r}: not a role of this scenario (roles: fuser, {})",
+                "--role {r}: not a role of this scenario (roles: {})",
                 names.join(", ")
             );
         }
@@ -234,12 +281,20 @@ async fn run_roles(
 ) -> anyhow::Result<Option<(Summary, FuserOutcome)>> {
     let start = std::time::Instant::now();
     let run_fuser = roles.iter().any(|r| r == "fuser");
+    // The router first (its clients connect to it), until the run ends or is stopped.
+    let router = if roles.iter().any(|r| r == "router") {
+        let session = open_session(&secure::role_args(scenario, Role::Router)?).await?;
+        eprintln!("router: running with access control");
+        Some(session)
+    } else {
+        None
+    };
     let fuser_stop = stop.clone();
     let fuser = async {
         if !run_fuser {
             return anyhow::Ok(None);
         }
-        let session = open_session(&scenario.fuser.zenoh).await?;
+        let session = open_session(&secure::role_args(scenario, Role::Fuser)?).await?;
         let epoch = now_us() + 3_000_000;
         let end = schedule.due_us(epoch, schedule.frames.len(), scenario.speed)
             + 2_000_000
@@ -268,7 +323,14 @@ async fn run_roles(
             .map(|(idx, a)| {
                 let stop = stop.clone();
                 async move {
-                    let session = open_session(&a.zenoh).await?;
+                    let opened = std::time::Instant::now();
+                    let session =
+                        open_session(&secure::role_args(scenario, Role::Agent(&a.name))?).await?;
+                    eprintln!(
+                        "agent {}: session open in {:.1} ms",
+                        a.name,
+                        opened.elapsed().as_secs_f64() * 1000.0
+                    );
                     let epoch =
                         epoch::query_epoch(&session, &scenario.namespace, Duration::from_secs(60))
                             .await?;
@@ -287,7 +349,15 @@ async fn run_roles(
         }
         anyhow::Ok(out)
     };
+    let router_only = router.is_some() && !run_fuser && !roles.iter().any(|r| r != "router");
     let (outcome, totals) = tokio::join!(fuser, agents);
+    if router_only {
+        // A router alone serves until stopped.
+        stopped(stop.clone()).await;
+    }
+    if let Some(r) = router {
+        let _ = r.close().await;
+    }
     let totals = totals?;
     Ok(outcome?.map(|o| {
         let s = summarize(

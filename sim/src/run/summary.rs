@@ -82,6 +82,18 @@ pub struct Summary {
     pub e2e_latency_ms: Latency,
     /// Window close to fused publish (ms).
     pub fusion_latency_ms: Latency,
+    /// How the roles talked.
+    pub security: SecurityReport,
+}
+
+/// The security mode of a run and what it cost to connect.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct SecurityReport {
+    /// `plain` or `mtls`.
+    pub mode: String,
+    /// Mean time to open an agent's Zenoh session, connection and handshakes included (ms),
+    /// when measured.
+    pub session_setup_ms: Option<f64>,
 }
 
 /// Builds the summary from what the roles produced.
@@ -173,6 +185,10 @@ pub fn summarize(
         counts,
         e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
         fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
+        security: SecurityReport {
+            mode: scenario.security.mode.name().into(),
+            session_setup_ms: None,
+        },
     }
 }
 
@@ -190,7 +206,11 @@ pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -
 
 /// Prints the summary as tables.
 pub fn print_table(s: &Summary) {
-    println!("scenario {} · method {} · noise {} · {} frames scheduled · {} windows fused ({} incomplete) · {:.1} s", s.namespace, s.method, s.noise, s.frames_scheduled, s.windows, s.windows_incomplete, s.wall_s);
+    let setup = s
+        .security
+        .session_setup_ms
+        .map_or(String::new(), |ms| format!(", session set-up {ms:.1} ms"));
+    println!("scenario {} · method {} · noise {} · {} frames scheduled · {} windows fused ({} incomplete) · {:.1} s · security {}{setup}", s.namespace, s.method, s.noise, s.frames_scheduled, s.windows, s.windows_incomplete, s.wall_s, s.security.mode);
     println!();
     let mut rows = vec![crate::bench::Row {
         noise: s.noise.clone(),

@@ -1,0 +1,258 @@
+//! Who may do what on which key: the Zenoh access-control policy of a namespace, built from the
+//! key space in [`crate::keys`] so that the two cannot drift apart.
+//!
+//! Subjects are identified by the common name of their TLS client certificate. Everything not
+//! allowed is denied:
+//! - agent X may put only its detections (`v2x/NS/det/X`), declare only its own liveliness token
+//!   (`v2x/NS/alive/X`), see the fuser's subscription to its detections (so it knows a fuser is
+//!   there), and ask the simulator's shared start (`v2x/NS/sim/epoch`);
+//! - the fuser alone reads detections and tokens, and alone publishes fused output, declares its
+//!   liveliness and answers the statistics and the shared start;
+//! - an observer may only subscribe to fused output, query the statistics and watch the fuser's
+//!   liveliness.
+//!
+//! The policy holds only where a router enforces it between clients: in peer mode sessions talk
+//! to each other directly and no router sees their traffic.
+
+use crate::keys;
+use serde_json::{json, Value};
+
+/// The certificate common name of the fuser.
+pub const FUSER: &str = "fuser";
+/// The certificate common name of an observer.
+pub const OBSERVER: &str = "observer";
+/// The certificate common name of the router (its server certificate).
+pub const ROUTER: &str = "router";
+
+/// Names no agent may take, because certificates of other roles carry them.
+pub fn reserved(name: &str) -> bool {
+    [FUSER, OBSERVER, ROUTER].contains(&name)
+}
+
+/// The key of the simulator's shared start: `v2x/NS/sim/epoch`.
+pub fn sim_epoch(ns: &str) -> String {
+    format!("{}/{ns}/sim/epoch", keys::ROOT)
+}
+
+fn rule(id: &str, flow: &str, messages: &[&str], key_exprs: &[&str]) -> Value {
+    json!({
+        "id": id,
+        "permission": "allow",
+        "flows": [flow],
+        "messages": messages,
+        "key_exprs": key_exprs,
+    })
+}
+
+/// The `access_control` section of the router's Zenoh configuration for namespace `ns` and the
+/// given agents.
+pub fn access_control(ns: &str, agents: &[String]) -> Value {
+    let mut rules = Vec::new();
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    let epoch_key = sim_epoch(ns);
+    let epoch = [epoch_key.as_str()];
+    for a in agents {
+        let id = format!("agent-{a}");
+        rules.push(rule(
+            &format!("{id}-in"),
+            "ingress",
+            &["put"],
+            &[keys::detections(ns, a).as_str()],
+        ));
+        rules.push(rule(
+            &format!("{id}-token"),
+            "ingress",
+            &["liveliness_token"],
+            &[keys::alive(ns, a).as_str()],
+        ));
+        // The fuser subscribes to every agent's detections at once (`det/*`): an agent sees
+        // that declaration, and so knows a fuser is there.
+        rules.push(rule(
+            &format!("{id}-matching"),
+            "egress",
+            &["declare_subscriber"],
+            &[keys::all_detections(ns).as_str()],
+        ));
+        rules.push(rule(
+            &format!("{id}-epoch-in"),
+            "ingress",
+            &["query"],
+            &epoch,
+        ));
+        rules.push(rule(
+            &format!("{id}-epoch-out"),
+            "egress",
+            &["reply", "declare_queryable"],
+            &epoch,
+        ));
+        subjects.push(json!({"id": id, "cert_common_names": [a]}));
+        policies.push(json!({
+            "id": id,
+            "subjects": [id],
+            "rules": [
+                format!("{id}-in"), format!("{id}-token"), format!("{id}-matching"),
+                format!("{id}-epoch-in"), format!("{id}-epoch-out"),
+            ],
+        }));
+    }
+    let (det, alive) = (keys::all_detections(ns), keys::all_alive(ns));
+    let (fused, stats, fuser_alive) = (
+        keys::fused(ns),
+        keys::fuser_stats(ns),
+        keys::fuser_alive(ns),
+    );
+    let fuser_rules = [
+        rule(
+            "fuser-subscribe",
+            "ingress",
+            &["declare_subscriber"],
+            &[det.as_str()],
+        ),
+        rule("fuser-detections", "egress", &["put"], &[det.as_str()]),
+        rule(
+            "fuser-tokens-subscribe",
+            "ingress",
+            &["declare_liveliness_subscriber", "liveliness_query"],
+            &[alive.as_str()],
+        ),
+        rule(
+            "fuser-tokens",
+            "egress",
+            &["liveliness_token", "reply"],
+            &[alive.as_str()],
+        ),
+        rule("fuser-publish", "ingress", &["put"], &[fused.as_str()]),
+        // Observers' subscriptions reach the fuser, which then sends its output.
+        rule(
+            "fuser-readers",
+            "egress",
+            &["declare_subscriber"],
+            &[fused.as_str()],
+        ),
+        rule(
+            "fuser-alive",
+            "ingress",
+            &["liveliness_token"],
+            &[fuser_alive.as_str()],
+        ),
+        rule(
+            "fuser-answer",
+            "ingress",
+            &["declare_queryable", "reply"],
+            &[stats.as_str(), &epoch_key],
+        ),
+        rule(
+            "fuser-questions",
+            "egress",
+            &["query"],
+            &[stats.as_str(), &epoch_key],
+        ),
+    ];
+    let observer_rules = [
+        rule(
+            "observer-subscribe",
+            "ingress",
+            &["declare_subscriber"],
+            &[fused.as_str()],
+        ),
+        rule("observer-fused", "egress", &["put"], &[fused.as_str()]),
+        rule(
+            "observer-ask",
+            "ingress",
+            &["query", "declare_liveliness_subscriber", "liveliness_query"],
+            &[stats.as_str(), fuser_alive.as_str()],
+        ),
+        rule(
+            "observer-answers",
+            "egress",
+            &["reply", "liveliness_token", "declare_queryable"],
+            &[stats.as_str(), fuser_alive.as_str()],
+        ),
+    ];
+    for (who, rs) in [(FUSER, &fuser_rules[..]), (OBSERVER, &observer_rules[..])] {
+        subjects.push(json!({"id": who, "cert_common_names": [who]}));
+        policies.push(json!({
+            "id": who,
+            "subjects": [who],
+            "rules": rs.iter().map(|r| r["id"].clone()).collect::<Vec<_>>(),
+        }));
+        rules.extend(rs.iter().cloned());
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn allowed(acl: &Value, subject: &str, flow: &str, message: &str) -> Vec<String> {
+        let policy = acl["policies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["subjects"][0] == subject)
+            .unwrap();
+        let mut keys = Vec::new();
+        for id in policy["rules"].as_array().unwrap() {
+            let r = acl["rules"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|r| r["id"] == *id)
+                .unwrap();
+            let has = |f: &str, v: &str| r[f].as_array().unwrap().iter().any(|x| x == v);
+            if has("flows", flow) && has("messages", message) {
+                keys.extend(
+                    r["key_exprs"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|k| k.as_str().unwrap().to_string()),
+                );
+            }
+        }
+        keys
+    }
+
+    #[test]
+    fn each_agent_writes_only_its_own_keys() {
+        let acl = access_control("ns", &["veh".into(), "rsu".into()]);
+        assert_eq!(acl["default_permission"], "deny");
+        assert_eq!(
+            allowed(&acl, "agent-veh", "ingress", "put"),
+            vec!["v2x/ns/det/veh"]
+        );
+        assert_eq!(
+            allowed(&acl, "agent-veh", "ingress", "liveliness_token"),
+            vec!["v2x/ns/alive/veh"]
+        );
+        assert!(
+            allowed(&acl, "agent-veh", "egress", "put").is_empty(),
+            "reads nothing"
+        );
+        assert!(allowed(&acl, "agent-rsu", "ingress", "declare_queryable").is_empty());
+        assert_eq!(
+            allowed(&acl, "fuser", "ingress", "put"),
+            vec!["v2x/ns/fused"]
+        );
+        assert_eq!(
+            allowed(&acl, "fuser", "egress", "put"),
+            vec!["v2x/ns/det/*"]
+        );
+        assert!(allowed(&acl, "observer", "ingress", "put").is_empty());
+        assert_eq!(
+            allowed(&acl, "observer", "egress", "put"),
+            vec!["v2x/ns/fused"]
+        );
+        assert!(reserved("fuser") && !reserved("veh"));
+        let subjects = acl["subjects"].as_array().unwrap();
+        assert_eq!(subjects[0]["cert_common_names"][0], "veh");
+    }
+}

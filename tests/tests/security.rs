@@ -1,0 +1,266 @@
+//! Security over loopback: a Zenoh router with mutual TLS and the access-control policy that
+//! `v2x-sim certs` writes, the fuser, agents and an observer as its clients. Every forbidden
+//! action is tried, and each is shown to reach nobody by a permitted action sent after it on the
+//! same session (Zenoh delivers a session's messages in order), never by waiting.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use v2x_agent::{now_us, Agent, Link};
+use v2x_fuser::node::{self, NodeConfig};
+use v2x_protocol::net::{open_session, ZenohArgs};
+use v2x_protocol::{keys, wire, AgentKind, Frame};
+use v2x_sim::certs::{client_config, issue, leaf, new_ca, CertsConfig, Issued};
+use v2x_sim::run::free_port;
+use v2x_tests::fuser::{det, frame, next_fused, next_t, spawn_fuser_with, wait_live};
+use v2x_tests::{tempdir, within};
+
+fn certs(name: &str, ns: &str, port: u16) -> Issued {
+    let endpoint = format!("tls/127.0.0.1:{port}");
+    issue(&CertsConfig {
+        out: tempdir(name),
+        ns: ns.into(),
+        agents: vec!["a".into(), "b".into()],
+        listen: vec![endpoint.clone()],
+        connect: vec![endpoint],
+        days: 1,
+    })
+    .unwrap()
+}
+
+async fn open(config: &Path) -> zenoh::Session {
+    open_session(&ZenohArgs {
+        zenoh_config: Some(config.to_path_buf()),
+        ..Default::default()
+    })
+    .await
+    .unwrap()
+}
+
+async fn router(issued: &Issued) -> zenoh::Session {
+    open(&issued.router).await
+}
+
+/// Opening a session with this client configuration fails within a few seconds.
+async fn refused(config: serde_json::Value, dir: &Path, name: &str) {
+    let mut config = config;
+    config["connect"]["timeout_ms"] = serde_json::json!({ "client": 2000 });
+    let path = dir.join(format!("{name}.json5"));
+    std::fs::write(&path, config.to_string()).unwrap();
+    let r = within(
+        30,
+        name,
+        open_session(&ZenohArgs {
+            zenoh_config: Some(path),
+            ..Default::default()
+        }),
+    )
+    .await;
+    assert!(r.is_err(), "{name}: the router accepted the session");
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn clients_without_a_valid_certificate_cannot_connect() {
+    let ns = "sec-refuse";
+    let port = free_port().unwrap();
+    let issued = certs(ns, ns, port);
+    let _router = router(&issued).await;
+    let endpoint = vec![format!("tls/127.0.0.1:{port}")];
+    let dir = &issued.dir;
+    // The observer's own configuration connects: the setup works.
+    let observer = open(&issued.observer).await;
+    drop(observer);
+    // No client certificate at all.
+    let mut none = client_config(&issued.ca, Path::new("x"), Path::new("x"), &endpoint);
+    let tls = none["transport"]["link"]["tls"].as_object_mut().unwrap();
+    tls.remove("connect_certificate");
+    tls.remove("connect_private_key");
+    refused(none, dir, "no-certificate").await;
+    // Plain TCP on the TLS port.
+    refused(
+        serde_json::json!({
+            "mode": "client",
+            "connect": { "endpoints": [format!("tcp/127.0.0.1:{port}")] },
+            "scouting": { "multicast": { "enabled": false } },
+        }),
+        dir,
+        "plain-tcp",
+    )
+    .await;
+    // An expired certificate from the right CA.
+    let issuer = v2x_sim::certs::load_ca(dir, ns).unwrap();
+    let day = time::Duration::days(1);
+    let long_ago = time::OffsetDateTime::now_utc() - 10 * day;
+    let write_pair = |stem: &str, (cert, key): (String, String)| -> (PathBuf, PathBuf) {
+        let (c, k) = (
+            dir.join(format!("{stem}.pem")),
+            dir.join(format!("{stem}-key.pem")),
+        );
+        std::fs::write(&c, cert).unwrap();
+        std::fs::write(&k, key).unwrap();
+        (c, k)
+    };
+    let (c, k) = write_pair(
+        "expired",
+        leaf(&issuer, "a", &[], long_ago, long_ago + day).unwrap(),
+    );
+    refused(client_config(&issued.ca, &c, &k, &endpoint), dir, "expired").await;
+    // A certificate signed by another CA, with a name the policy knows.
+    let (_, other) = new_ca(ns, 1).unwrap();
+    let now = time::OffsetDateTime::now_utc();
+    let (c, k) = write_pair(
+        "other-ca",
+        leaf(&other, "a", &[], now - day, now + day).unwrap(),
+    );
+    refused(
+        client_config(&issued.ca, &c, &k, &endpoint),
+        dir,
+        "other-ca",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn each_identity_may_do_only_what_the_policy_allows() {
+    let ns = "sec-acl";
+    let port = free_port().unwrap();
+    let issued = certs(ns, ns, port);
+    let _router = router(&issued).await;
+    let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+    cfg.max_wait_ms = 300.0;
+    let mut fuser = spawn_fuser_with(open(&issued.fuser).await, cfg);
+    let observer = open(&issued.observer).await;
+    let fused_seen = observer.declare_subscriber(keys::fused(ns)).await.unwrap();
+    let raw_seen = observer
+        .declare_subscriber(keys::all_detections(ns))
+        .await
+        .unwrap();
+
+    // Mallory holds agent a's certificate and tries everything else first.
+    let mallory = open(&issued.agents["a"]).await;
+    let forged = |agent: &str, capture: u64| {
+        let mut f = frame(capture);
+        f.agent = agent.into();
+        f.seq = 999;
+        wire::encode(&f).unwrap()
+    };
+    mallory
+        .put(keys::detections(ns, "b"), forged("b", now_us()))
+        .await
+        .unwrap();
+    let mut fake_fused = frame(42);
+    fake_fused.agent = "fuser".into();
+    mallory
+        .put(keys::fused(ns), wire::encode(&fake_fused).unwrap())
+        .await
+        .unwrap();
+    let fake_stats = mallory.declare_queryable(keys::fuser_stats(ns)).await;
+    let fake_token_b = mallory
+        .liveliness()
+        .declare_token(keys::alive(ns, "b"))
+        .await;
+    // ...then what its certificate allows: its own token, and later its own frames.
+    let a_token = mallory
+        .liveliness()
+        .declare_token(keys::alive(ns, "a"))
+        .await
+        .unwrap();
+    // The token as a arrives; the one as b, declared before it on the same session, never did.
+    wait_live(&observer, ns, &["a"]).await;
+
+    // Another observer's forbidden actions, before an honest frame is fused (a session's own
+    // subscribers would see its puts locally, so this one has none).
+    let nosy = open(&issued.observer).await;
+    nosy.put(keys::detections(ns, "a"), forged("a", now_us()))
+        .await
+        .unwrap();
+    nosy.put(keys::fused(ns), wire::encode(&fake_fused).unwrap())
+        .await
+        .unwrap();
+
+    // Honest agents: b joins properly, and "a" (mallory) sends its own frames.
+    let sb = open(&issued.agents["b"]).await;
+    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
+        .await
+        .unwrap();
+    b.wait_for_subscriber(Duration::from_secs(10))
+        .await
+        .unwrap();
+    wait_live(&observer, ns, &["a", "b"]).await;
+    let mut a = Agent::start(&mallory, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap();
+    a.wait_for_subscriber(Duration::from_secs(10))
+        .await
+        .unwrap();
+    let mut last = 0;
+    let mut expected = Vec::new();
+    for _ in 0..3 {
+        let t = next_t(&mut last);
+        let fa = Frame {
+            detections: vec![det(10.0, 1), det(30.0, 2)],
+            ..frame(t)
+        };
+        let fb = Frame {
+            detections: vec![det(10.2, 1), det(29.9, 2)],
+            ..frame(t)
+        };
+        a.send(fa.clone()).unwrap();
+        b.send(fb.clone()).unwrap();
+        let f = next_fused(&mut fuser.1).await;
+        assert_eq!(f.members, vec!["a", "b"], "exactly the two honest frames");
+        // Unchanged by everything above: the fusion of the two honest frames alone.
+        let quantized = |f: &Frame| {
+            let mut g = f.clone();
+            g.agent = "x".into();
+            wire::decode(&wire::encode(&g).unwrap()).unwrap().detections
+        };
+        let want = "csba-wls+"
+            .parse::<v2x_fuser::Method>()
+            .unwrap()
+            .fuse(&[quantized(&fa), quantized(&fb)]);
+        assert_eq!(f.frame.detections.len(), want.len());
+        for (x, y) in f.frame.detections.iter().zip(&want) {
+            assert!((x.center[0] - y.center[0]).abs() < 1e-9);
+        }
+        expected.push(t);
+    }
+    // The observer saw the three fused windows and nothing forged, and no raw detection.
+    let mut seen = Vec::new();
+    while seen.len() < 3 {
+        let s = within(10, "fused output at the observer", fused_seen.recv_async())
+            .await
+            .unwrap();
+        seen.push(wire::decode(&s.payload().to_bytes()).unwrap().capture_us);
+    }
+    assert_eq!(
+        seen, expected,
+        "no forged fused frame (capture 42) reached the observer"
+    );
+    assert!(
+        raw_seen.try_recv().unwrap().is_none(),
+        "the observer read detections"
+    );
+    // Only the real fuser answers the statistics query.
+    let replies = observer
+        .get(keys::fuser_stats(ns))
+        .timeout(Duration::from_secs(3))
+        .await
+        .unwrap();
+    let mut answers = Vec::new();
+    while let Ok(r) = within(10, "stats replies", replies.recv_async()).await {
+        answers.push(r.result().is_ok());
+    }
+    assert_eq!(answers, vec![true]);
+    let stats = node::query_stats(&observer, ns, Duration::from_secs(5))
+        .await
+        .unwrap();
+    assert!(stats["agents"]["b"]["wrong_agent"] == 0 && stats["agents"]["b"]["frames_in"] == 3);
+    assert_eq!(
+        stats["agents"]["a"]["frames_in"], 3,
+        "the observer's put reached nobody"
+    );
+    drop((fake_stats, fake_token_b, a_token));
+    fuser.0.send(()).unwrap();
+    let st = within(30, "fuser shutdown", fuser.2).await.unwrap();
+    assert_eq!(st.windows, 3);
+}
