@@ -46,6 +46,7 @@ fn scene(n: usize, agents: usize, noise: NoiseProfile, seed: u64) -> Vec<Vec<Det
                 score: 0.8,
                 std: noise.std(),
                 pos_cov: None,
+                velocity: None,
                 id: i as u32,
             }
         })

@@ -23,7 +23,7 @@
 use crate::fusion::fuse_group;
 use crate::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
 use std::collections::BTreeMap;
-use v2x_protocol::{wrap_angle, Detection, Uncertainty, NO_ID};
+use v2x_protocol::{wrap_angle, Detection, Uncertainty, Velocity, NO_ID};
 
 /// Every agent's boxes in one list, with stable order (agent order, then list order).
 fn pooled(agents: &[Vec<Detection>]) -> Vec<&Detection> {
@@ -120,6 +120,7 @@ fn wbf_box(members: &[&Detection], n_agents: usize) -> Detection {
         score: avg_score * n.min(n_agents) as f64 / n_agents as f64,
         std: mean_std(members),
         pos_cov: None,
+        velocity: mean_velocity(members),
         id: best.id,
     }
 }
@@ -218,6 +219,16 @@ fn hungarian_within(rows: usize, cols: usize, dist: &[f64], gate: f64) -> Vec<(u
         .collect()
 }
 
+/// The mean velocity (and mean stds) of the members that have one.
+fn mean_velocity(m: &[&Detection]) -> Option<Velocity> {
+    let vs: Vec<&Velocity> = m.iter().filter_map(|d| d.velocity.as_ref()).collect();
+    let n = vs.len() as f64;
+    (!vs.is_empty()).then(|| Velocity {
+        v: std::array::from_fn(|k| vs.iter().map(|v| v.v[k]).sum::<f64>() / n),
+        std: std::array::from_fn(|k| vs.iter().map(|v| v.std[k]).sum::<f64>() / n),
+    })
+}
+
 /// Sequential pairwise late fusion: the running set is matched with each next agent.
 fn pairwise<F, M>(agents: &[Vec<Detection>], matcher: F, merge: M) -> Vec<Detection>
 where
@@ -267,6 +278,7 @@ pub fn infradet3d_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
             d.score = m.iter().map(|x| x.score).fold(0.0, f64::max);
             d.std = mean_std(m);
             d.pos_cov = None;
+            d.velocity = mean_velocity(m);
             d
         },
     )
@@ -310,6 +322,7 @@ pub fn dair_v2x_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
             d.score = m.iter().map(|x| x.score).sum::<f64>() / n;
             d.std = mean_std(m);
             d.pos_cov = None;
+            d.velocity = mean_velocity(m);
             d
         },
     )

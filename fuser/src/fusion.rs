@@ -5,11 +5,12 @@
 //! member's covariance: a full 3x3 block for the centre when the member carries one, diagonal
 //! otherwise, and diagonal for size and yaw. Yaw is circular: each member's yaw is unwrapped
 //! against the most certain member's before the weighted sum, and the result is wrapped.
-//! The fused detection carries P's stds, the highest member score, and the id of the most
-//! certain member (smallest sum of variances; ties go to the earliest member).
+//! Velocities are fused the same way over the members that have one. The fused detection carries
+//! P's stds, the highest member score, and the id of the most certain member (smallest sum of
+//! variances; ties go to the earliest member).
 
 use nalgebra::{Matrix3, Vector3};
-use v2x_protocol::{wrap_angle, Detection, Uncertainty};
+use v2x_protocol::{wrap_angle, Detection, Uncertainty, Velocity};
 
 /// Weighted mean and fused variance of scalars y_n with variances r_n:
 /// z = (sum 1/r_n)^-1 sum y_n / r_n, P = (sum 1/r_n)^-1.
@@ -52,7 +53,7 @@ pub fn fuse_group(members: &[&Detection]) -> Detection {
                     .map(|m| (m.center[k], m.std.pos[k] * m.std.pos[k])),
             );
         }
-        (c, var.map(|v| v.sqrt()).map(Some))
+        (c, var.map(f64::sqrt))
     } else {
         let mut info = Matrix3::zeros();
         let mut eta = Vector3::zeros();
@@ -72,9 +73,8 @@ pub fn fuse_group(members: &[&Detection]) -> Detection {
         let full: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| p[(i, j)]));
         return finish(members, best, [z[0], z[1], z[2]], Some(full));
     };
-    let pos_std = pos_cov.map(|s| s.expect("set above"));
     let mut d = finish(members, best, center, None);
-    d.std.pos = pos_std;
+    d.std.pos = pos_cov;
     d
 }
 
@@ -112,6 +112,20 @@ fn finish(
         Some(p) => [p[0][0].sqrt(), p[1][1].sqrt(), p[2][2].sqrt()],
         None => [0.0; 3],
     };
+    // Velocity: WLS over the members that measured one.
+    let moving: Vec<&Velocity> = members.iter().filter_map(|m| m.velocity.as_ref()).collect();
+    let velocity = (!moving.is_empty()).then(|| {
+        let mut v = Velocity {
+            v: [0.0; 2],
+            std: [0.0; 2],
+        };
+        for k in 0..2 {
+            let (z, p) = wls_scalar(moving.iter().map(|m| (m.v[k], m.std[k] * m.std[k])));
+            v.v[k] = z;
+            v.std[k] = p.sqrt();
+        }
+        v
+    });
     Detection {
         class: members[best].class,
         center,
@@ -124,6 +138,7 @@ fn finish(
             yaw: yaw_var.sqrt(),
         },
         pos_cov: full,
+        velocity,
         id: members[best].id,
     }
 }
@@ -147,6 +162,7 @@ mod tests {
                 yaw: yaw_std,
             },
             pos_cov: None,
+            velocity: None,
             id,
         }
     }
@@ -244,6 +260,27 @@ mod tests {
         let p = f.pos_cov.unwrap();
         assert!((p[0][1] - 1.0 / 8.0).abs() < 1e-12);
         assert!((f.std.pos[0] - (5.0f64 / 8.0).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn velocities_fuse_over_the_members_that_have_one() {
+        let mut a = det([0.0; 3], 0.0, 1.0, 0.1, 1);
+        a.velocity = Some(Velocity {
+            v: [10.0, 0.0],
+            std: [1.0, 1.0],
+        });
+        let mut b = det([0.0; 3], 0.0, 1.0, 0.1, 2);
+        b.velocity = Some(Velocity {
+            v: [13.0, 3.0],
+            std: [2.0, 2.0],
+        });
+        let c = det([0.0; 3], 0.0, 1.0, 0.1, 3); // no velocity: no say in it
+        let f = fuse_group(&[&a, &b, &c]);
+        let v = f.velocity.unwrap();
+        // weights 1 and 1/4: (10 + 13/4) / 1.25 = 10.6; (0 + 3/4) / 1.25 = 0.6; var 0.8
+        assert!((v.v[0] - 10.6).abs() < 1e-12 && (v.v[1] - 0.6).abs() < 1e-12);
+        assert!((v.std[0] - 0.8f64.sqrt()).abs() < 1e-12);
+        assert_eq!(fuse_group(&[&c, &c]).velocity, None);
     }
 
     #[test]

@@ -170,6 +170,7 @@ mod tests {
             score: 1.0,
             std: Uncertainty::uniform(1.0, 1.0, 1.0),
             pos_cov: None,
+            velocity: None,
             id: 0,
         }
     }

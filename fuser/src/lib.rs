@@ -13,6 +13,7 @@ pub mod fuzzing;
 pub mod geometry;
 pub mod ingest;
 pub mod method;
+pub mod motion;
 pub mod node;
 pub mod offline;
 pub mod ratelog;

@@ -39,6 +39,11 @@ enum Command {
         /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it, a missing std is an error.
         #[arg(long, value_parser = v2x_protocol::parse_std)]
         default_std: Option<v2x_protocol::Uncertainty>,
+        #[command(flatten)]
+        motion: MotionArgs,
+        /// Window width delta t (ms) when files carry capture times.
+        #[arg(long, default_value_t = 100.0)]
+        window_ms: f64,
         /// Where to write the fused results file.
         #[arg(long, short)]
         output: PathBuf,
@@ -63,6 +68,8 @@ enum Command {
         max_wait_ms: f64,
         #[command(flatten)]
         limits: IngestArgs,
+        #[command(flatten)]
+        motion: MotionArgs,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
         /// `v2x-sim eval` against the same ground truth.
         #[arg(long)]
@@ -93,6 +100,44 @@ enum Command {
         #[command(flatten)]
         zenoh: v2x_protocol::net::ZenohArgs,
     },
+}
+
+/// Motion compensation of a window to its latest capture time.
+#[derive(clap::Args)]
+struct MotionArgs {
+    /// Fuse boxes as captured, without predicting them to the window's reference time.
+    #[arg(long)]
+    no_compensation: bool,
+    /// Speed bound (m/s) for boxes without a velocity: their position variance grows by
+    /// (v dt)^2 / 3 over dt.
+    #[arg(long, default_value_t = 15.0)]
+    speed_bound_mps: f64,
+    /// Std of the unmodelled acceleration (m/s^2) in the constant-velocity prediction.
+    #[arg(long, default_value_t = 2.0)]
+    accel_std: f64,
+    /// Seconds of motion per second of capture time: set it to the replay speed when agents
+    /// replay recorded data faster than real time and stamp frames with the wall clock.
+    #[arg(long, default_value_t = 1.0)]
+    time_scale: f64,
+}
+
+impl MotionArgs {
+    fn params(&self) -> anyhow::Result<Option<v2x_fuser::motion::MotionParams>> {
+        let ok = |x: f64| x >= 0.0 && x.is_finite();
+        if !ok(self.speed_bound_mps) || !ok(self.accel_std) {
+            anyhow::bail!("--speed-bound-mps and --accel-std must be >= 0");
+        }
+        if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
+            anyhow::bail!("--time-scale must be > 0, the replay speed (1 live)");
+        }
+        Ok(
+            (!self.no_compensation).then_some(v2x_fuser::motion::MotionParams {
+                accel_std: self.accel_std,
+                speed_bound: self.speed_bound_mps,
+                time_scale: self.time_scale,
+            }),
+        )
+    }
 }
 
 /// Admission limits of the fuser node.
@@ -161,14 +206,28 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Fuse {
             method,
             default_std,
+            motion,
+            window_ms,
             output,
             inputs,
         } => {
+            if !(window_ms > 0.0 && window_ms.is_finite()) {
+                anyhow::bail!("--window-ms must be > 0");
+            }
             let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
-            let (samples, n_in, n_out) =
-                v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing)?;
+            let opts = v2x_fuser::offline::OfflineOptions {
+                motion: motion.params()?,
+                window_ms,
+            };
+            let (samples, n_in, n_out, by_time) =
+                v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
+            let how = match (by_time, opts.motion.is_some()) {
+                (true, true) => "grouped by capture time, motion-compensated",
+                (true, false) => "grouped by capture time, not compensated",
+                (false, _) => "grouped by sample token (the files carry no capture times)",
+            };
             eprintln!(
-                "{method}: fused {n_in} boxes from {} agents over {samples} samples into {n_out} boxes -> {}",
+                "{method}: fused {n_in} boxes from {} agents over {samples} samples into {n_out} boxes ({how}) -> {}",
                 inputs.len(),
                 output.display()
             );
@@ -180,6 +239,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             window_ms,
             max_wait_ms,
             limits,
+            motion,
             record,
             duration_s,
             zenoh,
@@ -198,6 +258,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 cfg.window_ms = window_ms;
                 cfg.max_wait_ms = max_wait_ms;
                 limits.apply(&mut cfg)?;
+                cfg.motion = motion.params()?;
                 let session = v2x_protocol::net::open_session(&zenoh).await?;
                 let mut recorded = Results::default();
                 let stop = async move {

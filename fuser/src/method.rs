@@ -238,6 +238,7 @@ mod tests {
             score: 0.7,
             std: Uncertainty::uniform(s, 0.1, 0.1),
             pos_cov: None,
+            velocity: None,
             id,
         }
     }

@@ -1,12 +1,24 @@
-//! Offline fusion of nuScenes results files: one file per agent, boxes grouped by sample token,
-//! each sample fused with a [`Method`]; the output keeps the extension fields.
+//! Offline fusion of nuScenes results files, one file per agent; the output keeps the extension
+//! fields.
+//!
+//! When every file carries its capture times (the `v2x_timestamps` map of its `meta`, as
+//! `v2x-sim gen` writes it), frames are grouped the way the fuser node groups them, by capture
+//! time in windows of delta t ([`crate::window`]), and each window is motion-compensated to its
+//! latest capture time ([`crate::motion`]) before it is fused; the output sample of a window is
+//! the sample of that latest frame, and the output's `v2x_timestamps` gives each sample's
+//! reference time. Without capture times, boxes are grouped by sample token and fused as they
+//! are.
 
+use crate::motion::{compensate, MotionParams};
+use crate::window::Windows;
 use crate::Method;
-use std::collections::BTreeSet;
+use serde_json::Value;
+use std::collections::{BTreeSet, HashMap};
 use std::path::PathBuf;
 use v2x_protocol::nuscenes_json::{
     read_results, write_results, JsonError, MissingStd, Results, TokenTable,
 };
+use v2x_protocol::{AgentKind, Detection, Frame};
 
 /// Per-agent results read from files, ready to fuse.
 pub struct Inputs {
@@ -14,6 +26,24 @@ pub struct Inputs {
     pub agents: Vec<Results>,
     /// The shared instance-token table.
     pub tokens: TokenTable,
+}
+
+/// How to fuse files.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OfflineOptions {
+    /// Motion compensation to each window's reference time (`None`: fuse boxes as captured).
+    pub motion: Option<MotionParams>,
+    /// Window width delta t (ms) when grouping by capture time.
+    pub window_ms: f64,
+}
+
+impl Default for OfflineOptions {
+    fn default() -> Self {
+        OfflineOptions {
+            motion: Some(MotionParams::default()),
+            window_ms: 100.0,
+        }
+    }
 }
 
 /// Reads one results file per agent with a shared token table.
@@ -26,8 +56,30 @@ pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, Jso
     Ok(Inputs { agents, tokens })
 }
 
-/// Fuses every sample present in any agent's file.
-pub fn fuse_results(method: &Method, agents: &[Results]) -> Results {
+/// The capture time of each sample of a file, when its meta gives one for every sample.
+pub fn capture_times(r: &Results) -> Option<HashMap<String, u64>> {
+    let map = r.meta.get("v2x_timestamps")?.as_object()?;
+    let times: HashMap<String, u64> = map
+        .iter()
+        .filter_map(|(k, v)| Some((k.clone(), v.as_u64()?)))
+        .collect();
+    r.samples
+        .keys()
+        .all(|s| times.contains_key(s))
+        .then_some(times)
+}
+
+/// Fuses the agents' files: by capture-time windows when every file has capture times, else by
+/// sample token.
+pub fn fuse_results(method: &Method, agents: &[Results], opts: &OfflineOptions) -> Results {
+    let times: Option<Vec<HashMap<String, u64>>> = agents.iter().map(capture_times).collect();
+    match times {
+        Some(times) if !agents.is_empty() => fuse_by_time(method, agents, &times, opts),
+        _ => fuse_by_token(method, agents),
+    }
+}
+
+fn fuse_by_token(method: &Method, agents: &[Results]) -> Results {
     let samples: BTreeSet<&String> = agents.iter().flat_map(|r| r.samples.keys()).collect();
     let mut out = Results {
         meta: agents.first().map(|r| r.meta.clone()).unwrap_or_default(),
@@ -43,15 +95,88 @@ pub fn fuse_results(method: &Method, agents: &[Results]) -> Results {
     out
 }
 
-/// Reads, fuses and writes: the `v2x-fuser fuse` command. Returns (samples, boxes in, boxes out).
+fn fuse_by_time(
+    method: &Method,
+    agents: &[Results],
+    times: &[HashMap<String, u64>],
+    opts: &OfflineOptions,
+) -> Results {
+    // Every frame of every agent, in capture order, through the node's window state machine.
+    let mut frames: Vec<(u64, usize, &String, &Vec<Detection>)> = Vec::new();
+    for (a, r) in agents.iter().enumerate() {
+        for (token, dets) in &r.samples {
+            frames.push((times[a][token], a, token, dets));
+        }
+    }
+    frames.sort_by_key(|f| (f.0, f.1));
+    let name = |a: usize| format!("a{a:05}");
+    let mut windows = Windows::new((opts.window_ms * 1000.0) as u64, 0);
+    let mut token_of: HashMap<(String, u32), &String> = HashMap::new();
+    for (seq, (t, a, token, dets)) in frames.iter().enumerate() {
+        token_of.insert((name(*a), seq as u32), token);
+        let frame = Frame {
+            agent: name(*a),
+            kind: AgentKind::Vehicle,
+            seq: seq as u32,
+            capture_us: *t,
+            origin: [0.0; 3],
+            detections: (*dets).clone(),
+        };
+        windows.insert(frame, *t);
+    }
+    let all: BTreeSet<String> = (0..agents.len()).map(name).collect();
+    let mut out = Results {
+        meta: agents[0].meta.clone(),
+        ..Default::default()
+    };
+    let mut stamps = serde_json::Map::new();
+    for closed in windows.flush(|_| all.clone()) {
+        let t_ref = closed
+            .frames
+            .values()
+            .map(|f| f.capture_us)
+            .max()
+            .unwrap_or(closed.anchor_us);
+        let latest = closed
+            .frames
+            .values()
+            .find(|f| f.capture_us == t_ref)
+            .map(|f| token_of[&(f.agent.clone(), f.seq)].clone())
+            .unwrap_or_default();
+        let lists: Vec<(&[Detection], u64)> = closed
+            .frames
+            .values()
+            .map(|f| (f.detections.as_slice(), f.capture_us))
+            .collect();
+        let per_agent: Vec<Vec<Detection>> = match &opts.motion {
+            Some(p) => compensate(&lists, t_ref, p),
+            None => lists.iter().map(|(d, _)| d.to_vec()).collect(),
+        };
+        out.samples.insert(latest.clone(), method.fuse(&per_agent));
+        stamps.insert(latest, t_ref.into());
+    }
+    if let Value::Object(m) = &mut out.meta {
+        m.insert("v2x_timestamps".into(), Value::Object(stamps));
+    } else {
+        let mut m = v2x_protocol::nuscenes_json::default_meta();
+        m["v2x_timestamps"] = Value::Object(stamps);
+        out.meta = m;
+    }
+    out
+}
+
+/// Reads, fuses and writes: the `v2x-fuser fuse` command. Returns (samples, boxes in, boxes out,
+/// whether frames were grouped by capture time).
 pub fn fuse_files(
     method: &Method,
     inputs: &[PathBuf],
     output: &std::path::Path,
     missing: MissingStd,
-) -> Result<(usize, usize, usize), JsonError> {
+    opts: &OfflineOptions,
+) -> Result<(usize, usize, usize, bool), JsonError> {
     let Inputs { agents, tokens } = read_inputs(inputs, missing)?;
-    let fused = fuse_results(method, &agents);
+    let by_time = !agents.is_empty() && agents.iter().all(|r| capture_times(r).is_some());
+    let fused = fuse_results(method, &agents, opts);
     write_results(output, &fused, &tokens)?;
     let n_in = agents
         .iter()
@@ -59,5 +184,5 @@ pub fn fuse_files(
         .map(Vec::len)
         .sum();
     let n_out = fused.samples.values().map(Vec::len).sum();
-    Ok((fused.samples.len(), n_in, n_out))
+    Ok((fused.samples.len(), n_in, n_out, by_time))
 }

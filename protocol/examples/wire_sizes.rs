@@ -45,6 +45,7 @@ fn urban_frame(n: usize) -> Frame {
                 score: 0.5 + 0.5 * next(),
                 std: Uncertainty::uniform(0.5, 0.1, 5f64.to_radians()),
                 pos_cov: None,
+                velocity: None,
                 id: 100 + i as u32,
             }
         })

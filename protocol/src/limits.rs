@@ -15,6 +15,16 @@ pub const SIZE_MIN: f64 = 0.01;
 pub const SIZE_MAX: f64 = 1000.0;
 /// Largest |coordinate| of a centre or a frame origin in the map frame (m).
 pub const COORD_MAX: f64 = 1e9;
+/// Largest |velocity| along either axis (m/s).
+pub const VEL_MAX: f64 = 100.0;
+/// The wire's velocity step (m/s).
+pub const VEL_STEP: f64 = 0.1;
+
+/// True when a velocity component is finite and within [`VEL_MAX`] once quantized.
+pub fn vel_in_range(v: f64) -> bool {
+    v.is_finite() && ((v / VEL_STEP).round() * VEL_STEP).abs() <= VEL_MAX
+}
+
 /// Smallest standard deviation (m or rad): the floor of the logarithmic std code.
 pub const STD_MIN: f64 = 1e-4;
 /// Steps of the logarithmic std code per e-fold: std = STD_MIN exp((code - 1) / STD_PER_UNIT).

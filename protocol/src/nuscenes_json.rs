@@ -4,12 +4,13 @@
 //! `sample_token`, `translation` [x, y, z], `size` **[w, l, h]**, `rotation` **[w, x, y, z]**,
 //! `velocity`, `detection_name`, `detection_score` and `attribute_name`. v2x-fusion adds optional
 //! extension fields: `translation_std` [3], `size_std` [3] (w, l, h order), `yaw_std` (rad),
+//! `velocity_std` [2] (m/s; a `velocity` counts only with it),
 //! `translation_cov` [9] (row-major 3x3, m^2), `instance_token` (the ground-truth object) and
 //! `instance_id` (the object's number in the ground truth's instance order, written when no token
 //! is known, e.g. by the fuser node's recorder).
 //! Errors name the file, the sample token, the box index and the field.
 
-use crate::{limits, wrap_angle, Class, Detection, Uncertainty, NO_ID};
+use crate::{limits, wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 use serde_json::{json, Map, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -361,6 +362,26 @@ fn parse_box(
         }
         _ => NO_ID,
     };
+    // A velocity counts only with its precision: without `velocity_std` it is treated as absent
+    // (many detectors write [0, 0] when they do not estimate it).
+    let velocity = match ctx.numbers::<2>(obj, "velocity_std")? {
+        None => None,
+        Some(sd) => {
+            let v = ctx
+                .numbers::<2>(obj, "velocity")?
+                .ok_or_else(|| ctx.err(Some("velocity"), "missing (velocity_std is given)"))?;
+            if !v.iter().all(|x| limits::vel_in_range(*x)) {
+                return Err(ctx.err(
+                    Some("velocity"),
+                    format!("must lie within {} m/s", limits::VEL_MAX),
+                ));
+            }
+            if !sd.iter().all(|x| limits::std_in_range(*x)) {
+                return Err(ctx.err(Some("velocity_std"), std_range_message()));
+            }
+            Some(Velocity { v, std: sd })
+        }
+    };
     Ok(Detection {
         class,
         center,
@@ -369,6 +390,7 @@ fn parse_box(
         score,
         std,
         pos_cov,
+        velocity,
         id,
     })
 }
@@ -426,7 +448,7 @@ pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
         "translation": d.center,
         "size": [w, l, h],
         "rotation": yaw_quaternion(d.yaw),
-        "velocity": [0.0, 0.0],
+        "velocity": d.velocity.map_or([0.0, 0.0], |v| v.v),
         "detection_name": d.class.name(),
         "detection_score": d.score,
         "attribute_name": "",
@@ -437,6 +459,9 @@ pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
     let m = b.as_object_mut().expect("built as an object");
     if let Some(c) = d.pos_cov {
         m.insert("translation_cov".into(), json!(c.concat()));
+    }
+    if let Some(v) = d.velocity {
+        m.insert("velocity_std".into(), json!(v.std));
     }
     if let Some(t) = tokens.name(d.id) {
         m.insert("instance_token".into(), json!(t));
@@ -665,6 +690,46 @@ mod tests {
                 shown.starts_with("agent1.json: sample 's1', box 0"),
                 "{shown}"
             );
+        }
+    }
+
+    #[test]
+    fn velocities_count_with_their_std() {
+        let mut t = TokenTable::new();
+        let r = parse_results(p(), GOOD, &mut t, MissingStd::Error).unwrap();
+        assert_eq!(
+            r.samples["s1"][0].velocity, None,
+            "velocity without velocity_std"
+        );
+        let text = replaced(
+            r#""velocity": [0, 0]"#,
+            r#""velocity": [3.5, -1.25], "velocity_std": [0.3, 0.4]"#,
+        );
+        let r = parse_results(p(), &text, &mut t, MissingStd::Error).unwrap();
+        let v = r.samples["s1"][0].velocity.unwrap();
+        assert_eq!((v.v, v.std), ([3.5, -1.25], [0.3, 0.4]));
+        let back = results_json(&r, &t).to_string();
+        let r2 = parse_results(p(), &back, &mut t, MissingStd::Error).unwrap();
+        assert_eq!(r2.samples["s1"][0].velocity, Some(v));
+        for (from, to, field) in [
+            (
+                r#""velocity": [0, 0]"#,
+                r#""velocity_std": [0.3, 0.4]"#,
+                "velocity",
+            ),
+            (
+                r#""velocity": [0, 0]"#,
+                r#""velocity": [300, 0], "velocity_std": [0.3, 0.4]"#,
+                "velocity",
+            ),
+            (
+                r#""velocity": [0, 0]"#,
+                r#""velocity": [3, 0], "velocity_std": [0, 0.4]"#,
+                "velocity_std",
+            ),
+        ] {
+            let e = err_of(&replaced(from, to), MissingStd::Error);
+            assert_eq!(e.field.as_deref(), Some(field), "{e}");
         }
     }
 

@@ -5,9 +5,10 @@
 //! then the objects. Values are quantized: positions in centimetres relative to the frame origin
 //! (zig-zag varints, so nearby objects cost two bytes an axis), sizes in centimetres as the
 //! difference from the class's typical size, yaw in 1/65536 turn (two fixed bytes), score in
-//! 1/250 steps, and standard deviations on a logarithmic scale (0.2% steps). A frame carries a
-//! default uncertainty; an object carries its own only when it differs, which a bit of its tag
-//! says.
+//! 1/250 steps, velocities in 0.1 m/s (zig-zag varints, when the object has one), and standard
+//! deviations on a logarithmic scale (0.2% steps). A frame carries a default uncertainty; an
+//! object carries its own only when it differs. Bits of an object's tag say which optional
+//! fields follow.
 //!
 //! One validity domain ([`crate::limits`]): [`decode`] accepts exactly the frames [`encode`] can
 //! write, so a decoded frame always encodes again, and [`fit`] brings any computed frame (fused
@@ -15,10 +16,10 @@
 //! reads a single object, validates every field, and returns a [`DecodeError`]; it never panics.
 
 use crate::limits::{
-    coord_in_range, size_in_range, std_in_range, std_of_code, MAX_AGENT_NAME, MAX_OBJECTS,
-    MAX_PAYLOAD, STD_CODE_MAX, STD_MIN, STD_PER_UNIT,
+    coord_in_range, size_in_range, std_in_range, std_of_code, vel_in_range, MAX_AGENT_NAME,
+    MAX_OBJECTS, MAX_PAYLOAD, STD_CODE_MAX, STD_MIN, STD_PER_UNIT, VEL_STEP,
 };
-use crate::{keys, wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty};
+use crate::{keys, wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -32,8 +33,10 @@ const YAW_STEPS: f64 = 65536.0;
 const TAG_CLASS: u8 = 0x0f;
 /// Tag bit: the object carries its own std codes.
 const TAG_STD: u8 = 0x10;
+/// Tag bit: the object carries a velocity.
+const TAG_VEL: u8 = 0x20;
 /// The tag bits this version defines.
-const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD;
+const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD | TAG_VEL;
 /// Index meaning "the frame itself" in errors.
 const FRAME: usize = usize::MAX;
 
@@ -128,6 +131,8 @@ pub enum DecodeError {
 const STD_FIELDS: [&str; 7] = [
     "std.x", "std.y", "std.z", "std.l", "std.w", "std.h", "std.yaw",
 ];
+const VEL_FIELDS: [&str; 2] = ["velocity.x", "velocity.y"];
+const VEL_STD_FIELDS: [&str; 2] = ["std.vx", "std.vy"];
 const SIZE_FIELDS: [&str; 3] = ["size.l", "size.w", "size.h"];
 const CENTER_FIELDS: [&str; 3] = ["center.x", "center.y", "center.z"];
 
@@ -140,6 +145,7 @@ struct Header {
     capture_us: u64,
     origin_cm: [i64; 3],
     default_std: [u16; 7],
+    default_vel_std: [u16; 2],
 }
 
 /// One object as the wire holds it.
@@ -153,6 +159,10 @@ struct Object {
     id: u32,
     /// Present exactly when `tag & TAG_STD`.
     std: Option<[u16; 7]>,
+    /// Velocity in [`VEL_STEP`] units; present exactly when `tag & TAG_VEL`.
+    vel: Option<[i32; 2]>,
+    /// Velocity std codes; present exactly when both `TAG_STD` and `TAG_VEL`.
+    vel_std: Option<[u16; 2]>,
 }
 
 /// Appends postcard encodings of values to a buffer.
@@ -187,13 +197,20 @@ impl Object {
         w.put(&self.yaw);
         w.put(&self.score);
         w.put(&self.id);
+        if let Some(v) = &self.vel {
+            w.put(v);
+        }
         if let Some(s) = &self.std {
+            w.put(s);
+        }
+        if let Some(s) = &self.vel_std {
             w.put(s);
         }
     }
 
     fn read(r: &mut Reader) -> Result<Object, DecodeError> {
         let tag: u8 = r.take()?;
+        let (has_std, has_vel) = (tag & TAG_STD != 0, tag & TAG_VEL != 0);
         Ok(Object {
             tag,
             pos_cm: r.take()?,
@@ -201,7 +218,9 @@ impl Object {
             yaw: r.take()?,
             score: r.take()?,
             id: r.take()?,
-            std: if tag & TAG_STD != 0 {
+            vel: if has_vel { Some(r.take()?) } else { None },
+            std: if has_std { Some(r.take()?) } else { None },
+            vel_std: if has_std && has_vel {
                 Some(r.take()?)
             } else {
                 None
@@ -284,10 +303,18 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         origin_cm[k] = (o * 100.0).round() as i64;
     }
     let mut codes = Vec::with_capacity(frame.detections.len());
+    let mut vel_codes = Vec::new();
     for (i, d) in frame.detections.iter().enumerate() {
-        codes.push(check_stds(&d.std, i)?);
+        let c = check_stds(&d.std, i)?;
+        let v = match &d.velocity {
+            Some(v) => Some(check_velocity(v, i)?),
+            None => None,
+        };
+        codes.push((c, v));
+        vel_codes.extend(v.map(|(_, s)| s));
     }
-    let default_std = most_common(&codes).unwrap_or([1; 7]);
+    let default_std = most_common(&codes.iter().map(|c| c.0).collect::<Vec<_>>()).unwrap_or([1; 7]);
+    let default_vel_std = most_common(&vel_codes).unwrap_or([1; 2]);
 
     let mut objects = Vec::with_capacity(frame.detections.len());
     for (i, d) in frame.detections.iter().enumerate() {
@@ -350,15 +377,25 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
                 value: d.score,
             });
         }
-        let std = (codes[i] != default_std).then_some(codes[i]);
+        let (std_codes, vel) = codes[i];
+        let own = std_codes != default_std || vel.is_some_and(|(_, s)| s != default_vel_std);
+        let mut tag = d.class.code();
+        if own {
+            tag |= TAG_STD;
+        }
+        if vel.is_some() {
+            tag |= TAG_VEL;
+        }
         objects.push(Object {
-            tag: d.class.code() | if std.is_some() { TAG_STD } else { 0 },
+            tag,
             pos_cm,
             size_delta_cm,
             yaw: yaw.to_le_bytes(),
             score: (d.score * SCORE_STEPS).round() as u8,
             id: d.id,
-            std,
+            vel: vel.map(|(v, _)| v),
+            std: own.then_some(std_codes),
+            vel_std: if own { vel.map(|(_, s)| s) } else { None },
         });
     }
     let header = Header {
@@ -371,13 +408,52 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         capture_us: frame.capture_us,
         origin_cm,
         default_std,
+        default_vel_std,
     };
     Ok(assemble(&header, &objects))
 }
 
-fn most_common(codes: &[[u16; 7]]) -> Option<[u16; 7]> {
-    let mut best: Option<([u16; 7], usize)> = None;
-    let mut counts: Vec<([u16; 7], usize)> = Vec::new();
+/// Checks a velocity and quantizes it: (velocity in steps, std codes).
+fn check_velocity(v: &Velocity, index: usize) -> Result<([i32; 2], [u16; 2]), EncodeError> {
+    let mut q = [0i32; 2];
+    let mut c = [0u16; 2];
+    for k in 0..2 {
+        if !v.v[k].is_finite() {
+            return Err(EncodeError::NonFinite {
+                index,
+                field: VEL_FIELDS[k],
+            });
+        }
+        if !vel_in_range(v.v[k]) {
+            return Err(EncodeError::OutOfRange {
+                index,
+                field: VEL_FIELDS[k],
+                value: v.v[k],
+            });
+        }
+        q[k] = (v.v[k] / VEL_STEP).round() as i32;
+        let s = v.std[k];
+        if !s.is_finite() {
+            return Err(EncodeError::NonFinite {
+                index,
+                field: VEL_STD_FIELDS[k],
+            });
+        }
+        if !std_in_range(s) {
+            return Err(EncodeError::OutOfRange {
+                index,
+                field: VEL_STD_FIELDS[k],
+                value: s,
+            });
+        }
+        c[k] = quantize_std(s);
+    }
+    Ok((q, c))
+}
+
+fn most_common<const N: usize>(codes: &[[u16; N]]) -> Option<[u16; N]> {
+    let mut best: Option<([u16; N], usize)> = None;
+    let mut counts: Vec<([u16; N], usize)> = Vec::new();
     for c in codes {
         match counts.iter_mut().find(|(k, _)| k == c) {
             Some((_, n)) => *n += 1,
@@ -404,6 +480,17 @@ fn decode_stds(codes: [u16; 7], index: usize) -> Result<Uncertainty, DecodeError
         });
     }
     Ok(Uncertainty::from_array(codes.map(std_of_code)))
+}
+
+fn decode_vel_stds(codes: [u16; 2], index: usize) -> Result<[f64; 2], DecodeError> {
+    if let Some(k) = codes.iter().position(|&c| c == 0 || c > STD_CODE_MAX) {
+        return Err(DecodeError::BadStdCode {
+            index,
+            field: VEL_STD_FIELDS[k],
+            code: codes[k],
+        });
+    }
+    Ok(codes.map(std_of_code))
 }
 
 fn cm_in_range(cm: i64, index: usize, field: &'static str) -> Result<(), DecodeError> {
@@ -441,6 +528,7 @@ fn read_header(bytes: &[u8]) -> Result<(Header, usize, Reader<'_>), DecodeError>
         cm_in_range(o, FRAME, "origin")?;
     }
     decode_stds(header.default_std, FRAME)?;
+    decode_vel_stds(header.default_vel_std, FRAME)?;
     let count: u64 = r.take()?;
     if count > MAX_OBJECTS as u64 {
         return Err(DecodeError::TooManyObjects(count));
@@ -459,6 +547,7 @@ pub fn peek(bytes: &[u8]) -> Result<(String, usize), DecodeError> {
 pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
     let (header, count, mut r) = read_header(bytes)?;
     let default_std = decode_stds(header.default_std, FRAME)?;
+    let default_vel_std = decode_vel_stds(header.default_vel_std, FRAME)?;
     let mut detections = Vec::with_capacity(count);
     for i in 0..count {
         let o = Object::read(&mut r)?;
@@ -504,6 +593,24 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
             cm_in_range(cm, i, CENTER_FIELDS[k])?;
             center[k] = cm as f64 / 100.0;
         }
+        let velocity = match o.vel {
+            None => None,
+            Some(q) => {
+                let v = q.map(|x| x as f64 * VEL_STEP);
+                if let Some(k) = (0..2).find(|&k| !vel_in_range(v[k])) {
+                    return Err(DecodeError::OutOfRange {
+                        index: i,
+                        field: VEL_FIELDS[k],
+                        value: q[k] as i64,
+                    });
+                }
+                let std = match o.vel_std {
+                    Some(c) => decode_vel_stds(c, i)?,
+                    None => default_vel_std,
+                };
+                Some(Velocity { v, std })
+            }
+        };
         let turn = u16::from_le_bytes(o.yaw) as f64 / YAW_STEPS;
         detections.push(Detection {
             class,
@@ -513,6 +620,7 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
             score: o.score as f64 / SCORE_STEPS,
             std,
             pos_cov: None,
+            velocity,
             id: o.id,
         });
     }
@@ -542,6 +650,8 @@ pub struct Fit {
     pub sizes_clamped: usize,
     /// Scores clamped into [0, 1].
     pub scores_clamped: usize,
+    /// Velocity components clamped into the velocity range.
+    pub velocities_clamped: usize,
     /// Objects dropped because a value was not finite or lay too far from the others.
     pub objects_invalid: usize,
     /// Objects dropped (the lowest scores) to stay within [`MAX_OBJECTS`].
@@ -568,6 +678,8 @@ pub fn fit(frame: &mut Frame) -> Fit {
             && d.yaw.is_finite()
             && d.score.is_finite()
             && d.std.as_array().iter().all(|s| s.is_finite())
+            && d.velocity
+                .is_none_or(|v| v.v.iter().chain(&v.std).all(|x| x.is_finite()))
     });
     fit.objects_invalid = before - frame.detections.len();
     for d in &mut frame.detections {
@@ -588,6 +700,18 @@ pub fn fit(frame: &mut Frame) -> Fit {
         if !(0.0..=1.0).contains(&d.score) {
             d.score = d.score.clamp(0.0, 1.0);
             fit.scores_clamped += 1;
+        }
+        if let Some(v) = &mut d.velocity {
+            for k in 0..2 {
+                if !vel_in_range(v.v[k]) {
+                    v.v[k] = v.v[k].clamp(-crate::limits::VEL_MAX, crate::limits::VEL_MAX);
+                    fit.velocities_clamped += 1;
+                }
+                if !std_in_range(v.std[k]) {
+                    v.std[k] = crate::limits::clamp_std(v.std[k]);
+                    fit.stds_clamped += 1;
+                }
+            }
         }
     }
     if frame.detections.len() > MAX_OBJECTS {

@@ -49,7 +49,17 @@ pub fn agent_detections(
         .agents
         .iter()
         .enumerate()
-        .map(|(a, noise)| detect(frame, i, a, noise, places[a].position, range, seed))
+        .map(|(a, noise)| {
+            detect(
+                &frame.objects,
+                i as u64,
+                a,
+                noise,
+                places[a].position,
+                range,
+                seed,
+            )
+        })
         .collect()
 }
 

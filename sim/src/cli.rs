@@ -101,10 +101,14 @@ pub struct ReplayMap {
     pub speed: f64,
 }
 
-/// Scores a results file against the ground truth. Samples are matched by sample token, or by
-/// `t<microseconds>` keys (as the fuser node records them) against frame timestamps, mapped back
-/// through `replay` when the agents replayed on the real clock. Only frames present in the file
-/// are scored unless `all_frames`. Returns the metrics and a note on coverage.
+/// Scores a results file against the ground truth. Each sample is scored at its time against
+/// the ground truth of that instant: the time is the `v2x_timestamps` entry of the file's meta
+/// when there is one (fused output carries its windows' reference times there), else the time
+/// of the sample token's frame, else the `t<microseconds>` of a key (as the fuser node records
+/// them, mapped back through `replay` when the agents replayed on the real clock). A time within
+/// 1 ms of a frame is that frame; between frames the ground truth is interpolated. Only the
+/// frames the file covers are scored unless `all_frames`, which counts every other frame's
+/// objects as missed. Returns the metrics and a note on coverage.
 pub fn evaluate_file(
     gt: &GroundTruth,
     path: &Path,
@@ -118,24 +122,7 @@ pub fn evaluate_file(
         MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
     )?;
     let by_token = gt.frame_index();
-    let mut by_time: Vec<(u64, usize)> = gt
-        .frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (f.timestamp_us, i))
-        .collect();
-    by_time.sort_unstable();
-    // `t<us>` keys (fuser recordings) match the nearest frame within 50 ms.
-    let nearest = |t: u64| -> Option<usize> {
-        let k = by_time.partition_point(|&(ts, _)| ts < t);
-        [k.checked_sub(1), Some(k)]
-            .into_iter()
-            .flatten()
-            .filter_map(|j| by_time.get(j))
-            .filter(|(ts, _)| ts.abs_diff(t) <= 50_000)
-            .min_by_key(|(ts, _)| ts.abs_diff(t))
-            .map(|&(_, i)| i)
-    };
+    let stamps = v2x_fuser::offline::capture_times(&results);
     let first_us = gt.frames.iter().map(|f| f.timestamp_us).min().unwrap_or(0);
     let to_data_time = |t: u64| -> u64 {
         match replay {
@@ -143,19 +130,51 @@ pub fn evaluate_file(
             None => t,
         }
     };
-    let mut preds: Vec<Option<&[v2x_protocol::Detection]>> = vec![None; gt.frames.len()];
+    let (t_min, t_max) = (
+        first_us,
+        gt.frames.iter().map(|f| f.timestamp_us).max().unwrap_or(0),
+    );
+    let mut covered = vec![false; gt.frames.len()];
     let mut unknown = Vec::new();
+    let mut acc = Accumulator::new();
+    let mut scored = 0;
     for (key, dets) in &results.samples {
-        let frame = by_token.get(key.as_str()).copied().or_else(|| {
-            key.strip_prefix('t')
-                .and_then(|t| t.parse::<u64>().ok())
-                .map(to_data_time)
-                .and_then(nearest)
-        });
-        match frame {
-            Some(i) => preds[i] = Some(dets),
-            None => unknown.push(key.clone()),
-        }
+        let time = stamps
+            .as_ref()
+            .and_then(|m| m.get(key).copied())
+            .or_else(|| {
+                by_token
+                    .get(key.as_str())
+                    .map(|&i| gt.frames[i].timestamp_us)
+            })
+            .or_else(|| {
+                key.strip_prefix('t')
+                    .and_then(|t| t.parse::<u64>().ok())
+                    .map(to_data_time)
+            });
+        let Some(t) = time.filter(|t| (t_min.saturating_sub(1_000)..=t_max + 1_000).contains(t))
+        else {
+            unknown.push(key.clone());
+            continue;
+        };
+        let scene = by_token
+            .get(key.as_str())
+            .map_or_else(|| gt.scene_at(t), |&i| gt.frames[i].scene);
+        let near = gt.nearest_frame(scene, t);
+        let objects = match near {
+            Some(i) if gt.frames[i].timestamp_us.abs_diff(t) <= 1_000 => {
+                covered[i] = true;
+                gt.frames[i].objects.clone()
+            }
+            _ => {
+                if let Some(i) = near {
+                    covered[i] = true;
+                }
+                gt.objects_at(scene, t)
+            }
+        };
+        acc.add_frame(&objects, dets);
+        scored += 1;
     }
     if !unknown.is_empty() {
         bail!(
@@ -165,21 +184,24 @@ pub fn evaluate_file(
             unknown[0]
         );
     }
-    let mut acc = Accumulator::new();
-    let mut scored = 0;
-    for (i, f) in gt.frames.iter().enumerate() {
-        match preds[i] {
-            Some(d) => acc.add_frame(&f.objects, d),
-            None if all_frames => acc.add_frame(&f.objects, &[]),
-            None => continue,
+    let mut missed = 0;
+    if all_frames {
+        for (i, f) in gt.frames.iter().enumerate() {
+            if !covered[i] {
+                acc.add_frame(&f.objects, &[]);
+                missed += 1;
+            }
         }
-        scored += 1;
     }
-    let present = preds.iter().filter(|p| p.is_some()).count();
     let note = format!(
-        "{}: scored {scored} of {} ground-truth frames ({present} in the file)",
+        "{}: scored {scored} samples of the file against {} ground-truth frames{}",
         path.display(),
-        gt.frames.len()
+        gt.frames.len(),
+        if all_frames {
+            format!(", and {missed} frames the file does not cover as missed")
+        } else {
+            String::new()
+        }
     );
     Ok((acc.summary(), note))
 }

@@ -25,6 +25,32 @@ pub struct GtObject {
     pub size: [f64; 3],
     /// Yaw (rad).
     pub yaw: f64,
+    /// Velocity over ground (m/s), when it can be known (the town's motion; nuScenes tables:
+    /// from the neighbouring annotations, as the nuScenes devkit computes it).
+    pub velocity: Option<[f64; 2]>,
+}
+
+/// One annotation of an object's track.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackPoint {
+    /// Annotation time (us).
+    pub t_us: u64,
+    /// The annotated box (with its devkit velocity).
+    pub object: GtObject,
+}
+
+/// How objects move between the annotated frames.
+#[derive(Clone, Debug, Default)]
+pub enum Motion {
+    /// Nothing is known between frames: a time gets its nearest frame.
+    #[default]
+    Frames,
+    /// Annotated tracks per scene (by object id), interpolated between annotations: linear
+    /// position and size, shortest-arc yaw, velocity linear between the annotations'. An object
+    /// exists only between its first and last annotation.
+    Tracks(Vec<BTreeMap<u32, Vec<TrackPoint>>>),
+    /// The synthetic town's actors, which move continuously.
+    Town(Vec<crate::town::TownScene>),
 }
 
 /// All objects at one time step.
@@ -53,6 +79,8 @@ pub struct GroundTruth {
     pub tokens: TokenTable,
     /// Annotations skipped per category name (not one of the 10 classes).
     pub skipped: BTreeMap<String, usize>,
+    /// How objects move between frames (continuous-time ground truth).
+    pub motion: Motion,
 }
 
 impl GroundTruth {
@@ -70,6 +98,65 @@ impl GroundTruth {
             .collect()
     }
 
+    /// The first and last frame time of a scene (us).
+    pub fn scene_span(&self, scene: usize) -> Option<(u64, u64)> {
+        let mut times = self
+            .frames
+            .iter()
+            .filter(|f| f.scene == scene)
+            .map(|f| f.timestamp_us);
+        let first = times.next()?;
+        Some(times.fold((first, first), |(a, b), t| (a.min(t), b.max(t))))
+    }
+
+    /// The scene a time belongs to: the one whose span holds it, else the one that ends last
+    /// before it (or the first).
+    pub fn scene_at(&self, t_us: u64) -> usize {
+        let mut best = 0;
+        for sc in 0..self.scenes.len().max(1) {
+            match self.scene_span(sc) {
+                Some((a, b)) if a <= t_us && t_us <= b => return sc,
+                Some((a, _)) if a <= t_us => best = sc,
+                _ => {}
+            }
+        }
+        best
+    }
+
+    /// The index of the frame of `scene` nearest to `t_us`.
+    pub fn nearest_frame(&self, scene: usize, t_us: u64) -> Option<usize> {
+        self.frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.scene == scene)
+            .min_by_key(|(_, f)| f.timestamp_us.abs_diff(t_us))
+            .map(|(i, _)| i)
+    }
+
+    /// The objects of `scene` at `t_us`: exactly a frame's when `t_us` is a frame time,
+    /// otherwise from the motion model.
+    pub fn objects_at(&self, scene: usize, t_us: u64) -> Vec<GtObject> {
+        if let Some(i) = self.nearest_frame(scene, t_us) {
+            if self.frames[i].timestamp_us == t_us {
+                return self.frames[i].objects.clone();
+            }
+        }
+        match &self.motion {
+            Motion::Town(scenes) => scenes
+                .get(scene)
+                .map_or_else(Vec::new, |s| s.objects_at(t_us)),
+            Motion::Tracks(scenes) => scenes.get(scene).map_or_else(Vec::new, |tracks| {
+                tracks
+                    .values()
+                    .filter_map(|track| interpolate(track, t_us))
+                    .collect()
+            }),
+            Motion::Frames => self
+                .nearest_frame(scene, t_us)
+                .map_or_else(Vec::new, |i| self.frames[i].objects.clone()),
+        }
+    }
+
     /// Frames per second of the data (median spacing of the first scene).
     pub fn hz(&self) -> f64 {
         let mut dts: Vec<u64> = self
@@ -82,6 +169,58 @@ impl GroundTruth {
         dts.sort_unstable();
         dts.get(dts.len() / 2).map_or(10.0, |&d| 1e6 / d as f64)
     }
+}
+
+/// An object's box at `t_us` from its track, if the track spans that time.
+pub fn interpolate(track: &[TrackPoint], t_us: u64) -> Option<GtObject> {
+    let (first, last) = (track.first()?, track.last()?);
+    if t_us < first.t_us || t_us > last.t_us {
+        return None;
+    }
+    let k = track.partition_point(|p| p.t_us <= t_us);
+    if k == 0 {
+        return Some(first.object.clone());
+    }
+    let a = &track[k - 1];
+    if a.t_us == t_us || k == track.len() {
+        return Some(a.object.clone());
+    }
+    let b = &track[k];
+    let w = (t_us - a.t_us) as f64 / (b.t_us - a.t_us) as f64;
+    let lerp = |x: f64, y: f64| x + w * (y - x);
+    let (oa, ob) = (&a.object, &b.object);
+    Some(GtObject {
+        id: oa.id,
+        class: oa.class,
+        center: std::array::from_fn(|i| lerp(oa.center[i], ob.center[i])),
+        size: std::array::from_fn(|i| lerp(oa.size[i], ob.size[i])),
+        yaw: wrap_angle(oa.yaw + w * wrap_angle(ob.yaw - oa.yaw)),
+        velocity: match (oa.velocity, ob.velocity) {
+            (Some(u), Some(v)) => Some([lerp(u[0], v[0]), lerp(u[1], v[1])]),
+            (u, v) => u.or(v),
+        },
+    })
+}
+
+/// The velocity of annotation `i` of a time-sorted track, as the nuScenes devkit's
+/// `box_velocity` computes it: the position difference of the previous and next annotations
+/// (or the annotation itself at either end) over their time difference, unknown for a single
+/// annotation or when that difference exceeds 1.5 s (3 s with both neighbours).
+pub fn devkit_velocity(track: &[(u64, [f64; 3])], i: usize) -> Option<[f64; 2]> {
+    let has_prev = i > 0;
+    let has_next = i + 1 < track.len();
+    let first = if has_prev { i - 1 } else { i };
+    let last = if has_next { i + 1 } else { i };
+    if first == last {
+        return None;
+    }
+    let dt = (track[last].0 as f64 - track[first].0 as f64) / 1e6;
+    let max_dt = if has_prev && has_next { 3.0 } else { 1.5 };
+    if !(dt > 0.0) || dt > max_dt {
+        return None;
+    }
+    let (p, q) = (track[first].1, track[last].1);
+    Some([(q[0] - p[0]) / dt, (q[1] - p[1]) / dt])
 }
 
 /// Why the tables could not be loaded.
@@ -308,7 +447,43 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
             center,
             size: [l, w, h],
             yaw: wrap_angle(quaternion_yaw(q)),
+            velocity: None,
         });
+    }
+    // Tracks: each object's annotations in time order, with the devkit's velocities.
+    let mut tracks: Vec<BTreeMap<u32, Vec<TrackPoint>>> = vec![BTreeMap::new(); scenes.len()];
+    for f in &frames {
+        for o in &f.objects {
+            tracks[f.scene].entry(o.id).or_default().push(TrackPoint {
+                t_us: f.timestamp_us,
+                object: o.clone(),
+            });
+        }
+    }
+    for scene in &mut tracks {
+        for track in scene.values_mut() {
+            track.sort_by_key(|p| p.t_us);
+            let pos: Vec<(u64, [f64; 3])> =
+                track.iter().map(|p| (p.t_us, p.object.center)).collect();
+            for (i, p) in track.iter_mut().enumerate() {
+                p.object.velocity = devkit_velocity(&pos, i);
+            }
+        }
+    }
+    let velocity: HashMap<(usize, u32, u64), Option<[f64; 2]>> = tracks
+        .iter()
+        .enumerate()
+        .flat_map(|(sc, scene)| {
+            scene
+                .values()
+                .flatten()
+                .map(move |p| ((sc, p.object.id, p.t_us), p.object.velocity))
+        })
+        .collect();
+    for f in &mut frames {
+        for o in &mut f.objects {
+            o.velocity = velocity[&(f.scene, o.id, f.timestamp_us)];
+        }
     }
     frames.sort_by(|a, b| {
         (a.scene, a.timestamp_us, &a.sample_token).cmp(&(b.scene, b.timestamp_us, &b.sample_token))
@@ -321,6 +496,7 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
         frames,
         tokens,
         skipped,
+        motion: Motion::Tracks(tracks),
     })
 }
 

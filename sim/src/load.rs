@@ -187,6 +187,7 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
                     score: 0.9,
                     std: noise,
                     pos_cov: None,
+                    velocity: None,
                     id: j as u32,
                 })
                 .collect();

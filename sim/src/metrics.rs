@@ -16,31 +16,61 @@ use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use v2x_protocol::{wrap_angle, Class, Detection};
 
+/// The errors of one prediction against its ground truth.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Errors {
+    /// 2D centre distance (m).
+    pub ate: f64,
+    /// Euclidean distance of (l, w, h) (m).
+    pub ase: f64,
+    /// |yaw difference| (degrees; period pi for barriers).
+    pub aoe: f64,
+    /// 2D velocity error (m/s), when both have a velocity and the class moves (not for barriers
+    /// and traffic cones, as in nuScenes).
+    pub ave: Option<f64>,
+}
+
+/// Class-wise means of the errors: (ATE, ASE, AOE, AVE).
+type Means = (f64, f64, f64, Option<f64>);
+
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Sums {
     ate: f64,
     ase: f64,
     aoe: f64,
     n: usize,
+    ave: f64,
+    n_ave: usize,
 }
 
 impl Sums {
-    fn add(&mut self, e: (f64, f64, f64)) {
-        self.ate += e.0;
-        self.ase += e.1;
-        self.aoe += e.2;
+    fn add(&mut self, e: Errors) {
+        self.ate += e.ate;
+        self.ase += e.ase;
+        self.aoe += e.aoe;
         self.n += 1;
+        if let Some(v) = e.ave {
+            self.ave += v;
+            self.n_ave += 1;
+        }
     }
     fn merge(&mut self, o: &Sums) {
         self.ate += o.ate;
         self.ase += o.ase;
         self.aoe += o.aoe;
         self.n += o.n;
+        self.ave += o.ave;
+        self.n_ave += o.n_ave;
     }
-    fn means(&self) -> Option<(f64, f64, f64)> {
+    fn means(&self) -> Option<Means> {
         (self.n > 0).then(|| {
             let n = self.n as f64;
-            (self.ate / n, self.ase / n, self.aoe / n)
+            (
+                self.ate / n,
+                self.ase / n,
+                self.aoe / n,
+                (self.n_ave > 0).then(|| self.ave / self.n_ave as f64),
+            )
         })
     }
 }
@@ -60,8 +90,8 @@ pub struct Accumulator {
     classes: BTreeMap<Class, ClassSums>,
 }
 
-/// ATE, ASE and AOE (degrees) of a prediction against its ground truth.
-pub fn errors(p: &Detection, g: &GtObject) -> (f64, f64, f64) {
+/// The errors of a prediction against its ground truth.
+pub fn errors(p: &Detection, g: &GtObject) -> Errors {
     let ate = (p.center[0] - g.center[0]).hypot(p.center[1] - g.center[1]);
     let ase = (0..3)
         .map(|k| (p.size[k] - g.size[k]).powi(2))
@@ -71,7 +101,17 @@ pub fn errors(p: &Detection, g: &GtObject) -> (f64, f64, f64) {
     if g.class == Class::Barrier {
         d = d.min(std::f64::consts::PI - d);
     }
-    (ate, ase, d.to_degrees())
+    let moves = !matches!(g.class, Class::Barrier | Class::TrafficCone);
+    let ave = match (p.velocity, g.velocity) {
+        (Some(pv), Some(gv)) if moves => Some((pv.v[0] - gv[0]).hypot(pv.v[1] - gv[1])),
+        _ => None,
+    };
+    Errors {
+        ate,
+        ase,
+        aoe: d.to_degrees(),
+        ave,
+    }
 }
 
 impl Accumulator {
@@ -152,6 +192,7 @@ impl Accumulator {
                     ate: m.map(|v| v.0),
                     ase: m.map(|v| v.1),
                     aoe: m.map(|v| v.2),
+                    ave: m.and_then(|v| v.3),
                     tp: s.tp,
                     fp: s.fp,
                     fn_: s.fn_,
@@ -166,6 +207,7 @@ impl Accumulator {
             m_ate: all.m_ate,
             m_ase: all.m_ase,
             m_aoe: all.m_aoe,
+            m_ave: all.m_ave,
             tp,
             fp,
             fn_,
@@ -191,22 +233,19 @@ pub struct ErrorMetrics {
     /// Mean AOE (degrees).
     #[serde(rename = "mAOE")]
     pub m_aoe: Option<f64>,
+    /// Mean AVE (m/s), over the classes that have velocity errors.
+    #[serde(rename = "mAVE")]
+    pub m_ave: Option<f64>,
 }
 
 impl ErrorMetrics {
-    fn of(means: &[(f64, f64, f64)]) -> Self {
-        if means.is_empty() {
-            return ErrorMetrics {
-                m_ate: None,
-                m_ase: None,
-                m_aoe: None,
-            };
-        }
-        let n = means.len() as f64;
+    fn of(means: &[Means]) -> Self {
+        let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
         ErrorMetrics {
-            m_ate: Some(means.iter().map(|m| m.0).sum::<f64>() / n),
-            m_ase: Some(means.iter().map(|m| m.1).sum::<f64>() / n),
-            m_aoe: Some(means.iter().map(|m| m.2).sum::<f64>() / n),
+            m_ate: mean(means.iter().map(|m| m.0).collect()),
+            m_ase: mean(means.iter().map(|m| m.1).collect()),
+            m_aoe: mean(means.iter().map(|m| m.2).collect()),
+            m_ave: mean(means.iter().filter_map(|m| m.3).collect()),
         }
     }
 }
@@ -227,6 +266,9 @@ pub struct ClassMetrics {
     /// Mean AOE, false positives included (degrees).
     #[serde(rename = "AOE")]
     pub aoe: Option<f64>,
+    /// Mean AVE, false positives included (m/s).
+    #[serde(rename = "AVE")]
+    pub ave: Option<f64>,
     /// True positives.
     pub tp: usize,
     /// False positives.
@@ -254,6 +296,9 @@ pub struct Metrics {
     /// Class-mean AOE, false positives included (degrees).
     #[serde(rename = "mAOE")]
     pub m_aoe: Option<f64>,
+    /// Class-mean AVE, false positives included (m/s).
+    #[serde(rename = "mAVE")]
+    pub m_ave: Option<f64>,
     /// True positives.
     pub tp: usize,
     /// False positives.
@@ -279,6 +324,7 @@ mod tests {
             center: [x, 0.0, 1.0],
             size: [4.0, 2.0, 1.5],
             yaw,
+            velocity: Some([10.0, 0.0]),
         }
     }
 
@@ -291,6 +337,7 @@ mod tests {
             score: 0.5,
             std: Uncertainty::uniform(1.0, 1.0, 1.0),
             pos_cov: None,
+            velocity: None,
             id,
         }
     }
@@ -368,6 +415,31 @@ mod tests {
         assert!((m.per_class["car"].aoe.unwrap() - 180.0).abs() < 1e-9);
         // class mean of 0 and 180
         assert!((m.m_aoe.unwrap() - 90.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn velocity_errors_where_both_have_one_and_the_class_moves() {
+        let g = [gt(1, Class::Car, 0.0, 0.0), gt(2, Class::Barrier, 9.0, 0.0)];
+        let mut p = pred(1, Class::Car, 0.0, 0.0, 0.0, [4.0, 2.0, 1.5]);
+        p.velocity = Some(v2x_protocol::Velocity {
+            v: [13.0, 4.0],
+            std: [1.0, 1.0],
+        });
+        let mut b = pred(2, Class::Barrier, 9.0, 0.0, 0.0, [4.0, 2.0, 1.5]);
+        b.velocity = p.velocity;
+        let mut acc = Accumulator::new();
+        acc.add_frame(&g, &[p.clone(), b]);
+        let m = acc.summary();
+        assert!(
+            (m.m_ave.unwrap() - 5.0).abs() < 1e-12,
+            "3-4-5, barrier excluded"
+        );
+        assert_eq!(m.per_class["barrier"].ave, None);
+        // no velocity, no error to average
+        let mut acc = Accumulator::new();
+        p.velocity = None;
+        acc.add_frame(&g[..1], &[p]);
+        assert_eq!(acc.summary().m_ave, None);
     }
 
     #[test]

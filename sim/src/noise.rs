@@ -5,19 +5,21 @@
 //! depend on the box's own error. Every draw comes from a generator seeded by (seed, agent, frame),
 //! so output is reproducible byte for byte and independent of evaluation order or threads.
 
-use crate::dataset::GtFrame;
+use crate::dataset::{GtFrame, GtObject};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{wrap_angle, AgentKind, Detection, NoiseProfile, Uncertainty};
+use v2x_protocol::{wrap_angle, AgentKind, Detection, NoiseProfile, Uncertainty, Velocity};
 
 /// How one agent perceives.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AgentNoise {
     /// The stds of the injected noise, reported with each detection.
     pub std: Uncertainty,
+    /// The std of the injected velocity noise (m/s per axis), reported with each velocity.
+    pub velocity_std: f64,
     /// Base confidence.
     pub base_confidence: f64,
     /// The profile name, or "custom".
@@ -29,15 +31,17 @@ impl AgentNoise {
     pub fn profile(p: NoiseProfile) -> Self {
         AgentNoise {
             std: p.std(),
+            velocity_std: p.velocity_std(),
             base_confidence: p.base_confidence(),
             label: p.name().into(),
         }
     }
 
-    /// Custom stds (confidence base 0.7).
+    /// Custom stds (confidence base 0.7, velocity std 0.5 m/s).
     pub fn custom(std: Uncertainty) -> Self {
         AgentNoise {
             std,
+            velocity_std: 0.5,
             base_confidence: 0.7,
             label: "custom".into(),
         }
@@ -46,15 +50,35 @@ impl AgentNoise {
 
 impl FromStr for AgentNoise {
     type Err = String;
-    /// A profile name or `POS,SIZE,YAW_DEG`.
+    /// A profile name, `POS,SIZE,YAW_DEG`, or `POS,SIZE,YAW_DEG,VEL` (VEL in m/s).
     fn from_str(s: &str) -> Result<Self, String> {
-        match s.parse::<NoiseProfile>() {
-            Ok(p) => Ok(AgentNoise::profile(p)),
-            Err(_) => v2x_protocol::parse_std(s).map(|std| AgentNoise {
-                label: s.to_string(),
-                ..AgentNoise::custom(std)
-            }),
+        if let Ok(p) = s.parse::<NoiseProfile>() {
+            return Ok(AgentNoise::profile(p));
         }
+        let parts: Vec<&str> = s.split(',').collect();
+        let (stds, vel) = match parts.len() {
+            4 => {
+                let v: f64 = parts[3].trim().parse().map_err(|_| {
+                    format!(
+                        "invalid noise '{s}': the velocity std '{}' is not a number",
+                        parts[3]
+                    )
+                })?;
+                if !v2x_protocol::limits::std_in_range(v) {
+                    return Err(format!("invalid noise '{s}': the velocity std must be > 0"));
+                }
+                (parts[..3].join(","), Some(v))
+            }
+            _ => (s.to_string(), None),
+        };
+        let std = v2x_protocol::parse_std(&stds)
+            .map_err(|e| format!("{e} (or POS,SIZE,YAW_DEG,VEL with a velocity std in m/s)"))?;
+        let mut n = AgentNoise::custom(std);
+        n.label = s.to_string();
+        if let Some(v) = vel {
+            n.velocity_std = v;
+        }
+        Ok(n)
     }
 }
 
@@ -165,29 +189,36 @@ pub fn mix(a: u64, b: u64, c: u64) -> u64 {
     z
 }
 
-/// One agent's detections of one frame. `range` (m) limits what the agent sees around
-/// `position`; `None` means every object (the paper's setting).
+/// One agent's detections of `objects` (the ground truth at its capture time). `draw` numbers
+/// the capture (the frame index for an agent that captures on the data's frames), so that every
+/// capture draws its own noise. `range` (m) limits what the agent sees around `position`; `None`
+/// means every object (the paper's setting). Velocity noise comes from a stream of its own, so
+/// that the position, size and yaw noise are the same with or without velocities.
 pub fn detect(
-    frame: &GtFrame,
-    frame_index: usize,
+    objects: &[GtObject],
+    draw: u64,
     agent: usize,
     noise: &AgentNoise,
     position: [f64; 3],
     range: Option<f64>,
     seed: u64,
 ) -> Vec<Detection> {
-    let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, agent as u64 + 1, frame_index as u64));
+    let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, agent as u64 + 1, draw));
+    let mut vrng = ChaCha8Rng::seed_from_u64(mix(seed ^ VELOCITY_STREAM, agent as u64 + 1, draw));
     let s = &noise.std;
     let mut g = move || -> f64 { StandardNormal.sample(&mut rng) };
-    let mut out = Vec::with_capacity(frame.objects.len());
-    for o in &frame.objects {
+    let mut gv = move || -> f64 { StandardNormal.sample(&mut vrng) };
+    let mut out = Vec::with_capacity(objects.len());
+    for o in objects {
         // Draw for every object, seen or not, so that the range does not shift the stream.
         let e: [f64; 8] = std::array::from_fn(|_| g());
+        let ev: [f64; 2] = std::array::from_fn(|_| gv());
         if let Some(r) = range {
             if (o.center[0] - position[0]).hypot(o.center[1] - position[1]) > r {
                 continue;
             }
         }
+        let sv = noise.velocity_std;
         out.push(Detection {
             class: o.class,
             center: std::array::from_fn(|k| o.center[k] + s.pos[k] * e[k]),
@@ -196,11 +227,18 @@ pub fn detect(
             score: (noise.base_confidence + 0.05 * e[7]).clamp(0.01, 1.0),
             std: *s,
             pos_cov: None,
+            velocity: o.velocity.map(|v| Velocity {
+                v: [v[0] + sv * ev[0], v[1] + sv * ev[1]],
+                std: [sv, sv],
+            }),
             id: o.id,
         });
     }
     out
 }
+
+/// Salt of the velocity noise stream.
+const VELOCITY_STREAM: u64 = 0x7E10_C17E;
 
 #[cfg(test)]
 mod tests {
@@ -221,6 +259,7 @@ mod tests {
                     center: [i as f64, 2.0 * i as f64, 1.0],
                     size: [4.5, 1.9, 1.6],
                     yaw: 3.0,
+                    velocity: Some([i as f64 * 0.001, -1.0]),
                 })
                 .collect(),
         }
@@ -231,7 +270,7 @@ mod tests {
         let f = frame(20_000);
         for p in NoiseProfile::ALL {
             let noise = AgentNoise::profile(p);
-            let d = detect(&f, 0, 0, &noise, [0.0; 3], None, 42);
+            let d = detect(&f.objects, 0, 0, &noise, [0.0; 3], None, 42);
             let n = d.len() as f64;
             let ex: Vec<f64> = d
                 .iter()
@@ -251,6 +290,19 @@ mod tests {
                 .collect();
             let sy = (ey.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
             assert!((sy / p.std().yaw - 1.0).abs() < 0.03, "{p}: yaw sd {sy}");
+            let ev: Vec<f64> = d
+                .iter()
+                .zip(&f.objects)
+                .map(|(d, o)| d.velocity.unwrap().v[1] - o.velocity.unwrap()[1])
+                .collect();
+            let sv = (ev.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+            assert!(
+                (sv / p.velocity_std() - 1.0).abs() < 0.03,
+                "{p}: velocity sd {sv}"
+            );
+            assert!(d
+                .iter()
+                .all(|d| d.velocity.unwrap().std == [p.velocity_std(); 2]));
             let conf = d.iter().map(|d| d.score).sum::<f64>() / n;
             assert!(
                 (conf - p.base_confidence()).abs() < 0.003,
@@ -266,13 +318,13 @@ mod tests {
     fn same_seed_same_bytes_other_seed_other_bytes() {
         let f = frame(50);
         let noise = AgentNoise::profile(NoiseProfile::Moderate);
-        let a = detect(&f, 3, 1, &noise, [0.0; 3], None, 9);
-        let b = detect(&f, 3, 1, &noise, [0.0; 3], None, 9);
+        let a = detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 9);
+        let b = detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 9);
         assert_eq!(format!("{a:?}"), format!("{b:?}"));
-        assert_ne!(a, detect(&f, 3, 1, &noise, [0.0; 3], None, 10));
+        assert_ne!(a, detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 10));
         assert_ne!(
             a,
-            detect(&f, 3, 0, &noise, [0.0; 3], None, 9),
+            detect(&f.objects, 3, 0, &noise, [0.0; 3], None, 9),
             "agents draw independently"
         );
     }
@@ -281,7 +333,7 @@ mod tests {
     fn range_limits_what_an_agent_sees() {
         let f = frame(100);
         let d = detect(
-            &f,
+            &f.objects,
             0,
             0,
             &AgentNoise::profile(NoiseProfile::Mild),
@@ -306,5 +358,9 @@ mod tests {
         assert!(NoiseSetting::parse("huge", 2).unwrap_err().contains("mild"));
         let c = NoiseSetting::parse("0.2,0.1,3", 2).unwrap();
         assert!((c.agents[1].std.yaw - 3f64.to_radians()).abs() < 1e-12);
+        assert_eq!(c.agents[1].velocity_std, 0.5);
+        let c = NoiseSetting::parse("0.2,0.1,3,0.8", 1).unwrap();
+        assert_eq!(c.agents[0].velocity_std, 0.8);
+        assert!(NoiseSetting::parse("0.2,0.1,3,x", 1).is_err());
     }
 }

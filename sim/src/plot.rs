@@ -88,6 +88,7 @@ pub fn frame_svg(
             score: 1.0,
             std: v2x_protocol::Uncertainty::uniform(1.0, 1.0, 1.0),
             pos_cov: None,
+            velocity: None,
             id: o.id,
         };
         polygon(&mut s, d.bev_corners(), &tf, "#000000", 2.0, "");

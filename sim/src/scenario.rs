@@ -70,6 +70,8 @@ pub struct FuserSpec {
     pub window_ms: f64,
     /// Longest wait for missing live agents (ms).
     pub max_wait_ms: f64,
+    /// Motion-compensate each window to its latest capture time.
+    pub compensation: bool,
     /// The fuser's Zenoh options (used when roles run on separate hosts).
     pub zenoh: ZenohArgs,
 }
@@ -80,6 +82,7 @@ impl Default for FuserSpec {
             method: "csba-wls+".into(),
             window_ms: 100.0,
             max_wait_ms: 150.0,
+            compensation: true,
             zenoh: ZenohArgs::default(),
         }
     }
@@ -134,6 +137,12 @@ pub struct AgentSpec {
     /// Sensing range (m); absent: the agent sees every object.
     #[serde(default)]
     pub range_m: Option<f64>,
+    /// Capture rate (Hz); absent: the data's frame rate.
+    #[serde(default)]
+    pub hz: Option<f64>,
+    /// Capture phase: the first capture comes this long after the data's first frame (ms).
+    #[serde(default)]
+    pub phase_ms: f64,
     /// The simulated link and clock.
     #[serde(default)]
     pub link: Link,
@@ -249,6 +258,14 @@ impl Scenario {
                 if !(r > 0.0) {
                     return Err(format!("agent {}: range_m must be > 0", a.name));
                 }
+            }
+            if let Some(hz) = a.hz {
+                if !(hz > 0.0 && hz <= 1000.0) {
+                    return Err(format!("agent {}: hz must be in (0, 1000]", a.name));
+                }
+            }
+            if !(a.phase_ms >= 0.0 && a.phase_ms < 60_000.0) {
+                return Err(format!("agent {}: phase_ms must be in [0, 60000)", a.name));
             }
         }
         Ok(())

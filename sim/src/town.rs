@@ -9,7 +9,7 @@
 //! class mix follows nuScenes. [`TownConfig::validation`] matches the nuScenes validation split's
 //! size: 150 scenes of 20 s at 2 Hz, 6,000 frames, about 145,000 boxes.
 
-use crate::dataset::{GroundTruth, GtFrame, GtObject};
+use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -72,6 +72,7 @@ const MIX: [(Class, f64); 10] = [
 ];
 
 /// A moving or static object: its path is p(t) = start + dir * wrap(s0 + v t).
+#[derive(Clone, Debug)]
 struct Actor {
     class: Class,
     size: [f64; 3],
@@ -87,6 +88,11 @@ struct Actor {
 }
 
 impl Actor {
+    /// Velocity over ground (m/s): constant along the path.
+    fn velocity(&self) -> [f64; 2] {
+        [self.dir[0] * self.speed, self.dir[1] * self.speed]
+    }
+
     fn at(&self, t: f64) -> ([f64; 3], f64) {
         let mut s = self.s0 + self.speed * t;
         if self.wraps {
@@ -312,11 +318,44 @@ fn scene_actors(rng: &mut ChaCha8Rng) -> Vec<Actor> {
     actors
 }
 
+/// One scene of the town in continuous time: its actors, their ids, where the scene sits on the
+/// map and when its clock starts.
+#[derive(Clone, Debug)]
+pub struct TownScene {
+    actors: Vec<Actor>,
+    ids: Vec<u32>,
+    offset: [f64; 2],
+    start_us: u64,
+}
+
+impl TownScene {
+    /// Every object of the scene at `t_us`, with its velocity.
+    pub fn objects_at(&self, t_us: u64) -> Vec<GtObject> {
+        let t = (t_us as f64 - self.start_us as f64) / 1e6;
+        self.actors
+            .iter()
+            .zip(&self.ids)
+            .map(|(a, &id)| {
+                let (c, yaw) = a.at(t);
+                GtObject {
+                    id,
+                    class: a.class,
+                    center: [c[0] + self.offset[0], c[1] + self.offset[1], c[2]],
+                    size: a.size,
+                    yaw,
+                    velocity: Some(a.velocity()),
+                }
+            })
+            .collect()
+    }
+}
+
 /// Builds the synthetic town's ground truth.
 pub fn generate(cfg: &TownConfig) -> GroundTruth {
     let mut tokens = TokenTable::new();
     let mut frames = Vec::new();
     let mut scenes = Vec::new();
+    let mut town_scenes = Vec::new();
     let steps = (cfg.seconds * cfg.hz).round().max(1.0) as usize;
     for sc in 0..cfg.scenes {
         let mut rng = ChaCha8Rng::seed_from_u64(
@@ -334,38 +373,33 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
         let ego_speed = rng.gen_range(4.0..9.0);
         let ego_s0 = rng.gen_range(-60.0..-20.0);
         scenes.push(format!("synthetic-{sc:03}"));
+        let scene = TownScene {
+            actors,
+            ids,
+            offset,
+            start_us,
+        };
         for k in 0..steps {
+            let t_us = start_us + (k as f64 * 1e6 / cfg.hz).round() as u64;
             let t = k as f64 / cfg.hz;
-            let objects = actors
-                .iter()
-                .zip(&ids)
-                .map(|(a, &id)| {
-                    let (c, yaw) = a.at(t);
-                    GtObject {
-                        id,
-                        class: a.class,
-                        center: [c[0] + offset[0], c[1] + offset[1], c[2]],
-                        size: a.size,
-                        yaw,
-                    }
-                })
-                .collect();
             let ego_x =
                 ((ego_s0 + ego_speed * t) + HALF_SPAN).rem_euclid(2.0 * HALF_SPAN) - HALF_SPAN;
             frames.push(GtFrame {
                 sample_token: format!("syn-{sc:03}-{k:04}"),
                 scene: sc,
-                timestamp_us: start_us + (k as f64 * 1e6 / cfg.hz).round() as u64,
-                ego: Some([offset[0] + ego_x, offset[1] - 1.75 - 1.75 * 0.0, 0.0]),
-                objects,
+                timestamp_us: t_us,
+                ego: Some([offset[0] + ego_x, offset[1] - 1.75, 0.0]),
+                objects: scene.objects_at(t_us),
             });
         }
+        town_scenes.push(scene);
     }
     GroundTruth {
         scenes,
         frames,
         tokens,
         skipped: Default::default(),
+        motion: Motion::Town(town_scenes),
     }
 }
 

@@ -77,6 +77,7 @@ pub mod fuser {
             score: 0.8,
             std: Uncertainty::uniform(0.5, 0.1, 0.1),
             pos_cov: None,
+            velocity: None,
             id,
         }
     }

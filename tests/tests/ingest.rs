@@ -315,6 +315,8 @@ async fn piles_of_boxes_do_not_block_the_receive_loop() {
     // The loop answers while fusion is still busy with the piles.
     let v = stats_until(&s.sa, ns, "the piles queued for fusion", |v| {
         v["fusion_queue"].as_u64().unwrap_or(0) >= 1
+            && v["agents"]["a"]["accepted"] == 3
+            && v["agents"]["b"]["accepted"] == 3
     })
     .await;
     assert_eq!(v["agents"]["a"]["accepted"], 3);

@@ -35,11 +35,12 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
     order.sort_by_key(|&i| scenario.agents[i].name.clone());
     let method = scenario.method();
     let mut acc = Accumulator::new();
-    for &gi in &schedule.frames {
+    for (k, &gi) in schedule.frames.iter().enumerate() {
+        let t = gt.frames[gi].timestamp_us;
         let lists: Vec<_> = order
             .iter()
             .map(|&idx| {
-                let (detections, origin) = agent_view(&scenario, &gt, gi, idx);
+                let (detections, origin) = agent_view(&scenario, &gt, &schedule, idx, k, t);
                 let f = Frame {
                     agent: "x".into(),
                     kind: Default::default(),

@@ -22,6 +22,7 @@ fn det(
             yaw: yaw_std,
         },
         pos_cov: None,
+        velocity: None,
         id: 0,
     }
 }

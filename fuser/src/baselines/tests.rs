@@ -11,6 +11,7 @@ fn bx(class: Class, x: f64, y: f64, score: f64, id: u32) -> Detection {
         score,
         std: Uncertainty::uniform(0.5, 0.1, 0.1),
         pos_cov: None,
+        velocity: None,
         id,
     }
 }

@@ -16,6 +16,7 @@ pub use v2x_protocol::net::shutdown_signal;
 pub use worker::fuse_window;
 
 use crate::ingest::{Ingest, IngestConfig, Rejection};
+use crate::motion::MotionParams;
 use crate::ratelog::RateLog;
 use crate::window::{Closed, Windows};
 use crate::Method;
@@ -44,11 +45,14 @@ pub struct NodeConfig {
     pub queue: usize,
     /// Interval of the rate-limited log summaries (s).
     pub log_interval_s: f64,
+    /// Motion compensation of each window to its latest capture time (`None`: boxes are fused
+    /// as captured).
+    pub motion: Option<MotionParams>,
 }
 
 impl NodeConfig {
     /// The defaults: windows of 100 ms waiting at most 150 ms, 1 s clock tolerance, 256 agents,
-    /// a fusion queue of 16 windows, log summaries every 10 s.
+    /// a fusion queue of 16 windows, log summaries every 10 s, motion compensation on.
     pub fn new(ns: &str, method: Method) -> Self {
         NodeConfig {
             ns: ns.to_string(),
@@ -58,6 +62,7 @@ impl NodeConfig {
             ingest: IngestConfig::default(),
             queue: 16,
             log_interval_s: 10.0,
+            motion: Some(MotionParams::default()),
         }
     }
 }
@@ -65,7 +70,8 @@ impl NodeConfig {
 /// A fused window as published.
 #[derive(Clone, Debug)]
 pub struct Fused {
-    /// The fused frame (agent "fuser", capture time = the window's anchor).
+    /// The fused frame (agent "fuser", capture time = the window's reference time: its latest
+    /// capture).
     pub frame: Frame,
     /// Agents whose frames were fused.
     pub members: Vec<String>,
@@ -327,7 +333,9 @@ pub async fn run(
     let clock = Clock::start();
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
-    let worker = tokio::spawn(worker::run(cfg.method, publisher, clock, job_rx, done_tx));
+    let worker = tokio::spawn(worker::run(
+        cfg.method, cfg.motion, publisher, clock, job_rx, done_tx,
+    ));
     let now = clock.now_us();
     let mut st = State {
         ns: ns.clone(),

@@ -48,6 +48,8 @@ pub struct FitStats {
     pub sizes_clamped: u64,
     /// Scores clamped into [0, 1].
     pub scores_clamped: u64,
+    /// Velocity components clamped into range.
+    pub velocities_clamped: u64,
     /// Fused objects dropped for non-finite values or lying out of reach of the others.
     pub objects_invalid: u64,
     /// Fused objects dropped (lowest scores) to stay within the object limit.
@@ -60,6 +62,7 @@ impl FitStats {
         self.stds_clamped += f.stds_clamped as u64;
         self.sizes_clamped += f.sizes_clamped as u64;
         self.scores_clamped += f.scores_clamped as u64;
+        self.velocities_clamped += f.velocities_clamped as u64;
         self.objects_invalid += f.objects_invalid as u64;
         self.objects_capped += f.objects_capped as u64;
     }

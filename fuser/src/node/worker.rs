@@ -4,6 +4,7 @@
 //! the receive loop, which keeps the statistics.
 
 use super::{Clock, Fused};
+use crate::motion::{compensate, MotionParams};
 use crate::window::Closed;
 use crate::Method;
 use tokio::sync::mpsc;
@@ -27,17 +28,40 @@ pub(super) struct Done {
     pub done_at_us: u64,
 }
 
-/// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire).
-pub fn fuse_window(method: &Method, closed: Closed, seq: u32) -> Fused {
+/// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire),
+/// stamped with the window's reference time: its latest capture. With `motion`, every frame is
+/// first predicted to that time.
+pub fn fuse_window(
+    method: &Method,
+    motion: Option<&MotionParams>,
+    closed: Closed,
+    seq: u32,
+) -> Fused {
     let members: Vec<String> = closed.frames.keys().cloned().collect();
-    let lists: Vec<Vec<Detection>> = closed.frames.into_values().map(|f| f.detections).collect();
+    let t_ref = closed
+        .frames
+        .values()
+        .map(|f| f.capture_us)
+        .max()
+        .unwrap_or(closed.anchor_us);
+    let lists: Vec<Vec<Detection>> = match motion {
+        Some(p) => {
+            let frames: Vec<(&[Detection], u64)> = closed
+                .frames
+                .values()
+                .map(|f| (f.detections.as_slice(), f.capture_us))
+                .collect();
+            compensate(&frames, t_ref, p)
+        }
+        None => closed.frames.into_values().map(|f| f.detections).collect(),
+    };
     let detections = method.fuse(&lists);
     Fused {
         frame: Frame {
             agent: "fuser".into(),
             kind: AgentKind::Infrastructure,
             seq,
-            capture_us: closed.anchor_us,
+            capture_us: t_ref,
             origin: [0.0; 3],
             detections,
         },
@@ -49,6 +73,7 @@ pub fn fuse_window(method: &Method, closed: Closed, seq: u32) -> Fused {
 /// Runs the worker until its queue closes.
 pub(super) async fn run(
     method: Method,
+    motion: Option<MotionParams>,
     publisher: zenoh::pubsub::Publisher<'static>,
     clock: Clock,
     mut jobs: mpsc::Receiver<Job>,
@@ -68,7 +93,7 @@ pub(super) async fn run(
             closed.complete,
         );
         let work = tokio::task::spawn_blocking(move || {
-            let mut fused = fuse_window(&method, closed, this_seq);
+            let mut fused = fuse_window(&method, motion.as_ref(), closed, this_seq);
             let fit = wire::fit(&mut fused.frame);
             let bytes = wire::encode(&fused.frame);
             (fused, fit, bytes)

@@ -11,6 +11,7 @@ fn det(class: Class, center: [f64; 3], size: [f64; 3], yaw: f64, id: u32) -> Det
         score: 0.9,
         std: Uncertainty::uniform(0.5, 0.1, 5f64.to_radians()),
         pos_cov: None,
+        velocity: None,
         id,
     }
 }
@@ -67,6 +68,13 @@ fn assert_close(a: &Frame, b: &Frame) {
         for (s, t) in x.std.as_array().iter().zip(y.std.as_array()) {
             assert!((s - t).abs() / s <= 0.01, "std {s} vs {t}");
         }
+        assert_eq!(x.velocity.is_some(), y.velocity.is_some());
+        if let (Some(a), Some(b)) = (x.velocity, y.velocity) {
+            for k in 0..2 {
+                assert!((a.v[k] - b.v[k]).abs() <= 0.05 + 1e-9, "velocity {k}");
+                assert!((a.std[k] - b.std[k]).abs() / a.std[k] <= 0.01);
+            }
+        }
     }
 }
 
@@ -106,6 +114,37 @@ fn uniform_stds_cost_nothing_per_object() {
         "one override costs its 7 std codes"
     );
     assert_close(&g, &decode(&b2).unwrap());
+}
+
+#[test]
+fn velocities_round_trip_and_cost_about_two_bytes() {
+    let f = sample_frame(75);
+    let base = encode(&f).unwrap().len();
+    let mut g = f.clone();
+    for (i, d) in g.detections.iter_mut().enumerate() {
+        // a mix: static, walking, driving along x, driving diagonally
+        let v = [[0.0, 0.0], [1.2, -0.4], [11.3, 0.2], [-7.9, 7.9]][i % 4];
+        d.velocity = Some(Velocity { v, std: [0.3, 0.3] });
+    }
+    let bytes = encode(&g).unwrap();
+    let extra = (bytes.len() - base) as f64 / 75.0;
+    // 0.1 m/s steps: 1 byte per axis below 6.4 m/s, 2 above; stds ride in the frame default
+    assert!((2.0..=3.0).contains(&extra), "{extra} bytes per object");
+    let h = decode(&bytes).unwrap();
+    assert_close(&g, &h);
+    assert_eq!(h.detections[2].velocity.unwrap().v, [11.3, 0.2]);
+    // one object with its own velocity std carries 2 codes more than its 7
+    g.detections[5].velocity.as_mut().unwrap().std = [1.0, 1.0];
+    assert_eq!(encode(&g).unwrap().len(), bytes.len() + 14 + 4);
+    let mut bad = g.clone();
+    bad.detections[0].velocity.as_mut().unwrap().v[1] = 150.0;
+    assert!(matches!(
+        encode(&bad),
+        Err(EncodeError::OutOfRange {
+            field: "velocity.y",
+            ..
+        })
+    ));
 }
 
 #[test]
@@ -221,6 +260,18 @@ fn decode_reports_each_invalid_field() {
         decode(&assemble(&h, &o)),
         Err(DecodeError::SizeOutOfRange {
             field: "size.l",
+            ..
+        })
+    ));
+
+    let (h, mut o) = valid();
+    o[1].tag |= TAG_VEL;
+    o[1].vel = Some([0, 1001]); // 100.1 m/s
+    assert!(matches!(
+        decode(&assemble(&h, &o)),
+        Err(DecodeError::OutOfRange {
+            index: 1,
+            field: "velocity.y",
             ..
         })
     ));
@@ -402,8 +453,12 @@ fn arb_detection() -> impl Strategy<Value = Detection> {
         0.0f64..=1.0,
         prop::array::uniform7(0.001f64..50.0),
         any::<u32>(),
+        prop::option::of((
+            prop::array::uniform2(-99.0f64..99.0),
+            prop::array::uniform2(0.01f64..10.0),
+        )),
     )
-        .prop_map(|(c, center, size, yaw, score, std, id)| Detection {
+        .prop_map(|(c, center, size, yaw, score, std, id, vel)| Detection {
             class: Class::ALL[c],
             center,
             size,
@@ -411,6 +466,7 @@ fn arb_detection() -> impl Strategy<Value = Detection> {
             score,
             std: Uncertainty::from_array(std),
             pos_cov: None,
+            velocity: vel.map(|(v, std)| Velocity { v, std }),
             id,
         })
 }

@@ -19,7 +19,7 @@ pub mod secure;
 pub mod summary;
 
 pub use relay::{counting_relay, free_port};
-pub use roles::{agent_role, agent_view, fuser_role, FuserOutcome};
+pub use roles::{agent_captures, agent_role, agent_view, fuser_role, FuserOutcome};
 pub use schedule::Schedule;
 pub use summary::{print_table, recorded, summarize, Bandwidth, Counts, SecurityReport, Summary};
 
@@ -296,8 +296,11 @@ async fn run_roles(
         }
         let session = open_session(&secure::role_args(scenario, Role::Fuser)?).await?;
         let epoch = now_us() + 3_000_000;
-        let end = schedule.due_us(epoch, schedule.frames.len(), scenario.speed)
-            + 2_000_000
+        let end = schedule.wall_us(
+            epoch,
+            schedule.t0_us + schedule.duration_us(),
+            scenario.speed,
+        ) + 2_000_000
             + (scenario.fuser.max_wait_ms * 1000.0) as u64;
         eprintln!(
             "fuser: epoch in 3 s, running for {:.1} s",

@@ -3,35 +3,57 @@
 
 use super::epoch::serve_epoch;
 use super::schedule::Schedule;
-use crate::dataset::{GroundTruth, GtFrame};
+use crate::dataset::GroundTruth;
 use crate::noise::{detect, place_agents, AgentNoise};
 use crate::scenario::Scenario;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::{now_us, Agent, AgentTotals};
+use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::{self, NodeConfig, NodeStats};
 use v2x_protocol::{Detection, Frame};
 
-/// The detections agent `idx` of a scenario makes of ground-truth frame `gi`, and where it
-/// stands.
+/// The detections agent `idx` of a scenario makes at data time `t_us` (its `draw`-th capture),
+/// and where it stands.
 pub fn agent_view(
     scenario: &Scenario,
     gt: &GroundTruth,
-    gi: usize,
+    schedule: &Schedule,
     idx: usize,
+    draw: usize,
+    t_us: u64,
 ) -> (Vec<Detection>, [f64; 3]) {
-    let frame: &GtFrame = &gt.frames[gi];
     let spec = &scenario.agents[idx];
     let noise: AgentNoise = spec
         .noise
         .parse()
         .expect("checked when the scenario loaded");
-    let place = place_agents(frame, scenario.agents.len(), scenario.seed)[idx].position;
+    let objects = gt.objects_at(schedule.scene, t_us);
+    let near = gt
+        .nearest_frame(schedule.scene, t_us)
+        .map(|i| &gt.frames[i]);
+    let place = near.map_or([0.0; 3], |f| {
+        place_agents(f, scenario.agents.len(), scenario.seed)[idx].position
+    });
     (
-        detect(frame, gi, idx, &noise, place, spec.range_m, scenario.seed),
+        detect(
+            &objects,
+            draw as u64,
+            idx,
+            &noise,
+            place,
+            spec.range_m,
+            scenario.seed,
+        ),
         place,
     )
+}
+
+/// An agent's capture times (data time) in a run.
+pub fn agent_captures(scenario: &Scenario, schedule: &Schedule, idx: usize) -> Vec<u64> {
+    let spec = &scenario.agents[idx];
+    schedule.captures(spec.hz, spec.phase_ms)
 }
 
 /// Runs one agent role until its schedule ends or `stop` turns true.
@@ -55,8 +77,11 @@ pub async fn agent_role(
     )
     .await?;
     agent.wait_for_subscriber(Duration::from_secs(30)).await?;
-    for (k, &gi) in schedule.frames.iter().enumerate() {
-        let due = schedule.due_us(epoch_us, k, scenario.speed);
+    for (j, t) in agent_captures(scenario, schedule, idx)
+        .into_iter()
+        .enumerate()
+    {
+        let due = schedule.wall_us(epoch_us, t, scenario.speed);
         let now = now_us();
         if due + 1000 < now {
             continue; // joined late: this frame's time has passed
@@ -65,12 +90,13 @@ pub async fn agent_role(
             _ = tokio::time::sleep(Duration::from_micros(due.saturating_sub(now))) => {}
             _ = stop.wait_for(|s| *s) => break,
         }
-        let (detections, origin) = agent_view(scenario, gt, gi, idx);
+        let (detections, origin) = agent_view(scenario, gt, schedule, idx, j, t);
         agent.send(Frame {
             agent: spec.name.clone(),
             kind: spec.kind,
             seq: 0,
-            capture_us: now_us(),
+            // the sensor time this view stands for, in wall time
+            capture_us: due,
             origin,
             detections,
         })?;
@@ -87,8 +113,11 @@ pub async fn agent_role(
 pub struct FuserOutcome {
     /// The node's statistics.
     pub stats: NodeStats,
-    /// Fused detections per scheduled frame index.
-    pub fused: BTreeMap<usize, Vec<Detection>>,
+    /// Fused detections by their reference time in data time (us).
+    pub fused: BTreeMap<u64, Vec<Detection>>,
+    /// The data time the run reached before the fuser stopped (us): scheduled frames up to it
+    /// are scored.
+    pub reached_us: u64,
 }
 
 /// Runs the fuser role until `stop` resolves.
@@ -100,6 +129,10 @@ pub async fn fuser_role(
     stop: impl std::future::Future<Output = ()>,
 ) -> anyhow::Result<FuserOutcome> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
+    cfg.motion = scenario.fuser.compensation.then(|| MotionParams {
+        time_scale: scenario.speed,
+        ..Default::default()
+    });
     cfg.window_ms = (scenario.fuser.window_ms / scenario.speed)
         .min(schedule.period_us as f64 / 1000.0 / scenario.speed);
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
@@ -110,13 +143,20 @@ pub async fn fuser_role(
         session,
         cfg,
         |f| {
-            if let Some(k) = schedule.frame_of(epoch_us, f.frame.capture_us, speed) {
-                fused.insert(k, f.frame.detections.clone());
-            }
+            let t = schedule.data_us(epoch_us, f.frame.capture_us, speed);
+            fused.insert(t, f.frame.detections.clone());
         },
         stop,
     )
     .await?;
     answer.abort();
-    Ok(FuserOutcome { stats, fused })
+    // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
+    // was not going to come.
+    let stopped = now_us().saturating_sub((scenario.fuser.max_wait_ms * 1000.0) as u64);
+    let reached_us = schedule.data_us(epoch_us, stopped, speed);
+    Ok(FuserOutcome {
+        stats,
+        fused,
+        reached_us,
+    })
 }

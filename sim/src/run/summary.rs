@@ -1,7 +1,7 @@
 //! The summary of a run: metrics of the fused output and of each agent alone, bandwidth, frame
 //! counts and latencies, as one JSON object (fields in the README) or as tables.
 
-use super::roles::{agent_view, FuserOutcome};
+use super::roles::{agent_captures, agent_view, FuserOutcome};
 use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
@@ -105,14 +105,35 @@ pub fn summarize(
     totals: &BTreeMap<String, (AgentTotals, Option<u64>)>,
     wall_s: f64,
 ) -> Summary {
+    // Fused output is scored at its reference time against the ground truth of that instant;
+    // a scheduled frame that the run reached but no fused window came near counts as missed.
     let mut fused_acc = Accumulator::new();
+    let mut covered = vec![false; schedule.frames.len()];
+    for (&t, dets) in &outcome.fused {
+        fused_acc.add_frame(&gt.objects_at(schedule.scene, t), dets);
+        if let Some(k) = schedule.frame_near(t) {
+            covered[k] = true;
+        }
+    }
+    let reached = outcome.reached_us;
+    for (k, &gi) in schedule.frames.iter().enumerate() {
+        let f = &gt.frames[gi];
+        if !covered[k] && f.timestamp_us <= reached {
+            fused_acc.add_frame(&f.objects, &[]);
+        }
+    }
+    // Each agent alone, at its own capture times.
     let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
-    for (&k, dets) in &outcome.fused {
-        let gi = schedule.frames[k];
-        let objects = &gt.frames[gi].objects;
-        fused_acc.add_frame(objects, dets);
-        for (idx, acc) in agent_acc.iter_mut().enumerate() {
-            acc.add_frame(objects, &agent_view(scenario, gt, gi, idx).0);
+    for (idx, acc) in agent_acc.iter_mut().enumerate() {
+        for (j, t) in agent_captures(scenario, schedule, idx)
+            .into_iter()
+            .enumerate()
+        {
+            if t > reached {
+                break;
+            }
+            let objects = gt.objects_at(schedule.scene, t);
+            acc.add_frame(&objects, &agent_view(scenario, gt, schedule, idx, j, t).0);
         }
     }
     let mut bandwidth = BTreeMap::new();
@@ -193,14 +214,24 @@ pub fn summarize(
 }
 
 /// The fused output as a results file keyed by the ground truth's sample tokens.
+/// Keys are the ground truth's sample token when a window's reference time is a frame's time,
+/// else `t<microseconds>` of the data's clock; the `v2x_timestamps` map of the meta gives every
+/// key's reference time, so `v2x-sim eval` scores each at its instant.
 pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -> Results {
     let mut r = Results::default();
-    for (&k, dets) in &outcome.fused {
-        r.samples.insert(
-            gt.frames[schedule.frames[k]].sample_token.clone(),
-            dets.clone(),
-        );
+    let mut stamps = serde_json::Map::new();
+    for (&t, dets) in &outcome.fused {
+        let key = gt
+            .nearest_frame(schedule.scene, t)
+            .map(|i| &gt.frames[i])
+            .filter(|f| f.timestamp_us == t)
+            .map_or_else(|| format!("t{t}"), |f| f.sample_token.clone());
+        stamps.insert(key.clone(), t.into());
+        r.samples.insert(key, dets.clone());
     }
+    let mut meta = v2x_protocol::nuscenes_json::default_meta();
+    meta["v2x_timestamps"] = serde_json::Value::Object(stamps);
+    r.meta = meta;
     r
 }
 
