@@ -194,6 +194,9 @@ pub enum ReplayClock {
     Real {
         /// Wall-clock time of the first frame (us since the Unix epoch).
         start_us: u64,
+        /// The data time replayed at `start_us` (default: the first frame's). Agents whose
+        /// files start at different phases share it to keep their offsets.
+        data_start_us: Option<u64>,
     },
     /// The data's own timestamps (for a fuser that accepts any capture time); frames are still
     /// sent at the data's pace.
@@ -223,11 +226,17 @@ pub async fn replay(
         anyhow::bail!("speed must be > 0 (got {speed})");
     }
     let mut report = ReplayReport::default();
-    let Some(first) = frames.first().map(|f| f.capture_us) else {
+    let Some(mut first) = frames.first().map(|f| f.capture_us) else {
         return Ok(report);
     };
     let start_us = match clock {
-        ReplayClock::Real { start_us } => start_us,
+        ReplayClock::Real {
+            start_us,
+            data_start_us,
+        } => {
+            first = data_start_us.map_or(first, |d| d.min(first));
+            start_us
+        }
         ReplayClock::Data => now_us(),
     };
     tokio::pin!(stop);

@@ -137,9 +137,13 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     let clock = match (cli.clock, cli.start_at) {
         (ClockArg::Data, Some(_)) => bail!("--start-at goes with --clock real"),
         (ClockArg::Data, None) => ReplayClock::Data,
-        (ClockArg::Real, None) => ReplayClock::Real { start_us: now_us() },
+        (ClockArg::Real, None) => ReplayClock::Real {
+            start_us: now_us(),
+            data_start_us: None,
+        },
         (ClockArg::Real, Some(t)) if t > 0.0 && t.is_finite() => ReplayClock::Real {
             start_us: (t * 1e6) as u64,
+            data_start_us: None,
         },
         (ClockArg::Real, Some(t)) => bail!("--start-at must be a positive Unix time (got {t})"),
     };
@@ -147,6 +151,18 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         .default_std
         .map_or(MissingStd::Error, MissingStd::Default);
     let results = read_results(&cli.results, &mut TokenTable::new(), missing)?;
+    // Files of agents with their own phases (`v2x-sim gen --phase-ms`) name the data time their
+    // replay starts from, so that every agent keeps its offset.
+    let clock = match clock {
+        ReplayClock::Real { start_us, .. } => ReplayClock::Real {
+            start_us,
+            data_start_us: results
+                .meta
+                .get("v2x_data_start_us")
+                .and_then(|v| v.as_u64()),
+        },
+        c => c,
+    };
     let mut times: HashMap<String, u64> = match &cli.sample_table {
         Some(p) => timestamps(p)?,
         None => results

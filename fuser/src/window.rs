@@ -9,7 +9,9 @@
 //! anchor) + max wait. Taking the later of the two means a frame stamped ahead of the fuser's
 //! clock holds only its own window until its time comes, and cannot close the windows of everyone
 //! else early. Closing a window first closes every older one, so windows come out in capture
-//! order. A frame for a closed window is late; a frame already seen (same agent, sequence number
+//! order. A frame for a closed window is late (but an agent's next frame after one it had in the
+//! last closed window opens a new window, even within that window's reach, so that windows wider
+//! than an agent's frame period lose nothing); a frame already seen (same agent, sequence number
 //! and capture time) is a duplicate. Both are counted and dropped by the caller, never fused twice.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
@@ -58,6 +60,8 @@ pub struct Windows {
     max_wait_us: u64,
     open: Vec<Open>,
     last_closed: Option<u64>,
+    /// The agents of the last closed window and their capture times in it.
+    last_members: HashMap<String, u64>,
     recent: HashMap<String, VecDeque<(u32, u64)>>,
 }
 
@@ -72,6 +76,7 @@ impl Windows {
             max_wait_us,
             open: Vec::new(),
             last_closed: None,
+            last_members: HashMap::new(),
             recent: HashMap::new(),
         }
     }
@@ -85,6 +90,7 @@ impl Windows {
     /// frames in open windows, so that memory stays bounded by the agents tracked.
     pub fn forget_agent(&mut self, agent: &str) {
         self.recent.remove(agent);
+        self.last_members.remove(agent);
         for w in &mut self.open {
             w.frames.remove(agent);
         }
@@ -126,7 +132,14 @@ impl Windows {
         let half = self.delta_us / 2;
         let t = frame.capture_us;
         if let Some(c) = self.last_closed {
-            if t < c.saturating_add(half) {
+            // Within the last closed window's reach, a frame is late unless its agent was in
+            // that window with an earlier capture: then it is that agent's next frame, and it
+            // opens (or joins) a window after the closed one.
+            let next = self
+                .last_members
+                .get(&frame.agent)
+                .is_some_and(|&held| t > held && t > c);
+            if t < c.saturating_add(half) && !next {
                 return Verdict::Late;
             }
         }
@@ -203,7 +216,14 @@ impl Windows {
                 first_arrival_us: w.first_arrival_us,
             })
             .collect();
-        self.last_closed = closed.last().map(|c| c.anchor_us);
+        if let Some(c) = closed.last() {
+            self.last_closed = Some(c.anchor_us);
+            self.last_members = c
+                .frames
+                .iter()
+                .map(|(a, f)| (a.clone(), f.capture_us))
+                .collect();
+        }
         closed
     }
 
@@ -248,6 +268,27 @@ mod tests {
         assert!(c[0].complete);
         assert_eq!(c[0].anchor_us, 1000 * MS);
         assert_eq!(c[0].frames.len(), 2);
+    }
+
+    #[test]
+    fn a_window_wider_than_the_period_loses_no_frame() {
+        // 150 ms windows, agents at 10 Hz 50 ms apart; b's frame arrives first and anchors.
+        let mut w = Windows::new(150 * MS, 150 * MS);
+        let l = live(&["a", "b"]);
+        assert_eq!(w.insert(f("b", 0, 1050), 1051 * MS), Verdict::Accepted);
+        assert_eq!(w.insert(f("a", 0, 1000), 1052 * MS), Verdict::Accepted);
+        let c = w.poll(1052 * MS, |_| l.clone());
+        assert_eq!((c.len(), c[0].anchor_us), (1, 1050 * MS));
+        // a's next frame is 50 ms from the closed anchor: a new window, not late
+        assert_eq!(w.insert(f("a", 1, 1100), 1101 * MS), Verdict::Accepted);
+        assert_eq!(w.insert(f("b", 1, 1150), 1151 * MS), Verdict::Accepted);
+        let c = w.poll(1151 * MS, |_| l.clone());
+        assert_eq!(c[0].anchor_us, 1100 * MS);
+        assert_eq!(c[0].frames.len(), 2);
+        // an agent that was not in the closed window is late within its reach
+        assert_eq!(w.insert(f("c", 0, 1120), 1152 * MS), Verdict::Late);
+        // and so is an agent's frame no newer than the closed anchor
+        assert_eq!(w.insert(f("a", 7, 1099), 1152 * MS), Verdict::Late);
     }
 
     #[test]

@@ -508,6 +508,84 @@ mod tests {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/nuscenes-mini")
     }
 
+    fn point(t_us: u64, center: [f64; 3], size: [f64; 3], yaw: f64, v: [f64; 2]) -> TrackPoint {
+        TrackPoint {
+            t_us,
+            object: GtObject {
+                id: 4,
+                class: Class::Car,
+                center,
+                size,
+                yaw,
+                velocity: Some(v),
+            },
+        }
+    }
+
+    #[test]
+    fn interpolation_between_annotations_by_hand() {
+        // 0.5 s apart; the yaw crosses +-pi: from 170 to -170 degrees is +20, not -340
+        let track = vec![
+            point(
+                1_000_000,
+                [0.0, 0.0, 1.0],
+                [4.0, 2.0, 1.5],
+                170f64.to_radians(),
+                [8.0, 0.0],
+            ),
+            point(
+                1_500_000,
+                [4.0, 2.0, 1.2],
+                [4.4, 2.0, 1.5],
+                -170f64.to_radians(),
+                [8.0, 4.0],
+            ),
+        ];
+        // a quarter of the way: 1.125 s
+        let o = interpolate(&track, 1_125_000).unwrap();
+        assert_eq!(o.id, 4);
+        assert!((o.center[0] - 1.0).abs() < 1e-12 && (o.center[1] - 0.5).abs() < 1e-12);
+        assert!((o.center[2] - 1.05).abs() < 1e-12);
+        assert!((o.size[0] - 4.1).abs() < 1e-12);
+        assert!(
+            (o.yaw - 175f64.to_radians()).abs() < 1e-12,
+            "{}",
+            o.yaw.to_degrees()
+        );
+        let v = o.velocity.unwrap();
+        assert!((v[0] - 8.0).abs() < 1e-12 && (v[1] - 1.0).abs() < 1e-12);
+        // three quarters: -175 degrees, across pi
+        let o = interpolate(&track, 1_375_000).unwrap();
+        assert!(
+            (o.yaw + 175f64.to_radians()).abs() < 1e-12,
+            "{}",
+            o.yaw.to_degrees()
+        );
+        // on an annotation: exactly it; outside the track: no object
+        assert_eq!(interpolate(&track, 1_500_000).unwrap(), track[1].object);
+        assert_eq!(interpolate(&track, 999_999), None);
+        assert_eq!(interpolate(&track, 1_500_001), None);
+    }
+
+    #[test]
+    fn velocities_as_the_devkit_computes_them() {
+        let track = [
+            (0, [0.0, 0.0, 0.0]),
+            (500_000, [5.0, 1.0, 0.0]),
+            (1_000_000, [12.0, 2.0, 0.0]),
+            (3_000_000, [20.0, 2.0, 0.0]),
+        ];
+        // inside: previous to next, (12 - 0) / 1 s
+        assert_eq!(devkit_velocity(&track, 1), Some([12.0, 2.0]));
+        // at the start: itself to the next, 5 / 0.5 s
+        assert_eq!(devkit_velocity(&track, 0), Some([10.0, 2.0]));
+        // neighbours 2.5 s apart: still within the devkit's 3 s
+        assert_eq!(devkit_velocity(&track, 2), Some([6.0, 0.4]));
+        // at the end 2 s from its previous: beyond the devkit's 1.5 s, unknown
+        assert_eq!(devkit_velocity(&track, 3), None);
+        assert_eq!(devkit_velocity(&track[..1], 0), None);
+    }
+
     #[test]
     fn loads_the_fixture() {
         let gt = load_nuscenes(&fixture(), "v1.0-fixture").unwrap();

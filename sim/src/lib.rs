@@ -5,10 +5,12 @@
 //! Table 2). [`plot`] draws a bird's-eye view; [`scenario`] and [`run`] drive whole scenarios
 //! over Zenoh.
 
+pub mod asyncbench;
 pub mod bench;
 pub mod certs;
 pub mod cli;
 pub mod dataset;
+pub mod gen;
 pub mod load;
 pub mod metrics;
 pub mod noise;

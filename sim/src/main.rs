@@ -8,7 +8,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 use v2x_fuser::Method;
-use v2x_protocol::nuscenes_json::{write_results, Results};
+use v2x_protocol::nuscenes_json::write_results;
 use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::cli::{evaluate_file, DataArgs};
 use v2x_sim::noise::{place_agents, NoiseSetting};
@@ -49,6 +49,14 @@ enum Command {
         /// Sensing range of each agent in metres (default: every agent sees every object).
         #[arg(long)]
         range: Option<f64>,
+        /// Capture rate of each agent in Hz, comma-separated, or one for all (default: the
+        /// data's rate, on its frames).
+        #[arg(long)]
+        agent_hz: Option<String>,
+        /// Phase of each agent in ms after each scene's first frame, comma-separated, or one
+        /// for all (default 0).
+        #[arg(long)]
+        phase_ms: Option<String>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -100,6 +108,12 @@ enum Command {
         /// Directory for --plot.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Instead of Table 2: two agents captured at different instants (10+10 Hz at offsets
+        /// 0, 25, 50 and 100 ms, and a 10+20 Hz pair), each fused with and without motion
+        /// compensation. --noise is then one setting (default mild); --methods defaults to
+        /// csba-wls+ and gt-wls.
+        #[arg(long = "async")]
+        asynchronous: bool,
     },
     /// Draw one frame as an SVG: ground truth, each agent's boxes, the fused boxes.
     Plot {
@@ -226,35 +240,21 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             agents,
             seed,
             range,
+            agent_hz,
+            phase_ms,
             out,
         } => {
             let gt = data.load()?;
             let setting = NoiseSetting::parse(&noise, agents).map_err(anyhow::Error::msg)?;
+            let timings = v2x_sim::gen::Timing::parse(
+                agent_hz.as_deref(),
+                phase_ms.as_deref(),
+                setting.agents.len(),
+            )
+            .map_err(anyhow::Error::msg)?;
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;
-            let mut files: Vec<Results> = vec![Results::default(); setting.agents.len()];
-            for i in 0..gt.frames.len() {
-                for (a, d) in bench::agent_detections(&gt, i, &setting, seed, range)
-                    .into_iter()
-                    .enumerate()
-                {
-                    files[a]
-                        .samples
-                        .insert(gt.frames[i].sample_token.clone(), d);
-                }
-            }
-            // Sample timestamps ride along in the meta block so that `v2x-agent` can replay the
-            // files at the data's clock.
-            let times: serde_json::Map<String, serde_json::Value> = gt
-                .frames
-                .iter()
-                .map(|f| (f.sample_token.clone(), f.timestamp_us.into()))
-                .collect();
-            let mut meta = v2x_protocol::nuscenes_json::default_meta();
-            meta["v2x_timestamps"] = serde_json::Value::Object(times);
-            for r in &mut files {
-                r.meta = meta.clone();
-            }
+            let files = v2x_sim::gen::generate(&gt, &setting, &timings, seed, range);
             for (a, r) in files.iter().enumerate() {
                 let p = out.join(format!("agent{}.json", a + 1));
                 write_results(&p, r, &gt.tokens)?;
@@ -318,8 +318,38 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             format,
             plot: plot_frame,
             out,
+            asynchronous,
         } => {
             let gt = data.load()?;
+            if asynchronous {
+                let noise = if noise == "all" { "mild".into() } else { noise };
+                let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;
+                let methods = if methods == "all" {
+                    "csba-wls+,gt-wls".into()
+                } else {
+                    methods
+                };
+                let cfg = BenchConfig {
+                    methods: parse_list(&methods, vec![], |s| s.parse())?,
+                    settings: vec![],
+                    seed,
+                    range,
+                };
+                let start = Instant::now();
+                let rows = v2x_sim::asyncbench::run(&gt, &cfg, &setting);
+                match format {
+                    Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+                    Format::Table | Format::Csv => {
+                        println!(
+                            "{} ; noise {setting}, seed {seed}; {:.1} s\n",
+                            data.describe(&gt),
+                            start.elapsed().as_secs_f64()
+                        );
+                        print!("{}", v2x_sim::asyncbench::table(&rows));
+                    }
+                }
+                return Ok(());
+            }
             let settings =
                 parse_list(&noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?;
             let methods = parse_list(&methods, Method::all(), |s| s.parse())?;

@@ -93,6 +93,16 @@ impl Actor {
         [self.dir[0] * self.speed, self.dir[1] * self.speed]
     }
 
+    /// How many times the path has wrapped at `t` (0 at t = 0): a wrapped actor leaves the scene
+    /// and comes back as another object, with an id of its own.
+    fn lap(&self, t: f64) -> i64 {
+        if self.wraps {
+            ((self.s0 + self.speed * t + HALF_SPAN) / (2.0 * HALF_SPAN)).floor() as i64
+        } else {
+            0
+        }
+    }
+
     fn at(&self, t: f64) -> ([f64; 3], f64) {
         let mut s = self.s0 + self.speed * t;
         if self.wraps {
@@ -323,7 +333,8 @@ fn scene_actors(rng: &mut ChaCha8Rng) -> Vec<Actor> {
 #[derive(Clone, Debug)]
 pub struct TownScene {
     actors: Vec<Actor>,
-    ids: Vec<u32>,
+    /// Per actor: its first lap and the ids of its laps from there.
+    ids: Vec<(i64, Vec<u32>)>,
     offset: [f64; 2],
     start_us: u64,
 }
@@ -335,10 +346,11 @@ impl TownScene {
         self.actors
             .iter()
             .zip(&self.ids)
-            .map(|(a, &id)| {
+            .map(|(a, (first, laps))| {
                 let (c, yaw) = a.at(t);
+                let lap = (a.lap(t) - first).clamp(0, laps.len() as i64 - 1);
                 GtObject {
-                    id,
+                    id: laps[lap as usize],
                     class: a.class,
                     center: [c[0] + self.offset[0], c[1] + self.offset[1], c[2]],
                     size: a.size,
@@ -364,9 +376,44 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
                 .wrapping_add(sc as u64),
         );
         let actors = scene_actors(&mut rng);
-        let ids: Vec<u32> = (0..actors.len())
-            .map(|j| tokens.intern(&format!("syn-{sc:03}-obj{j:03}")))
+        // Ids for every lap from 10 s before the scene to 10 s after it, so that captures
+        // off the frames (phases, offsets) find them. They are numbered in the order the laps
+        // first appear in the frames, then the others: the order in which a reader of the
+        // scene's results files meets their tokens.
+        let spans: Vec<(i64, i64)> = actors
+            .iter()
+            .map(|a| (a.lap(-10.0), a.lap(cfg.seconds + 10.0)))
             .collect();
+        let mut order: Vec<(usize, i64)> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for k in 0..steps {
+            let t = k as f64 / cfg.hz;
+            for (j, a) in actors.iter().enumerate() {
+                if seen.insert((j, a.lap(t))) {
+                    order.push((j, a.lap(t)));
+                }
+            }
+        }
+        for (j, &(first, last)) in spans.iter().enumerate() {
+            for lap in first..=last {
+                if seen.insert((j, lap)) {
+                    order.push((j, lap));
+                }
+            }
+        }
+        let mut ids: Vec<(i64, Vec<u32>)> = spans
+            .iter()
+            .map(|&(first, last)| (first, vec![0; (last - first + 1) as usize]))
+            .collect();
+        for (j, lap) in order {
+            let token = if lap == 0 {
+                format!("syn-{sc:03}-obj{j:03}")
+            } else {
+                format!("syn-{sc:03}-obj{j:03}-lap{lap}")
+            };
+            let (first, laps) = &mut ids[j];
+            laps[(lap - *first) as usize] = tokens.intern(&token);
+        }
         // Each scene sits at its own place on the map and time on the clock.
         let offset = [2000.0 * sc as f64, 0.0];
         let start_us = 1_600_000_000_000_000u64 + sc as u64 * 3_600_000_000;
@@ -454,5 +501,45 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn objects_move_at_their_velocity_and_come_back_as_others() {
+        let g = generate(&TownConfig {
+            scenes: 1,
+            seconds: 20.0,
+            hz: 10.0,
+            seed: 7,
+        });
+        let Motion::Town(scenes) = &g.motion else {
+            panic!("the town moves continuously")
+        };
+        let t0 = g.frames[0].timestamp_us;
+        let (mut same, mut wrapped) = (0, 0);
+        for k in 0..199 {
+            let t = t0 + k * 100_000 + 37_000;
+            let now = scenes[0].objects_at(t);
+            let later = scenes[0].objects_at(t + 50_000);
+            for (a, b) in now.iter().zip(&later) {
+                if a.id == b.id {
+                    // constant velocity: 50 ms later it is v x 50 ms further
+                    let v = a.velocity.unwrap();
+                    for i in 0..2 {
+                        assert!((b.center[i] - a.center[i] - 0.05 * v[i]).abs() < 1e-9);
+                    }
+                    same += 1;
+                } else {
+                    // a jump across the scene is another object
+                    assert!((b.center[0] - a.center[0]).hypot(b.center[1] - a.center[1]) > 100.0);
+                    wrapped += 1;
+                }
+            }
+        }
+        assert!(same > 1000 && wrapped >= 1, "{same} {wrapped}");
+        // on the frames, the continuous model is the frames' ground truth
+        assert_eq!(
+            scenes[0].objects_at(g.frames[5].timestamp_us),
+            g.frames[5].objects
+        );
     }
 }

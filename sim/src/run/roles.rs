@@ -133,8 +133,7 @@ pub async fn fuser_role(
         time_scale: scenario.speed,
         ..Default::default()
     });
-    cfg.window_ms = (scenario.fuser.window_ms / scenario.speed)
-        .min(schedule.period_us as f64 / 1000.0 / scenario.speed);
+    cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
     let mut fused = BTreeMap::new();

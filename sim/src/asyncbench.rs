@@ -1,0 +1,304 @@
+//! `v2x-sim bench --async`: what capture-time offsets between two agents cost, and how much of
+//! it motion compensation wins back.
+//!
+//! Agent 1 (the vehicle) captures on the data's frames. In a "10+10 Hz" pair, agent 2 (the
+//! infrastructure unit) captures at the same rate `offset` earlier: at each of agent 1's
+//! captures the fuser holds agent 1's fresh frame and agent 2's latest, `offset` old. In the
+//! "10+20 Hz" pair agent 2 runs at twice the data's rate in phase with agent 1, and every
+//! capture of agent 2 is fused with agent 1's latest frame, fresh or half a period old. Each
+//! fused output is scored against the ground truth at its reference time t_ref (the latest
+//! capture), interpolated between annotations where it falls between frames.
+//!
+//! Both agents draw their noise from the reference frame's index, so every row sees the same
+//! noise and differs only in timing; frames within the largest offset of a scene's start are
+//! left out of every row, so that every row scores the same instants.
+
+use crate::bench::BenchConfig;
+use crate::dataset::GroundTruth;
+use crate::metrics::{Accumulator, Metrics};
+use crate::noise::{detect, place_agents, NoiseSetting};
+use rayon::prelude::*;
+use serde::Serialize;
+use v2x_fuser::motion::{compensate, MotionParams};
+use v2x_protocol::Detection;
+
+/// Agent 2's offsets behind agent 1 in the 10+10 Hz pairs (ms).
+pub const OFFSETS_MS: [f64; 4] = [0.0, 25.0, 50.0, 100.0];
+
+/// How the two agents capture.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Timing {
+    /// Both at the data's rate, agent 2 `offset` (us) behind agent 1.
+    Offset(u64),
+    /// Agent 2 at twice the data's rate, in phase with agent 1.
+    Double,
+}
+
+/// One row of the comparison.
+#[derive(Clone, Debug, Serialize)]
+pub struct AsyncRow {
+    /// The agents' rates: `10+10 Hz` or `10+20 Hz` (on 10 Hz data).
+    pub rates: String,
+    /// Age of agent 2's frame at agent 1's capture (ms); for the 10+20 Hz pair, the largest age
+    /// of agent 1's frame at agent 2's captures.
+    pub offset_ms: f64,
+    /// Whether detections were predicted to t_ref before fusion.
+    pub compensation: bool,
+    /// The method.
+    pub method: String,
+    /// The metrics.
+    #[serde(flatten)]
+    pub metrics: Metrics,
+}
+
+/// The capture pairs of a timing: (t_ref, [(draw, t_capture); 2]) with agent 1 first.
+fn pairs(gt: &GroundTruth, timing: Timing, skip_us: u64) -> Vec<(usize, u64, [u64; 2])> {
+    let starts: Vec<u64> = (0..gt.scenes.len().max(1))
+        .map(|s| gt.scene_span(s).map_or(0, |(a, _)| a))
+        .collect();
+    let mut out = Vec::new();
+    for (k, f) in gt.frames.iter().enumerate() {
+        let t = f.timestamp_us;
+        if t < starts.get(f.scene).copied().unwrap_or(0) + skip_us {
+            continue;
+        }
+        match timing {
+            Timing::Offset(d) => out.push((k, t, [t, t - d])),
+            Timing::Double => {
+                out.push((k, t, [t, t]));
+                let next = gt.frames.get(k + 1).filter(|n| n.scene == f.scene);
+                if let Some(n) = next {
+                    let mid = t + (n.timestamp_us - t) / 2;
+                    out.push((k, mid, [t, mid]));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Runs every method with and without compensation for one timing; rows in method order, the
+/// uncompensated first.
+pub fn run_timing(
+    gt: &GroundTruth,
+    cfg: &BenchConfig,
+    setting: &NoiseSetting,
+    timing: Timing,
+    skip_us: u64,
+) -> Vec<(bool, String, Metrics)> {
+    let params = MotionParams::default();
+    let n = cfg.methods.len();
+    let accs = pairs(gt, timing, skip_us)
+        .into_par_iter()
+        .fold(
+            || vec![Accumulator::new(); 2 * n],
+            |mut accs, (k, t_ref, caps)| {
+                let frame = &gt.frames[k];
+                let places = place_agents(frame, 2, cfg.seed);
+                // Agent 2's draw at a half-period capture is its own.
+                let draw2 = if caps[1] == frame.timestamp_us {
+                    k as u64
+                } else {
+                    k as u64 | 1 << 40
+                };
+                let lists: Vec<Vec<Detection>> = (0..2)
+                    .map(|a| {
+                        let objects = gt.objects_at(frame.scene, caps[a]);
+                        let draw = if a == 0 { k as u64 } else { draw2 };
+                        let noise = &setting.agents[a];
+                        detect(
+                            &objects,
+                            draw,
+                            a,
+                            noise,
+                            places[a].position,
+                            cfg.range,
+                            cfg.seed,
+                        )
+                    })
+                    .collect();
+                let moved = compensate(
+                    &[(&lists[0][..], caps[0]), (&lists[1][..], caps[1])],
+                    t_ref,
+                    &params,
+                );
+                let truth = gt.objects_at(frame.scene, t_ref);
+                for (m, method) in cfg.methods.iter().enumerate() {
+                    accs[m].add_frame(&truth, &method.fuse(&lists));
+                    accs[n + m].add_frame(&truth, &method.fuse(&moved));
+                }
+                accs
+            },
+        )
+        .reduce(
+            || vec![Accumulator::new(); 2 * n],
+            |mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    x.merge(y);
+                }
+                a
+            },
+        );
+    let mut rows = Vec::new();
+    for (i, acc) in accs.iter().enumerate() {
+        rows.push((i >= n, cfg.methods[i % n].name(), acc.summary()));
+    }
+    rows.sort_by_key(|r| (cfg.methods.iter().position(|m| m.name() == r.1), r.0));
+    rows
+}
+
+/// The whole comparison: the 10+10 Hz pairs at [`OFFSETS_MS`], then the 10+20 Hz pair.
+pub fn run(gt: &GroundTruth, cfg: &BenchConfig, setting: &NoiseSetting) -> Vec<AsyncRow> {
+    let period_us = (1e6 / gt.hz()).round() as u64;
+    let skip_us = (OFFSETS_MS[OFFSETS_MS.len() - 1] * 1000.0) as u64;
+    let mut timings: Vec<(String, f64, Timing)> = OFFSETS_MS
+        .iter()
+        .map(|&o| {
+            (
+                format!("{0}+{0} Hz", fmt_hz(gt.hz())),
+                o,
+                Timing::Offset((o * 1000.0) as u64),
+            )
+        })
+        .collect();
+    timings.push((
+        format!("{}+{} Hz", fmt_hz(gt.hz()), fmt_hz(2.0 * gt.hz())),
+        (period_us as f64 / 2000.0).round(),
+        Timing::Double,
+    ));
+    let mut out = Vec::new();
+    for (rates, offset_ms, timing) in timings {
+        for (compensation, method, metrics) in run_timing(gt, cfg, setting, timing, skip_us) {
+            out.push(AsyncRow {
+                rates: rates.clone(),
+                offset_ms,
+                compensation,
+                method,
+                metrics,
+            });
+        }
+    }
+    out
+}
+
+fn fmt_hz(hz: f64) -> String {
+    format!("{}", (hz * 10.0).round() / 10.0)
+}
+
+/// Whether a row's agents run at one rate.
+fn same_rate(r: &AsyncRow) -> bool {
+    let mut hz = r.rates.trim_end_matches(" Hz").split('+');
+    hz.next() == hz.next()
+}
+
+/// What the targets measure, per method: mATE at 50 ms compensated over the synchronous one,
+/// and the share of the 100 ms loss that compensation recovers,
+/// (uncompensated - compensated) / (uncompensated - synchronous).
+pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
+    let ate = |offset: f64, comp: bool| {
+        rows.iter()
+            .find(|r| {
+                r.method == method
+                    && r.offset_ms == offset
+                    && r.compensation == comp
+                    && same_rate(r)
+            })
+            .and_then(|r| r.metrics.m_ate)
+    };
+    let sync = ate(0.0, false)?;
+    let at50 = ate(50.0, true)? / sync;
+    let (raw, comp) = (ate(100.0, false)?, ate(100.0, true)?);
+    Some((at50, (raw - comp) / (raw - sync)))
+}
+
+fn cell(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// The rows as a Markdown table, with the targets' figures under it.
+pub fn table(rows: &[AsyncRow]) -> String {
+    let mut s = String::from("| rates | offset (ms) | compensation | method | precision | recall | mATE (m) | mAVE (m/s) | TP-only mATE |\n|---|---:|---|---|---:|---:|---:|---:|---:|\n");
+    for r in rows {
+        let m = &r.metrics;
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            r.rates,
+            r.offset_ms,
+            if r.compensation { "yes" } else { "no" },
+            r.method,
+            cell(m.precision, 4),
+            cell(m.recall, 4),
+            cell(m.m_ate, 3),
+            cell(m.m_ave, 3),
+            cell(m.tp_only.m_ate, 3),
+        ));
+    }
+    let mut methods: Vec<&str> = Vec::new();
+    for r in rows {
+        if !methods.contains(&r.method.as_str()) {
+            methods.push(&r.method);
+        }
+    }
+    for method in methods {
+        if let Some((at50, recovered)) = recovery(rows, method) {
+            s.push_str(&format!(
+                "\n{method}: compensated mATE at 50 ms = {:.1}% of the synchronous; {:.0}% of the 100 ms loss recovered",
+                100.0 * at50,
+                100.0 * recovered
+            ));
+        }
+    }
+    s.push('\n');
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::town::{generate, TownConfig};
+
+    #[test]
+    fn compensation_wins_back_what_the_offset_costs() {
+        let gt = generate(&TownConfig {
+            scenes: 2,
+            seconds: 6.0,
+            hz: 10.0,
+            seed: 3,
+        });
+        let cfg = BenchConfig {
+            methods: vec!["csba-wls+".parse().unwrap(), "gt-wls".parse().unwrap()],
+            settings: vec![],
+            seed: 1,
+            range: None,
+        };
+        let setting = NoiseSetting::parse("mild", 2).unwrap();
+        let rows = run(&gt, &cfg, &setting);
+        assert_eq!(rows.len(), 5 * 2 * 2);
+        let ate = |offset: f64, comp: bool| {
+            rows.iter()
+                .find(|r| r.method == "gt-wls" && r.offset_ms == offset && r.compensation == comp)
+                .unwrap()
+                .metrics
+                .m_ate
+                .unwrap()
+        };
+        // At no offset there is nothing to compensate.
+        assert_eq!(ate(0.0, false), ate(0.0, true));
+        // The loss grows with the offset, and compensation takes most of it back.
+        assert!(ate(25.0, false) < ate(50.0, false) && ate(50.0, false) < ate(100.0, false));
+        assert!(
+            ate(100.0, false) > 1.05 * ate(0.0, false),
+            "{}",
+            ate(100.0, false)
+        );
+        let (at50, recovered) = recovery(&rows, "gt-wls").unwrap();
+        assert!(at50 < 1.05, "{at50}");
+        assert!(recovered > 0.6, "{recovered}");
+        assert!(rows.iter().all(|r| r.metrics.m_ave.is_some()));
+        // The 10+20 Hz pair scores twice the instants.
+        let double = rows.iter().find(|r| r.rates == "10+20 Hz").unwrap();
+        let single = rows.iter().find(|r| r.offset_ms == 0.0).unwrap();
+        let n = |m: &Metrics| m.tp + m.fn_;
+        assert!(n(&double.metrics) > 19 * n(&single.metrics) / 10);
+    }
+}

@@ -1,0 +1,205 @@
+//! `v2x-sim gen`: every agent's noisy detections as a nuScenes results file, each agent
+//! capturing at its own rate and phase.
+//!
+//! An agent at the data's rate with no phase captures on the data's frames, and its samples are
+//! keyed by their sample tokens. Any other capture is keyed `t<microseconds>` and sees the ground
+//! truth of that instant (interpolated between annotations). Every file's `meta` carries
+//! `v2x_timestamps` (each sample's capture time) and `v2x_data_start_us` (the data's first
+//! frame), from which `v2x-agent` replays the agents in step and `v2x-fuser fuse` and
+//! `v2x-sim eval` align them in time.
+
+use crate::dataset::GroundTruth;
+use crate::noise::{detect, place_agents, NoiseSetting};
+use v2x_protocol::nuscenes_json::{default_meta, Results};
+
+/// When an agent captures.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Timing {
+    /// Capture rate (Hz); `None` is the data's own.
+    pub hz: Option<f64>,
+    /// Offset of the first capture after each scene's first frame (ms).
+    pub phase_ms: f64,
+}
+
+impl Timing {
+    /// Per-agent timings from comma-separated lists (one value applies to every agent).
+    pub fn parse(
+        hz: Option<&str>,
+        phase_ms: Option<&str>,
+        agents: usize,
+    ) -> Result<Vec<Timing>, String> {
+        fn list(s: Option<&str>, what: &str, agents: usize) -> Result<Vec<Option<f64>>, String> {
+            let Some(s) = s else {
+                return Ok(vec![None; agents]);
+            };
+            let v: Vec<f64> = s
+                .split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("{what}: '{x}' is not a number"))
+                })
+                .collect::<Result<_, _>>()?;
+            match v.len() {
+                1 => Ok(vec![Some(v[0]); agents]),
+                n if n == agents => Ok(v.into_iter().map(Some).collect()),
+                n => Err(format!(
+                    "{what}: {n} values for {agents} agents (give one, or one per agent)"
+                )),
+            }
+        }
+        let hz = list(hz, "--agent-hz", agents)?;
+        let phase = list(phase_ms, "--phase-ms", agents)?;
+        hz.into_iter()
+            .zip(phase)
+            .enumerate()
+            .map(|(i, (hz, phase))| {
+                if hz.is_some_and(|h| !(h > 0.0 && h <= 1000.0)) {
+                    return Err(format!(
+                        "--agent-hz of agent {}: must be in (0, 1000]",
+                        i + 1
+                    ));
+                }
+                let phase_ms = phase.unwrap_or(0.0);
+                if !(0.0..60_000.0).contains(&phase_ms) {
+                    return Err(format!(
+                        "--phase-ms of agent {}: must be in [0, 60000)",
+                        i + 1
+                    ));
+                }
+                Ok(Timing { hz, phase_ms })
+            })
+            .collect()
+    }
+
+    /// The capture times (us) within a scene whose frames are at `frames` (sorted): the frames
+    /// shifted by the phase at the data's rate, else every 1/hz from the first frame + phase.
+    pub fn captures(&self, frames: &[u64]) -> Vec<u64> {
+        let (Some(&first), Some(&last)) = (frames.first(), frames.last()) else {
+            return Vec::new();
+        };
+        let phase_us = (self.phase_ms * 1000.0).round() as u64;
+        match self.hz {
+            None => frames
+                .iter()
+                .map(|t| t + phase_us)
+                .filter(|t| *t <= last)
+                .collect(),
+            Some(hz) => {
+                let start = (first + phase_us) as f64;
+                (0..)
+                    .map(|j| start + j as f64 * 1e6 / hz)
+                    .take_while(|t| *t <= last as f64 + 0.5)
+                    .map(|t| t.round() as u64)
+                    .collect()
+            }
+        }
+    }
+}
+
+/// Every agent's results file. A capture on a frame draws the noise the synchronous agents and
+/// `v2x-sim bench` draw for that frame.
+pub fn generate(
+    gt: &GroundTruth,
+    setting: &NoiseSetting,
+    timings: &[Timing],
+    seed: u64,
+    range: Option<f64>,
+) -> Vec<Results> {
+    let index = gt.frame_index();
+    let data_start = gt.frames.iter().map(|f| f.timestamp_us).min().unwrap_or(0);
+    let mut files = Vec::new();
+    for (a, noise) in setting.agents.iter().enumerate() {
+        let timing = timings.get(a).copied().unwrap_or(Timing {
+            hz: None,
+            phase_ms: 0.0,
+        });
+        let mut r = Results::default();
+        let mut times = serde_json::Map::new();
+        for scene in 0..gt.scenes.len().max(1) {
+            let frames: Vec<u64> = gt
+                .frames
+                .iter()
+                .filter(|f| f.scene == scene)
+                .map(|f| f.timestamp_us)
+                .collect();
+            for t in timing.captures(&frames) {
+                let Some(near) = gt.nearest_frame(scene, t) else {
+                    continue;
+                };
+                let frame = &gt.frames[near];
+                let on_frame = frame.timestamp_us == t;
+                let (key, draw) = if on_frame {
+                    (
+                        frame.sample_token.clone(),
+                        index[frame.sample_token.as_str()] as u64,
+                    )
+                } else {
+                    (format!("t{t}"), t)
+                };
+                let places = place_agents(frame, setting.agents.len(), seed);
+                let objects = gt.objects_at(scene, t);
+                let dets = detect(&objects, draw, a, noise, places[a].position, range, seed);
+                times.insert(key.clone(), t.into());
+                r.samples.insert(key, dets);
+            }
+        }
+        let mut meta = default_meta();
+        meta["v2x_timestamps"] = serde_json::Value::Object(times);
+        meta["v2x_data_start_us"] = data_start.into();
+        r.meta = meta;
+        files.push(r);
+    }
+    files
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::agent_detections;
+    use crate::town::{generate as town, TownConfig};
+
+    #[test]
+    fn agents_capture_at_their_own_rates_and_phases() {
+        let gt = town(&TownConfig {
+            scenes: 2,
+            seconds: 2.0,
+            hz: 10.0,
+            seed: 1,
+        });
+        let setting = NoiseSetting::parse("mild+large", 2).unwrap();
+        let timings = Timing::parse(Some("10,20"), Some("0,25"), 2).unwrap();
+        let files = generate(&gt, &setting, &timings, 5, None);
+        // on the frames: the frames' tokens, and the noise `bench` draws
+        assert_eq!(files[0].samples.len(), 40);
+        let k = 13;
+        let token = &gt.frames[k].sample_token;
+        assert_eq!(
+            files[0].samples[token],
+            agent_detections(&gt, k, &setting, 5, None)[0]
+        );
+        // 20 Hz from 25 ms: 2 x 38 captures within the two 1.9 s scenes, none on a frame
+        assert_eq!(files[1].samples.len(), 2 * 38);
+        let t0 = gt.frames[0].timestamp_us;
+        let first = &files[1].samples[&format!("t{}", t0 + 25_000)];
+        let times = &files[1].meta["v2x_timestamps"];
+        assert_eq!(times[format!("t{}", t0 + 75_000)], t0 + 75_000);
+        assert_eq!(files[1].meta["v2x_data_start_us"], t0);
+        assert_eq!(first.len(), gt.objects_at(0, t0 + 25_000).len());
+        // the boxes are where the objects are at 25 ms, not at the frame
+        let exact = NoiseSetting::parse("0.001,0.001,0.01", 2).unwrap();
+        let files = generate(&gt, &exact, &timings, 5, None);
+        let boxes = &files[1].samples[&format!("t{}", t0 + 25_000)];
+        let gap = |truth: &[crate::dataset::GtObject]| {
+            boxes
+                .iter()
+                .zip(truth)
+                .map(|(d, o)| (d.center[0] - o.center[0]).hypot(d.center[1] - o.center[1]))
+                .fold(0.0, f64::max)
+        };
+        assert!(gap(&gt.objects_at(0, t0 + 25_000)) < 0.01);
+        assert!(gap(&gt.frames[0].objects) > 0.1);
+        assert!(Timing::parse(Some("10,20,30"), None, 2).is_err());
+        assert!(Timing::parse(None, Some("-5"), 2).is_err());
+    }
+}
