@@ -87,6 +87,7 @@ impl Agent {
         link.validate().map_err(|e| anyhow!("agent {name}: {e}"))?;
         let publisher = session
             .declare_publisher(keys::detections(ns, name))
+            .encoding(v2x_protocol::net::frame_encoding())
             .congestion_control(zenoh::qos::CongestionControl::Block)
             .await
             .map_err(|e| anyhow!("agent {name}: cannot declare its publisher: {e}"))?;

@@ -1,4 +1,4 @@
-//! CSBA-3D: cost-based association of two lists of 3D detections (paper §3.2, DESIGN §3).
+//! CSBA-3D: cost-based association of two lists of 3D detections (paper §3.2, `docs/method.md` §1).
 //!
 //! For a pair (a, b) of the same class the method scores
 //! - the **dimension score** DS from the volume ratio and its propagated uncertainty,

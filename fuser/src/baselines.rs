@@ -1,4 +1,4 @@
-//! The late-fusion baselines of DESIGN §5, behind the same inputs and outputs as CSBA-WLS.
+//! The late-fusion baselines of `docs/method.md` §4, behind the same inputs and outputs as CSBA-WLS.
 //!
 //! - `nms-3d` / `nms-giou-3d`: greedy non-maximum suppression over every agent's boxes, in score
 //!   order, same class, suppressing when the rotated 3D IoU (or GIoU) exceeds 0.15; the top box is

@@ -1,5 +1,5 @@
 //! WLS-3D: weighted-least-squares fusion of a group of associated detections (paper §3.3,
-//! DESIGN §4).
+//! `docs/method.md` §2).
 //!
 //! z = (sum R_n^-1)^-1 sum R_n^-1 y_n and P = (sum R_n^-1)^-1 over the M members, R_n being the
 //! member's covariance: a full 3x3 block for the centre when the member carries one, diagonal

@@ -198,7 +198,7 @@ pub fn csba_variants() -> [(&'static str, CsbaParams); 6] {
 }
 
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
-/// each next agent's list in agent order (DESIGN §3); every group is re-fused from all its members.
+/// each next agent's list in agent order (`docs/method.md` §1); every group is re-fused from all its members.
 pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Detection> {
     let mut groups: Vec<Vec<&Detection>> = Vec::new();
     let mut fused: Vec<Detection> = Vec::new();

@@ -1,4 +1,4 @@
-//! Zenoh key expressions, built and parsed in one place (DESIGN §8).
+//! Zenoh key expressions, built and parsed in one place (specified in `docs/wire-format.md`).
 //!
 //! Everything lives under `v2x/NS/…`, `NS` being the scenario namespace:
 //! `det/AGENT` (detections), `fused` (fused frames), `alive/AGENT` (liveliness) and

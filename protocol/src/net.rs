@@ -70,6 +70,13 @@ impl std::fmt::Display for SessionError {
 
 impl std::error::Error for SessionError {}
 
+/// The Zenoh encoding of a frame payload: bytes, schema `v2x-frame/VERSION`.
+#[cfg(feature = "session")]
+pub fn frame_encoding() -> zenoh::bytes::Encoding {
+    zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM
+        .with_schema(format!("v2x-frame/{}", crate::wire::VERSION))
+}
+
 /// The Zenoh configuration these options describe (the config file first, then the flags).
 #[cfg(feature = "session")]
 pub fn config(args: &ZenohArgs) -> Result<zenoh::Config, SessionError> {

@@ -185,7 +185,7 @@ impl Uncertainty {
     }
 }
 
-/// The noise profiles of the paper's simulation (DESIGN §6).
+/// The noise profiles of the paper's simulation (`docs/method.md` §5).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NoiseProfile {

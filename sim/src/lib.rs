@@ -1,7 +1,7 @@
 //! The v2x-fusion simulator.
 //!
 //! Sans-IO cores: [`dataset`] (ground truth: nuScenes tables or the synthetic [`town`]),
-//! [`noise`] (agents' noisy detections), [`metrics`] (DESIGN §7) and [`bench`] (the paper's
+//! [`noise`] (agents' noisy detections), [`metrics`] (`docs/method.md` §6) and [`bench`] (the paper's
 //! Table 2). [`plot`] draws a bird's-eye view; [`scenario`] and [`run`] drive whole scenarios
 //! over Zenoh.
 

@@ -1,4 +1,4 @@
-//! Metrics of DESIGN §7 (the paper's §4.3), sans-IO.
+//! Metrics of `docs/method.md` §6 (the paper's §4.3), sans-IO.
 //!
 //! Predictions are matched to ground truth by object id: for each ground-truth object the
 //! closest prediction carrying its id (2D centre distance) is a true positive, any other one

@@ -1,4 +1,4 @@
-//! Noisy agents (DESIGN §6): each agent sees every ground-truth object (the paper's setting; an
+//! Noisy agents (`docs/method.md` §5): each agent sees every ground-truth object (the paper's setting; an
 //! optional sensing range restricts that) through zero-mean Gaussian noise of its profile,
 //! independent per axis; sizes are clamped to >= 0.05 m, yaws wrapped; each detection reports the
 //! profile's stds and a confidence of base + N(0, 0.05), clamped to [0.01, 1], which does not

@@ -319,10 +319,7 @@ pub async fn run(
         .map_err(z)?;
     let publisher = session
         .declare_publisher(keys::fused(&ns))
-        .encoding(
-            Encoding::APPLICATION_OCTET_STREAM
-                .with_schema(format!("v2x-frame/{}", v2x_protocol::wire::VERSION)),
-        )
+        .encoding(v2x_protocol::net::frame_encoding())
         .await
         .map_err(z)?;
     let _token = session

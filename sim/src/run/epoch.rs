@@ -21,7 +21,10 @@ pub async fn serve_epoch(
         .map_err(|e| anyhow!("{e}"))?;
     Ok(tokio::spawn(async move {
         while let Ok(q) = queryable.recv_async().await {
-            let _ = q.reply(&key, epoch_us.to_string()).await;
+            let _ = q
+                .reply(&key, epoch_us.to_string())
+                .encoding(zenoh::bytes::Encoding::TEXT_PLAIN)
+                .await;
         }
     }))
 }
