@@ -4,7 +4,9 @@
 //! [`baselines`] (the comparison methods), [`method`] (the `Fuser` API: a [`Method`] value fuses
 //! one time step), [`window`] (time alignment of frames) and [`ingest`] (admission of frames:
 //! validation, clock tolerance, bounded agent table). [`offline`] fuses nuScenes results files,
-//! and [`node`] is the thin Zenoh shell the `v2x-fuser` binary runs.
+//! and `node` (feature `node`, on by default) is the thin Zenoh shell the `v2x-fuser` binary
+//! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
+//! tokio, clap or tracing.
 
 pub mod association;
 pub mod baselines;
@@ -14,6 +16,7 @@ pub mod geometry;
 pub mod ingest;
 pub mod method;
 pub mod motion;
+#[cfg(feature = "node")]
 pub mod node;
 pub mod offline;
 pub mod ratelog;

@@ -6,23 +6,24 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// Zenoh session options.
-#[derive(clap::Args, Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 #[serde(default, deny_unknown_fields)]
 pub struct ZenohArgs {
     /// Zenoh mode: peer, client or router (default: the config file's, else peer).
-    #[arg(long, value_parser = ["peer", "client", "router"])]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = ["peer", "client", "router"]))]
     pub mode: Option<String>,
     /// Endpoints to connect to, e.g. tcp/192.168.1.2:7447 (repeatable).
-    #[arg(short = 'e', long = "connect")]
+    #[cfg_attr(feature = "cli", arg(short = 'e', long = "connect"))]
     pub connect: Vec<String>,
     /// Endpoints to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
-    #[arg(short = 'l', long = "listen")]
+    #[cfg_attr(feature = "cli", arg(short = 'l', long = "listen"))]
     pub listen: Vec<String>,
     /// Disable multicast scouting (discover peers only through --connect).
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub no_multicast_scouting: bool,
     /// A Zenoh configuration file (JSON5); the options above override it.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub zenoh_config: Option<PathBuf>,
 }
 
