@@ -113,7 +113,8 @@ struct State {
     windows: Windows,
     log: RateLog,
     stats: NodeStats,
-    e2e: Vec<f64>,
+    e2e: stats::LatencyHistogram,
+    fusion_hist: stats::LatencyHistogram,
     fusion: Vec<f64>,
     queued: usize,
     last_prune_us: u64,
@@ -140,8 +141,8 @@ impl State {
             .collect();
         s.open_windows = self.windows.open_windows();
         s.fusion_queue = self.queued;
-        s.e2e_latency_ms = Latency::of(&self.e2e);
-        s.fusion_latency_ms = Latency::of(&self.fusion);
+        s.e2e_latency_ms = self.e2e.latency();
+        s.fusion_latency_ms = self.fusion_hist.latency();
         s
     }
 
@@ -237,11 +238,12 @@ impl State {
             self.stats.windows_incomplete += 1;
         }
         self.stats.fused_objects += d.fused.frame.detections.len() as u64;
+        let fusion_us = d.done_at_us.saturating_sub(d.closed_at_us);
+        self.fusion_hist.record(fusion_us as i64);
+        self.e2e
+            .record(d.done_at_us as i64 - d.fused.frame.capture_us.min(i64::MAX as u64) as i64);
         if self.fusion.len() < MAX_LATENCY_SAMPLES {
-            self.fusion
-                .push(d.done_at_us.saturating_sub(d.closed_at_us) as f64 / 1000.0);
-            self.e2e
-                .push((d.done_at_us as f64 - d.fused.frame.capture_us as f64) / 1000.0);
+            self.fusion.push(fusion_us as f64 / 1000.0);
         }
         on_fused(&d.fused);
     }
@@ -348,7 +350,8 @@ pub async fn run(
             method: cfg.method.name(),
             ..Default::default()
         },
-        e2e: Vec::new(),
+        e2e: Default::default(),
+        fusion_hist: Default::default(),
         fusion: Vec::new(),
         queued: 0,
         last_prune_us: now,

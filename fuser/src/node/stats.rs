@@ -21,6 +21,39 @@ pub struct Latency {
     pub max_ms: Option<f64>,
 }
 
+/// Latencies recorded in microseconds, 0 to one hour at 3 significant figures, in fixed memory
+/// however long the node runs.
+pub struct LatencyHistogram(hdrhistogram::Histogram<u64>);
+
+impl Default for LatencyHistogram {
+    fn default() -> Self {
+        LatencyHistogram(
+            hdrhistogram::Histogram::new_with_max(3_600_000_000, 3).expect("valid bounds"),
+        )
+    }
+}
+
+impl LatencyHistogram {
+    /// Records one latency (us); negative ones (clock skew) count as 0, longer than an hour as
+    /// an hour.
+    pub fn record(&mut self, us: i64) {
+        self.0.saturating_record(us.max(0) as u64);
+    }
+
+    /// Its percentiles (ms), within 0.1%.
+    pub fn latency(&self) -> Latency {
+        let h = &self.0;
+        let at = |q: f64| (!h.is_empty()).then(|| h.value_at_quantile(q) as f64 / 1000.0);
+        Latency {
+            count: h.len() as usize,
+            p50_ms: at(0.50),
+            p95_ms: at(0.95),
+            p99_ms: at(0.99),
+            max_ms: (!h.is_empty()).then(|| h.max() as f64 / 1000.0),
+        }
+    }
+}
+
 impl Latency {
     /// Percentiles of a sample (nearest rank).
     pub fn of(samples: &[f64]) -> Latency {
@@ -110,14 +143,38 @@ pub struct NodeStats {
     pub fusion_latency_ms: Latency,
     /// Windows still open when the node was told to stop (then flushed).
     pub open_windows_at_stop: usize,
-    /// Every fusion latency sample (ms), in window order; only in the final statistics.
+    /// The first fusion latency samples (ms, up to 200,000), in window order; only in the final
+    /// statistics (the load test compares the run's halves with them).
     #[serde(skip)]
     pub fusion_samples: Vec<f64>,
 }
 
 #[cfg(test)]
 mod tests {
-    use super::Latency;
+    use super::{Latency, LatencyHistogram};
+
+    #[test]
+    fn the_histogram_agrees_with_the_exact_percentiles() {
+        let mut h = LatencyHistogram::default();
+        let v: Vec<f64> = (1..=10_000)
+            .map(|x| (x * 37 % 10_007) as f64 / 10.0)
+            .collect();
+        for x in &v {
+            h.record((x * 1000.0) as i64);
+        }
+        h.record(-5); // a clock ahead: counted as 0
+        let (a, b) = (h.latency(), Latency::of(&v));
+        assert_eq!(a.count, 10_001);
+        for (x, y) in [
+            (a.p50_ms, b.p50_ms),
+            (a.p99_ms, b.p99_ms),
+            (a.max_ms, b.max_ms),
+        ] {
+            let (x, y) = (x.unwrap(), y.unwrap());
+            assert!((x - y).abs() <= 1e-3 * y + 1e-3, "{x} vs {y}");
+        }
+        assert_eq!(LatencyHistogram::default().latency().p50_ms, None);
+    }
 
     #[test]
     fn percentiles_nearest_rank() {
