@@ -60,8 +60,10 @@ pub struct Windows {
     max_wait_us: u64,
     open: Vec<Open>,
     last_closed: Option<u64>,
-    /// The agents of the last closed window and their capture times in it.
-    last_members: HashMap<String, u64>,
+    /// The agents of the last closed window.
+    last_members: BTreeSet<String>,
+    /// Per agent, the latest capture time of its frames in closed windows.
+    fused_until: HashMap<String, u64>,
     recent: HashMap<String, VecDeque<(u32, u64)>>,
 }
 
@@ -76,7 +78,8 @@ impl Windows {
             max_wait_us,
             open: Vec::new(),
             last_closed: None,
-            last_members: HashMap::new(),
+            last_members: BTreeSet::new(),
+            fused_until: HashMap::new(),
             recent: HashMap::new(),
         }
     }
@@ -91,6 +94,7 @@ impl Windows {
     pub fn forget_agent(&mut self, agent: &str) {
         self.recent.remove(agent);
         self.last_members.remove(agent);
+        self.fused_until.remove(agent);
         for w in &mut self.open {
             w.frames.remove(agent);
         }
@@ -122,7 +126,14 @@ impl Windows {
     pub fn insert(&mut self, frame: Frame, now_us: u64) -> Verdict {
         let key = (frame.seq, frame.capture_us);
         let recent = self.recent.entry(frame.agent.clone()).or_default();
-        if recent.contains(&key) {
+        // Also held in an open window: possible when the agent's recent keys were reset (it
+        // rejoined) and it sends the same frame again.
+        let held = |w: &Open| {
+            w.frames
+                .get(&frame.agent)
+                .is_some_and(|f| (f.seq, f.capture_us) == key)
+        };
+        if recent.contains(&key) || self.open.iter().any(held) {
             return Verdict::Duplicate;
         }
         recent.push_back(key);
@@ -133,12 +144,12 @@ impl Windows {
         let t = frame.capture_us;
         if let Some(c) = self.last_closed {
             // Within the last closed window's reach, a frame is late unless its agent was in
-            // that window with an earlier capture: then it is that agent's next frame, and it
-            // opens (or joins) a window after the closed one.
-            let next = self
-                .last_members
-                .get(&frame.agent)
-                .is_some_and(|&held| t > held && t > c);
+            // that window and the frame is newer than every frame of the agent fused so far:
+            // then it is that agent's next frame, and it opens (or joins) a window after the
+            // closed one.
+            let next = t > c
+                && self.last_members.contains(&frame.agent)
+                && self.fused_until.get(&frame.agent).is_some_and(|&f| t > f);
             if t < c.saturating_add(half) && !next {
                 return Verdict::Late;
             }
@@ -216,13 +227,15 @@ impl Windows {
                 first_arrival_us: w.first_arrival_us,
             })
             .collect();
+        for w in &closed {
+            for (a, f) in &w.frames {
+                let until = self.fused_until.entry(a.clone()).or_insert(f.capture_us);
+                *until = (*until).max(f.capture_us);
+            }
+        }
         if let Some(c) = closed.last() {
             self.last_closed = Some(c.anchor_us);
-            self.last_members = c
-                .frames
-                .iter()
-                .map(|(a, f)| (a.clone(), f.capture_us))
-                .collect();
+            self.last_members = c.frames.keys().cloned().collect();
         }
         closed
     }
