@@ -20,6 +20,8 @@ pub mod motion;
 pub mod node;
 pub mod offline;
 pub mod ratelog;
+#[cfg(feature = "node")]
+pub mod viz;
 pub mod window;
 
 pub use method::{Method, METHODS};

@@ -74,6 +74,8 @@ enum Command {
         /// `v2x-sim eval` against the same ground truth.
         #[arg(long)]
         record: Option<PathBuf>,
+        #[command(flatten)]
+        viz: v2x_fuser::viz::VizArgs,
         /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM, which both write
         /// the recording and print the final statistics).
         #[arg(long)]
@@ -241,6 +243,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             limits,
             motion,
             record,
+            viz,
             duration_s,
             zenoh,
         } => {
@@ -259,6 +262,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 cfg.max_wait_ms = max_wait_ms;
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
+                cfg.viz = viz.open().await?;
+                let shown = cfg.viz.clone();
                 let session = v2x_protocol::net::open_session(&zenoh).await?;
                 let mut recorded = Results::default();
                 let stop = async move {
@@ -284,6 +289,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     stop,
                 )
                 .await?;
+                if let Some(v) = shown {
+                    v.close()?;
+                }
                 if let Some(path) = &record {
                     write_results(path, &recorded, &TokenTable::new())?;
                     eprintln!(

@@ -101,6 +101,51 @@ pub struct ReplayMap {
     pub speed: f64,
 }
 
+/// Each sample of a results file with its time (us) and scene: the `v2x_timestamps` entry of
+/// the file's meta, else the time of the sample token's frame, else the `t<microseconds>` of a
+/// key mapped through `replay`. Keys with no time in the ground truth's span are returned apart.
+pub fn sample_times(
+    gt: &GroundTruth,
+    results: &v2x_protocol::nuscenes_json::Results,
+    replay: Option<ReplayMap>,
+) -> (Vec<(String, u64, usize)>, Vec<String>) {
+    let by_token = gt.frame_index();
+    let stamps = v2x_fuser::offline::capture_times(results);
+    let first_us = gt.frames.iter().map(|f| f.timestamp_us).min().unwrap_or(0);
+    let last_us = gt.frames.iter().map(|f| f.timestamp_us).max().unwrap_or(0);
+    let mut known = Vec::new();
+    let mut unknown = Vec::new();
+    for key in results.samples.keys() {
+        let time = stamps
+            .as_ref()
+            .and_then(|m| m.get(key).copied())
+            .or_else(|| {
+                by_token
+                    .get(key.as_str())
+                    .map(|&i| gt.frames[i].timestamp_us)
+            })
+            .or_else(|| {
+                key.strip_prefix('t')
+                    .and_then(|t| t.parse::<u64>().ok())
+                    .map(|t| match replay {
+                        Some(m) => (first_us as f64 + (t as f64 - m.start_us as f64) * m.speed)
+                            .max(0.0) as u64,
+                        None => t,
+                    })
+            });
+        match time.filter(|t| (first_us.saturating_sub(1_000)..=last_us + 1_000).contains(t)) {
+            Some(t) => {
+                let scene = by_token
+                    .get(key.as_str())
+                    .map_or_else(|| gt.scene_at(t), |&i| gt.frames[i].scene);
+                known.push((key.clone(), t, scene));
+            }
+            None => unknown.push(key.clone()),
+        }
+    }
+    (known, unknown)
+}
+
 /// Scores a results file against the ground truth. Each sample is scored at its time against
 /// the ground truth of that instant: the time is the `v2x_timestamps` entry of the file's meta
 /// when there is one (fused output carries its windows' reference times there), else the time
@@ -121,48 +166,14 @@ pub fn evaluate_file(
         &mut tokens,
         MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
     )?;
-    let by_token = gt.frame_index();
-    let stamps = v2x_fuser::offline::capture_times(&results);
-    let first_us = gt.frames.iter().map(|f| f.timestamp_us).min().unwrap_or(0);
-    let to_data_time = |t: u64| -> u64 {
-        match replay {
-            Some(m) => (first_us as f64 + (t as f64 - m.start_us as f64) * m.speed).max(0.0) as u64,
-            None => t,
-        }
-    };
-    let (t_min, t_max) = (
-        first_us,
-        gt.frames.iter().map(|f| f.timestamp_us).max().unwrap_or(0),
-    );
+    let (samples, unknown) = sample_times(gt, &results, replay);
     let mut covered = vec![false; gt.frames.len()];
-    let mut unknown = Vec::new();
     let mut acc = Accumulator::new();
     let mut scored = 0;
-    for (key, dets) in &results.samples {
-        let time = stamps
-            .as_ref()
-            .and_then(|m| m.get(key).copied())
-            .or_else(|| {
-                by_token
-                    .get(key.as_str())
-                    .map(|&i| gt.frames[i].timestamp_us)
-            })
-            .or_else(|| {
-                key.strip_prefix('t')
-                    .and_then(|t| t.parse::<u64>().ok())
-                    .map(to_data_time)
-            });
-        let Some(t) = time.filter(|t| (t_min.saturating_sub(1_000)..=t_max + 1_000).contains(t))
-        else {
-            unknown.push(key.clone());
-            continue;
-        };
-        let scene = by_token
-            .get(key.as_str())
-            .map_or_else(|| gt.scene_at(t), |&i| gt.frames[i].scene);
-        let near = gt.nearest_frame(scene, t);
+    for (key, t, scene) in &samples {
+        let near = gt.nearest_frame(*scene, *t);
         let objects = match near {
-            Some(i) if gt.frames[i].timestamp_us.abs_diff(t) <= 1_000 => {
+            Some(i) if gt.frames[i].timestamp_us.abs_diff(*t) <= 1_000 => {
                 covered[i] = true;
                 gt.frames[i].objects.clone()
             }
@@ -170,10 +181,10 @@ pub fn evaluate_file(
                 if let Some(i) = near {
                     covered[i] = true;
                 }
-                gt.objects_at(scene, t)
+                gt.objects_at(*scene, *t)
             }
         };
-        acc.add_frame(&objects, dets);
+        acc.add_frame(&objects, &results.samples[key]);
         scored += 1;
     }
     if !unknown.is_empty() {

@@ -30,6 +30,26 @@ pub struct GtObject {
     pub velocity: Option<[f64; 2]>,
 }
 
+impl GtObject {
+    /// The object as an exact detection (for drawing): no noise, tiny stds, score 1.
+    pub fn as_detection(&self) -> v2x_protocol::Detection {
+        v2x_protocol::Detection {
+            class: self.class,
+            center: self.center,
+            size: self.size,
+            yaw: self.yaw,
+            score: 1.0,
+            std: v2x_protocol::Uncertainty::uniform(0.01, 0.01, 0.001),
+            pos_cov: None,
+            velocity: self.velocity.map(|v| v2x_protocol::Velocity {
+                v,
+                std: [0.01, 0.01],
+            }),
+            id: self.id,
+        }
+    }
+}
+
 /// One annotation of an object's track.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrackPoint {

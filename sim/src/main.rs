@@ -165,6 +165,17 @@ enum Command {
     /// Load test: N agents x M objects at a fixed rate to one fuser over loopback; reports
     /// fusion latency, backlog, CPU and memory.
     Load(v2x_sim::load::LoadArgs),
+    /// Convert a results file into an MCAP for Foxglove: its boxes on `/boxes` and the ground
+    /// truth on `/ground_truth`, each sample at its time (as `eval` finds it).
+    Mcap {
+        #[command(flatten)]
+        data: DataArgs,
+        /// The results file (from `v2x-fuser fuse`, `node --record`, `v2x-sim gen` or `run --record`).
+        pred: PathBuf,
+        /// The MCAP file to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 fn parse_list<T>(
@@ -393,6 +404,53 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     eprintln!("drew {}", plot(&gt, frame, s, &best, seed, &out)?.display());
                 }
             }
+        }
+        Command::Mcap { data, pred, out } => {
+            let gt = data.load()?;
+            let mut tokens = gt.tokens.clone();
+            let results = v2x_protocol::nuscenes_json::read_results(
+                &pred,
+                &mut tokens,
+                v2x_protocol::nuscenes_json::MissingStd::Default(
+                    v2x_protocol::Uncertainty::uniform(1.0, 1.0, 1.0),
+                ),
+            )?;
+            let (samples, unknown) = v2x_sim::cli::sample_times(&gt, &results, None);
+            if let Some(k) = unknown.first() {
+                bail!(
+                    "{}: {} sample(s) have no time within the ground truth, e.g. '{k}' (is this the right --dataroot/--version?)",
+                    pred.display(),
+                    unknown.len()
+                );
+            }
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the async runtime")?;
+            let viz = rt.block_on(v2x_fuser::viz::Viz::open(Some(&out), None))?;
+            for (key, t, scene) in &samples {
+                let truth: Vec<_> = gt
+                    .objects_at(*scene, *t)
+                    .iter()
+                    .map(v2x_sim::dataset::GtObject::as_detection)
+                    .collect();
+                viz.boxes(
+                    "/ground_truth",
+                    "gt",
+                    *t,
+                    &truth,
+                    v2x_fuser::viz::GROUND_TRUTH,
+                );
+                viz.boxes(
+                    "/boxes",
+                    "boxes",
+                    *t,
+                    &results.samples[key],
+                    v2x_fuser::viz::FUSED,
+                );
+            }
+            viz.close()?;
+            eprintln!("wrote {} ({} samples)", out.display(), samples.len());
         }
         Command::Load(args) => {
             let rt = tokio::runtime::Builder::new_multi_thread()

@@ -22,6 +22,7 @@ use crate::window::{Closed, Windows};
 use crate::Method;
 use anyhow::anyhow;
 use std::future::Future;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use v2x_protocol::{keys, Frame};
@@ -48,6 +49,8 @@ pub struct NodeConfig {
     /// Motion compensation of each window to its latest capture time (`None`: boxes are fused
     /// as captured).
     pub motion: Option<MotionParams>,
+    /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
+    pub viz: Option<Arc<crate::viz::Viz>>,
 }
 
 impl NodeConfig {
@@ -63,6 +66,7 @@ impl NodeConfig {
             queue: 16,
             log_interval_s: 10.0,
             motion: Some(MotionParams::default()),
+            viz: None,
         }
     }
 }
@@ -118,6 +122,7 @@ struct State {
     fusion: Vec<f64>,
     queued: usize,
     last_prune_us: u64,
+    viz: Option<Arc<crate::viz::Viz>>,
 }
 
 impl State {
@@ -164,6 +169,16 @@ impl State {
         match result {
             Ok(frame) => {
                 let (n, t) = (frame.detections.len(), frame.capture_us);
+                if let Some(v) = &self.viz {
+                    let topic = format!("/agents/{agent}");
+                    v.boxes(
+                        &topic,
+                        &agent,
+                        t,
+                        &frame.detections,
+                        crate::viz::agent_colour(&agent),
+                    );
+                }
                 let verdict = self.windows.insert(frame, now);
                 self.ingest.record(&agent, verdict, n, t);
             }
@@ -239,6 +254,25 @@ impl State {
         }
         self.stats.fused_objects += d.fused.frame.detections.len() as u64;
         let fusion_us = d.done_at_us.saturating_sub(d.closed_at_us);
+        if let Some(v) = &self.viz {
+            let f = &d.fused;
+            v.boxes(
+                "/fused",
+                "fused",
+                f.frame.capture_us,
+                &f.frame.detections,
+                crate::viz::FUSED,
+            );
+            let e2e_ms = (d.done_at_us as f64 - f.frame.capture_us as f64) / 1000.0;
+            v.window(
+                f.frame.capture_us,
+                &f.members,
+                f.complete,
+                f.frame.detections.len(),
+                fusion_us as f64 / 1000.0,
+                e2e_ms,
+            );
+        }
         self.fusion_hist.record(fusion_us as i64);
         self.e2e
             .record(d.done_at_us as i64 - d.fused.frame.capture_us.min(i64::MAX as u64) as i64);
@@ -337,6 +371,7 @@ pub async fn run(
     ));
     let now = clock.now_us();
     let mut st = State {
+        viz: cfg.viz.clone(),
         ns: ns.clone(),
         clock,
         ingest: Ingest::new(cfg.ingest.clone()),

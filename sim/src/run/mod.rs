@@ -61,6 +61,9 @@ pub struct RunArgs {
     /// Record the fused output as a nuScenes results file (ground-truth sample tokens).
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Foxglove output: --mcap FILE and --foxglove [ADDR:]PORT.
+    #[command(flatten)]
+    pub viz: v2x_fuser::viz::VizArgs,
 }
 
 /// The `run` subcommand.
@@ -92,13 +95,14 @@ pub async fn run_local(
     scenario: &Scenario,
     gt: &GroundTruth,
 ) -> anyhow::Result<(Summary, FuserOutcome)> {
-    run_local_until(scenario, gt, watch::channel(false).1).await
+    run_local_until(scenario, gt, watch::channel(false).1, None).await
 }
 
 async fn run_local_until(
     scenario: &Scenario,
     gt: &GroundTruth,
     stop: watch::Receiver<bool>,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<(Summary, FuserOutcome)> {
     let schedule = Schedule::of(gt, scenario.duration_s);
     // Plain: the fuser listens and agents connect to it. Mutual TLS: a router listens, holding
@@ -170,7 +174,7 @@ async fn run_local_until(
             tokio::time::sleep(Duration::from_secs_f64(max_wait / 1000.0 + 0.3)).await;
         }
     };
-    let fuser = fuser_role(&fuser_session, scenario, &schedule, epoch, fuser_stop);
+    let fuser = fuser_role(&fuser_session, scenario, &schedule, epoch, viz, fuser_stop);
     let agents = async {
         let runs = scenario.agents.iter().enumerate().map(|(idx, _)| {
             agent_role(
@@ -242,6 +246,7 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         }
     }
     let schedule = Schedule::of(&gt, scenario.duration_s);
+    let viz = args.viz.open().await?;
     let stop = stop_on_signal();
     let summary_and_outcome = if args.roles.is_empty() {
         eprintln!(
@@ -249,10 +254,32 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
             scenario.agents.len(),
             schedule.frames.len()
         );
-        Some(run_local_until(&scenario, &gt, stop).await?)
+        Some(run_local_until(&scenario, &gt, stop, viz.clone()).await?)
     } else {
-        run_roles(&scenario, &gt, &schedule, &args.roles, stop).await?
+        run_roles(&scenario, &gt, &schedule, &args.roles, stop, viz.clone()).await?
     };
+    if let (Some(v), Some((_, outcome))) = (&viz, &summary_and_outcome) {
+        // The ground truth of every scheduled frame, on the capture clock of the run.
+        for &i in &schedule.frames {
+            let f = &gt.frames[i];
+            let wall = schedule.wall_us(outcome.epoch_us, f.timestamp_us, scenario.speed);
+            let boxes: Vec<_> = f
+                .objects
+                .iter()
+                .map(crate::dataset::GtObject::as_detection)
+                .collect();
+            v.boxes(
+                "/ground_truth",
+                "gt",
+                wall,
+                &boxes,
+                v2x_fuser::viz::GROUND_TRUTH,
+            );
+        }
+    }
+    if let Some(v) = &viz {
+        v.close()?;
+    }
     if let Some((summary, outcome)) = summary_and_outcome {
         if let Some(path) = &args.record {
             let r = recorded(&gt, &schedule, &outcome);
@@ -278,6 +305,7 @@ async fn run_roles(
     schedule: &Schedule,
     roles: &[String],
     stop: watch::Receiver<bool>,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<Option<(Summary, FuserOutcome)>> {
     let start = std::time::Instant::now();
     let run_fuser = roles.iter().any(|r| r == "fuser");
@@ -312,7 +340,7 @@ async fn run_roles(
                 _ = stopped(fuser_stop) => {}
             }
         };
-        let outcome = fuser_role(&session, scenario, schedule, epoch, until).await?;
+        let outcome = fuser_role(&session, scenario, schedule, epoch, viz, until).await?;
         let _ = session.close().await;
         Ok(Some(outcome))
     };

@@ -118,6 +118,8 @@ pub struct FuserOutcome {
     /// The data time the run reached before the fuser stopped (us): scheduled frames up to it
     /// are scored.
     pub reached_us: u64,
+    /// The wall-clock time of the data's first scheduled frame (us).
+    pub epoch_us: u64,
 }
 
 /// Runs the fuser role until `stop` resolves.
@@ -126,9 +128,11 @@ pub async fn fuser_role(
     scenario: &Scenario,
     schedule: &Schedule,
     epoch_us: u64,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
     stop: impl std::future::Future<Output = ()>,
 ) -> anyhow::Result<FuserOutcome> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
+    cfg.viz = viz;
     cfg.motion = scenario.fuser.compensation.then(|| MotionParams {
         time_scale: scenario.speed,
         ..Default::default()
@@ -157,5 +161,6 @@ pub async fn fuser_role(
         stats,
         fused,
         reached_us,
+        epoch_us,
     })
 }
