@@ -86,6 +86,36 @@ pub fn predict(d: &Detection, dt_s: f64, p: &MotionParams) -> Detection {
     out
 }
 
+/// A closed window's reference time t_ref (its latest capture) and its frames' detections in
+/// agent order, predicted to t_ref with `motion` (as captured without).
+pub fn align_window(
+    closed: &crate::window::Closed,
+    motion: Option<&MotionParams>,
+) -> (u64, Vec<Vec<Detection>>) {
+    let t_ref = closed
+        .frames
+        .values()
+        .map(|f| f.capture_us)
+        .max()
+        .unwrap_or(closed.anchor_us);
+    let lists = match motion {
+        Some(p) => {
+            let frames: Vec<(&[Detection], u64)> = closed
+                .frames
+                .values()
+                .map(|f| (f.detections.as_slice(), f.capture_us))
+                .collect();
+            compensate(&frames, t_ref, p)
+        }
+        None => closed
+            .frames
+            .values()
+            .map(|f| f.detections.clone())
+            .collect(),
+    };
+    (t_ref, lists)
+}
+
 /// Each agent's detections predicted from its capture time to `t_ref_us`.
 pub fn compensate(
     frames: &[(&[Detection], u64)],

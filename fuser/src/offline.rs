@@ -9,7 +9,7 @@
 //! reference time. Without capture times, boxes are grouped by sample token and fused as they
 //! are.
 
-use crate::motion::{compensate, MotionParams};
+use crate::motion::{align_window, MotionParams};
 use crate::window::Windows;
 use crate::Method;
 use serde_json::Value;
@@ -131,27 +131,13 @@ fn fuse_by_time(
     };
     let mut stamps = serde_json::Map::new();
     for closed in windows.flush(|_| all.clone()) {
-        let t_ref = closed
-            .frames
-            .values()
-            .map(|f| f.capture_us)
-            .max()
-            .unwrap_or(closed.anchor_us);
+        let (t_ref, per_agent) = align_window(&closed, opts.motion.as_ref());
         let latest = closed
             .frames
             .values()
             .find(|f| f.capture_us == t_ref)
             .map(|f| token_of[&(f.agent.clone(), f.seq)].clone())
             .unwrap_or_default();
-        let lists: Vec<(&[Detection], u64)> = closed
-            .frames
-            .values()
-            .map(|f| (f.detections.as_slice(), f.capture_us))
-            .collect();
-        let per_agent: Vec<Vec<Detection>> = match &opts.motion {
-            Some(p) => compensate(&lists, t_ref, p),
-            None => lists.iter().map(|(d, _)| d.to_vec()).collect(),
-        };
         out.samples.insert(latest.clone(), method.fuse(&per_agent));
         stamps.insert(latest, t_ref.into());
     }

@@ -7,16 +7,20 @@
 use v2x_protocol::wire::{encode, encode_json, encode_plain_f32};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
 
-/// A deterministic urban-like frame: objects of mixed classes within 70 m of the agent, sizes
-/// within +-15% of typical, ground-truth ids in the hundreds.
-fn urban_frame(n: usize) -> Frame {
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut next = move || {
+/// A deterministic stream of uniform numbers in [0, 1) (xorshift64).
+fn uniform(mut state: u64) -> impl FnMut() -> f64 {
+    move || {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
         (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    }
+}
+
+/// A deterministic urban-like frame: objects of mixed classes within 70 m of the agent, sizes
+/// within +-15% of typical, ground-truth ids in the hundreds.
+fn urban_frame(n: usize) -> Frame {
+    let mut next = uniform(0x9E37_79B9_7F4A_7C15);
     let mix = [
         Class::Car,
         Class::Car,
@@ -65,13 +69,7 @@ fn urban_frame(n: usize) -> Frame {
 /// 5-15 m/s along their heading; pedestrians and cyclists at walking and riding speeds; barriers
 /// and cones still; every velocity with the noise of a good detector (0.25 m/s std).
 fn with_velocities(mut f: Frame) -> Frame {
-    let mut state = 0x2545_F491_4F6C_DD1Du64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(0x2545_F491_4F6C_DD1D);
     for d in &mut f.detections {
         let speed = match d.class {
             Class::Barrier | Class::TrafficCone => 0.0,

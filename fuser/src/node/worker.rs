@@ -4,12 +4,12 @@
 //! the receive loop, which keeps the statistics.
 
 use super::{Clock, Fused};
-use crate::motion::{compensate, MotionParams};
+use crate::motion::{align_window, MotionParams};
 use crate::window::Closed;
 use crate::Method;
 use tokio::sync::mpsc;
 use v2x_protocol::wire::{self, Fit};
-use v2x_protocol::{AgentKind, Detection, Frame};
+use v2x_protocol::{AgentKind, Frame};
 
 /// A closed window to fuse.
 pub(super) struct Job {
@@ -38,23 +38,7 @@ pub fn fuse_window(
     seq: u32,
 ) -> Fused {
     let members: Vec<String> = closed.frames.keys().cloned().collect();
-    let t_ref = closed
-        .frames
-        .values()
-        .map(|f| f.capture_us)
-        .max()
-        .unwrap_or(closed.anchor_us);
-    let lists: Vec<Vec<Detection>> = match motion {
-        Some(p) => {
-            let frames: Vec<(&[Detection], u64)> = closed
-                .frames
-                .values()
-                .map(|f| (f.detections.as_slice(), f.capture_us))
-                .collect();
-            compensate(&frames, t_ref, p)
-        }
-        None => closed.frames.into_values().map(|f| f.detections).collect(),
-    };
+    let (t_ref, lists) = align_window(&closed, motion);
     let detections = method.fuse(&lists);
     Fused {
         frame: Frame {
