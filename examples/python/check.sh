@@ -2,7 +2,8 @@
 # The Python client against a live fuser: two `v2x-agent` processes replay generated files to a
 # `v2x-fuser node` that records what it publishes; the subscriber (eclipse-zenoh, in a venv this
 # script creates) decodes the fused frames with v2x_frame.py, and compare.py checks they are the
-# boxes the fuser recorded. Run from the repository root after `cargo build --release`.
+# boxes (and provenance) the fuser recorded; doc_examples.py first decodes the specification's
+# examples. Run from the repository root after `cargo build --release`.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 BIN=${BIN:-target/release}
@@ -11,6 +12,7 @@ if [ ! -x "$VENV/bin/python" ] || ! "$VENV/bin/python" -c "import zenoh" 2>/dev/
     python3 -m venv "$VENV"
     "$VENV/bin/pip" install -q "eclipse-zenoh==1.10.*"
 fi
+"$VENV/bin/python" examples/python/doc_examples.py docs/wire-format.md
 tmp=$(mktemp -d)
 pids=()
 cleanup() {
@@ -18,7 +20,7 @@ cleanup() {
     rm -rf "$tmp"
 }
 trap cleanup EXIT
-town=(--seconds 3 --hz 10)
+town=(--seconds 3 --hz 10 --range 60)
 "$BIN/v2x-sim" gen "${town[@]}" --noise mild+large --out "$tmp" 2>/dev/null
 port=$("$VENV/bin/python" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 ep="tcp/127.0.0.1:$port"

@@ -1,14 +1,17 @@
-"""A decoder of v2x-fusion frames, written from docs/wire-format.md alone (wire version 2).
+"""A decoder of v2x-fusion frames, written from docs/wire-format.md alone (wire version 3).
 
 decode(payload) -> dict with agent, kind, seq, capture_us, origin and objects; each object has
 class, center, size (l, w, h), yaw, score, id, std (x, y, z, l, w, h, yaw) and, when present,
-velocity and velocity_std. Raises ValueError on anything the specification does not allow.
+velocity and velocity_std. A fused frame also has agents (the window's) and complete, and each of
+its objects sources (the names of the agents that contributed). Raises ValueError on anything the
+specification does not allow.
 """
 
 import math
 
-VERSION = 2
+VERSION = 3
 MAX_OBJECTS = 4096
+MAX_WINDOW_AGENTS = 1024
 CLASSES = [
     ("car", (4.60, 1.95, 1.75)),
     ("truck", (7.00, 2.50, 3.00)),
@@ -54,6 +57,13 @@ class Reader:
         n = self.varint(bits)
         return (n >> 1) ^ -(n & 1)
 
+    def raw(self, n):
+        if self.pos + n > len(self.data):
+            raise ValueError("truncated")
+        b = self.data[self.pos : self.pos + n]
+        self.pos += n
+        return b
+
     def string(self):
         n = self.varint(64)
         if self.pos + n > len(self.data):
@@ -82,13 +92,29 @@ def decode(payload):
     version = r.u8()
     if version != VERSION:
         raise ValueError(f"unknown wire version {version}")
-    frame = {"agent": r.string(), "kind": ["vehicle", "infrastructure"][r.u8()]}
+    frame = {"agent": r.string()}
+    kind = r.u8()
+    if kind & ~0x03:
+        raise ValueError(f"invalid kind {kind:#x}")
+    frame["kind"] = ["vehicle", "infrastructure"][kind & 0x01]
     frame["seq"] = r.varint(32)
     frame["capture_us"] = r.varint(64)
     origin_cm = [r.zigzag(64) for _ in range(3)]
     frame["origin"] = [c / 100 for c in origin_cm]
     default_std = [std_of_code(r.varint(16)) for _ in range(7)]
     default_vel_std = [std_of_code(r.varint(16)) for _ in range(2)]
+    agents = None
+    if kind & 0x02:
+        complete = r.u8()
+        if complete > 1:
+            raise ValueError(f"complete must be 0 or 1, not {complete}")
+        n = r.varint(64)
+        if n > MAX_WINDOW_AGENTS:
+            raise ValueError(f"{n} agents, more than {MAX_WINDOW_AGENTS}")
+        agents = [r.string() for _ in range(n)]
+        if len(set(agents)) != n:
+            raise ValueError("an agent is listed twice")
+        frame["agents"], frame["complete"] = agents, bool(complete)
     count = r.varint(64)
     if count > MAX_OBJECTS:
         raise ValueError(f"{count} objects, more than {MAX_OBJECTS}")
@@ -122,6 +148,11 @@ def decode(payload):
             obj["velocity_std"] = (
                 [std_of_code(r.varint(16)) for _ in range(2)] if has_std else default_vel_std
             )
+        if agents is not None:
+            mask = int.from_bytes(r.raw((len(agents) + 7) // 8), "little")
+            if mask == 0 or mask >> len(agents):
+                raise ValueError(f"source mask {mask:#x} for {len(agents)} agents")
+            obj["sources"] = [a for k, a in enumerate(agents) if mask >> k & 1]
         objects.append(obj)
     if r.pos != len(r.data):
         raise ValueError(f"{len(r.data) - r.pos} trailing bytes")

@@ -17,17 +17,29 @@
 //! - `gt-wls`: the oracle, grouping by ground-truth id and fusing each group with WLS-3D.
 //!
 //! The two pairwise methods handle more than two agents sequentially, like CSBA-3D. Boxes no
-//! method matched are kept. Where a merge is a plain mean, the output std is that of the mean of
+//! method matched are kept. Every output box says which agents went into it ([`Sourced`]): the
+//! members of its group or cluster; for NMS the kept box and the boxes it suppressed; for PSA the
+//! kept box's one-hop cluster. Where a merge is a plain mean, the output std is that of the mean of
 //! independent members, sqrt(sum sigma^2) / n; the methods themselves ignore stds.
 
 use crate::fusion::fuse_group;
 use crate::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
+use crate::method::Sourced;
 use std::collections::BTreeMap;
-use v2x_protocol::{wrap_angle, Detection, Uncertainty, Velocity, NO_ID};
+use v2x_protocol::{wrap_angle, AgentSet, Detection, Uncertainty, Velocity, NO_ID};
 
 /// Every agent's boxes in one list, with stable order (agent order, then list order).
 fn pooled(agents: &[Vec<Detection>]) -> Vec<&Detection> {
     agents.iter().flatten().collect()
+}
+
+/// The agent of each box of [`pooled`].
+fn owners(agents: &[Vec<Detection>]) -> Vec<usize> {
+    agents
+        .iter()
+        .enumerate()
+        .flat_map(|(k, l)| std::iter::repeat_n(k, l.len()))
+        .collect()
 }
 
 /// Indices in descending score order, stable on ties.
@@ -42,8 +54,9 @@ pub fn nms(
     agents: &[Vec<Detection>],
     overlap: fn(&Detection, &Detection) -> f64,
     threshold: f64,
-) -> Vec<Detection> {
+) -> Vec<Sourced> {
     let boxes = pooled(agents);
+    let owner = owners(agents);
     let order = by_score(&boxes);
     let mut suppressed = vec![false; boxes.len()];
     let mut out = Vec::new();
@@ -51,7 +64,7 @@ pub fn nms(
         if suppressed[i] {
             continue;
         }
-        out.push(boxes[i].clone());
+        let mut sources = AgentSet::single(owner[i]);
         for &j in &order[k + 1..] {
             // Apart, IoU and GIoU are both <= 0: no suppression at a non-negative threshold.
             if !suppressed[j]
@@ -60,19 +73,24 @@ pub fn nms(
                 && overlap(boxes[i], boxes[j]) > threshold
             {
                 suppressed[j] = true;
+                sources.insert(owner[j]);
             }
         }
+        out.push(Sourced {
+            det: boxes[i].clone(),
+            sources,
+        });
     }
     out
 }
 
 /// NMS with rotated 3D IoU > 0.15.
-pub fn nms_3d(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn nms_3d(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     nms(agents, iou_3d, 0.15)
 }
 
 /// NMS with 3D GIoU > 0.15.
-pub fn nms_giou_3d(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn nms_giou_3d(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     nms(agents, giou_3d, 0.15)
 }
 
@@ -126,11 +144,13 @@ fn wbf_box(members: &[&Detection], n_agents: usize) -> Detection {
 }
 
 /// Weighted boxes fusion with rotated 3D IoU > 0.55.
-pub fn wbf_3d(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn wbf_3d(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     const THRESHOLD: f64 = 0.55;
     let n_agents = agents.len().max(1);
     let boxes = pooled(agents);
+    let owner = owners(agents);
     let mut clusters: Vec<Vec<&Detection>> = Vec::new();
+    let mut sources: Vec<AgentSet> = Vec::new();
     let mut fused: Vec<Detection> = Vec::new();
     for i in by_score(&boxes) {
         let b = boxes[i];
@@ -147,21 +167,24 @@ pub fn wbf_3d(agents: &[Vec<Detection>]) -> Vec<Detection> {
         match best {
             Some((c, _)) => {
                 clusters[c].push(b);
+                sources[c].insert(owner[i]);
                 fused[c] = wbf_box(&clusters[c], n_agents);
             }
             None => {
                 clusters.push(vec![b]);
+                sources.push(AgentSet::single(owner[i]));
                 fused.push(wbf_box(&[b], n_agents));
             }
         }
     }
-    fused
+    Sourced::zip(fused, sources)
 }
 
 /// PSA: keep the boxes that maximise v_i = sum_j IoU_ij p_j in their one-hop cluster.
-pub fn psa(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn psa(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     const RADIUS: f64 = 10.0;
     let boxes = pooled(agents);
+    let owner = owners(agents);
     let n = boxes.len();
     let mut neighbours: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
     for i in 0..n {
@@ -196,7 +219,12 @@ pub fn psa(agents: &[Vec<Detection>]) -> Vec<Detection> {
                 .iter()
                 .all(|&(j, _)| v[i] > v[j] || (v[i] == v[j] && i < j))
         })
-        .map(|i| boxes[i].clone())
+        .map(|i| Sourced {
+            det: boxes[i].clone(),
+            sources: std::iter::once(owner[i])
+                .chain(neighbours[i].iter().map(|&(j, _)| owner[j]))
+                .collect(),
+        })
         .collect()
 }
 
@@ -230,34 +258,36 @@ fn mean_velocity(m: &[&Detection]) -> Option<Velocity> {
 }
 
 /// Sequential pairwise late fusion: the running set is matched with each next agent.
-fn pairwise<F, M>(agents: &[Vec<Detection>], matcher: F, merge: M) -> Vec<Detection>
+fn pairwise<F, M>(agents: &[Vec<Detection>], matcher: F, merge: M) -> Vec<Sourced>
 where
     F: Fn(&[Detection], &[Detection]) -> Vec<(usize, usize)>,
     M: Fn(&[&Detection]) -> Detection,
 {
-    let mut groups: Vec<Vec<Detection>> = Vec::new();
+    let mut groups: Vec<Vec<&Detection>> = Vec::new();
+    let mut sources: Vec<AgentSet> = Vec::new();
     let mut running: Vec<Detection> = Vec::new();
-    for list in agents {
+    for (k, list) in agents.iter().enumerate() {
         let pairs = matcher(&running, list);
         let mut taken = vec![false; list.len()];
         for (g, j) in pairs {
             taken[j] = true;
-            groups[g].push(list[j].clone());
-            let members: Vec<&Detection> = groups[g].iter().collect();
-            running[g] = merge(&members);
+            groups[g].push(&list[j]);
+            sources[g].insert(k);
+            running[g] = merge(&groups[g]);
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
-                groups.push(vec![d.clone()]);
+                groups.push(vec![d]);
+                sources.push(AgentSet::single(k));
                 running.push(d.clone());
             }
         }
     }
-    running
+    Sourced::zip(running, sources)
 }
 
 /// InfraDet3D-style late fusion: 2D centre distance, 3 m gate, mean box, first agent's yaw.
-pub fn infradet3d_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn infradet3d_late(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     pairwise(
         agents,
         |a, b| {
@@ -285,7 +315,7 @@ pub fn infradet3d_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
 }
 
 /// DAIR-V2X-style late fusion: 3D centre distance within a class, 3 m gate, mean of the pair.
-pub fn dair_v2x_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn dair_v2x_late(agents: &[Vec<Detection>]) -> Vec<Sourced> {
     pairwise(
         agents,
         |a, b| {
@@ -329,17 +359,27 @@ pub fn dair_v2x_late(agents: &[Vec<Detection>]) -> Vec<Detection> {
 }
 
 /// The oracle: group by ground-truth id (boxes without one stay alone), fuse with WLS-3D.
-pub fn gt_wls(agents: &[Vec<Detection>]) -> Vec<Detection> {
-    let mut groups: BTreeMap<u32, Vec<&Detection>> = BTreeMap::new();
+pub fn gt_wls(agents: &[Vec<Detection>]) -> Vec<Sourced> {
+    let mut groups: BTreeMap<u32, (Vec<&Detection>, AgentSet)> = BTreeMap::new();
     let mut out = Vec::new();
-    for d in agents.iter().flatten() {
-        if d.id == NO_ID {
-            out.push(d.clone());
-        } else {
-            groups.entry(d.id).or_default().push(d);
+    for (k, list) in agents.iter().enumerate() {
+        for d in list {
+            if d.id == NO_ID {
+                out.push(Sourced {
+                    det: d.clone(),
+                    sources: AgentSet::single(k),
+                });
+            } else {
+                let (members, sources) = groups.entry(d.id).or_default();
+                members.push(d);
+                sources.insert(k);
+            }
         }
     }
-    out.extend(groups.values().map(|g| fuse_group(g)));
+    out.extend(groups.into_values().map(|(g, sources)| Sourced {
+        det: fuse_group(&g),
+        sources,
+    }));
     out
 }
 

@@ -24,4 +24,4 @@ pub mod ratelog;
 pub mod viz;
 pub mod window;
 
-pub use method::{Method, METHODS};
+pub use method::{Method, Sourced, METHODS};

@@ -6,7 +6,9 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use v2x_fuser::{node, Method, METHODS};
 use v2x_protocol::nuscenes_json::MissingStd;
-use v2x_protocol::nuscenes_json::{write_results, Results, TokenTable};
+use v2x_protocol::nuscenes_json::{
+    default_meta, provenance_json, write_results, Results, TokenTable,
+};
 
 fn methods_help() -> String {
     let mut s = String::from("Methods:\n");
@@ -71,7 +73,8 @@ enum Command {
         #[command(flatten)]
         motion: MotionArgs,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
-        /// `v2x-sim eval` against the same ground truth.
+        /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
+        /// completeness, every box's source agents) goes in meta.v2x_provenance.
         #[arg(long)]
         record: Option<PathBuf>,
         #[command(flatten)]
@@ -175,6 +178,12 @@ impl IngestArgs {
         if self.max_agents == 0 || self.fusion_queue == 0 {
             anyhow::bail!("--max-agents and --fusion-queue must be at least 1");
         }
+        if self.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
+            anyhow::bail!(
+                "--max-agents may be at most {} (the most agents a fused frame can name)",
+                v2x_protocol::limits::MAX_WINDOW_AGENTS
+            );
+        }
         cfg.ingest.max_clock_skew_us =
             (self.max_clock_skew_ms > 0.0).then_some((self.max_clock_skew_ms * 1000.0) as u64);
         cfg.ingest.max_agents = self.max_agents;
@@ -266,6 +275,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let shown = cfg.viz.clone();
                 let session = v2x_protocol::net::open_session(&zenoh).await?;
                 let mut recorded = Results::default();
+                let mut provenance = serde_json::Map::new();
                 let stop = async move {
                     match duration_s {
                         Some(s) => tokio::select! {
@@ -280,10 +290,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     cfg,
                     |f| {
                         if record.is_some() {
-                            recorded.samples.insert(
-                                format!("t{}", f.frame.capture_us),
-                                f.frame.detections.clone(),
-                            );
+                            let sample = format!("t{}", f.frame.capture_us);
+                            provenance.insert(sample.clone(), provenance_json(&f.provenance));
+                            recorded.samples.insert(sample, f.frame.detections.clone());
                         }
                     },
                     stop,
@@ -293,6 +302,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     v.close()?;
                 }
                 if let Some(path) = &record {
+                    let mut meta = default_meta();
+                    meta["v2x_provenance"] = serde_json::Value::Object(provenance);
+                    recorded.meta = meta;
                     write_results(path, &recorded, &TokenTable::new())?;
                     eprintln!(
                         "recorded {} fused frames -> {}",

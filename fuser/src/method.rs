@@ -7,7 +7,26 @@ use crate::baselines;
 use crate::fusion::fuse_group;
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::Detection;
+use v2x_protocol::{AgentSet, Detection};
+
+/// A fused box and the agents (indices into the method's input lists) whose boxes went into it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sourced {
+    /// The fused box.
+    pub det: Detection,
+    /// The contributing agents.
+    pub sources: AgentSet,
+}
+
+impl Sourced {
+    /// Pairs boxes with their source sets, in order.
+    pub fn zip(dets: Vec<Detection>, sources: Vec<AgentSet>) -> Vec<Sourced> {
+        dets.into_iter()
+            .zip(sources)
+            .map(|(det, sources)| Sourced { det, sources })
+            .collect()
+    }
+}
 
 /// A late-fusion method.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -114,6 +133,14 @@ impl Method {
 
     /// Fuses one time step: `agents[k]` is agent k's detections, agents in a fixed order.
     pub fn fuse(&self, agents: &[Vec<Detection>]) -> Vec<Detection> {
+        self.fuse_sourced(agents)
+            .into_iter()
+            .map(|s| s.det)
+            .collect()
+    }
+
+    /// Fuses one time step like [`Method::fuse`], saying for each box which agents went into it.
+    pub fn fuse_sourced(&self, agents: &[Vec<Detection>]) -> Vec<Sourced> {
         match self {
             Method::Csba(p) => csba_wls(p, agents),
             Method::Nms3d => baselines::nms_3d(agents),
@@ -199,10 +226,11 @@ pub fn csba_variants() -> [(&'static str, CsbaParams); 6] {
 
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
 /// each next agent's list in agent order (`docs/method.md` §1); every group is re-fused from all its members.
-pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Detection> {
+pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
     let mut groups: Vec<Vec<&Detection>> = Vec::new();
+    let mut sources: Vec<AgentSet> = Vec::new();
     let mut fused: Vec<Detection> = Vec::new();
-    for list in agents {
+    for (k, list) in agents.iter().enumerate() {
         let pairs = if fused.is_empty() {
             Vec::new()
         } else {
@@ -212,16 +240,18 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Detection> {
         for (g, j) in pairs {
             taken[j] = true;
             groups[g].push(&list[j]);
+            sources[g].insert(k);
             fused[g] = fuse_group(&groups[g]);
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
                 groups.push(vec![d]);
+                sources.push(AgentSet::single(k));
                 fused.push(d.clone());
             }
         }
     }
-    fused
+    Sourced::zip(fused, sources)
 }
 
 #[cfg(test)]
@@ -275,6 +305,32 @@ mod tests {
             assert!((out[1].center[0] - 20.3).abs() < 1e-9);
             assert_eq!(out[1].id, 2);
             assert_eq!(out[2].id, 103);
+            let sources: Vec<Vec<usize>> = m
+                .fuse_sourced(&[a1.clone(), a2.clone(), a3.clone()])
+                .iter()
+                .map(|s| s.sources.iter().collect())
+                .collect();
+            assert_eq!(sources, vec![vec![0, 1, 2], vec![0, 1], vec![2]], "{m}");
+        }
+    }
+
+    #[test]
+    fn every_method_names_the_agents_of_each_box() {
+        // One object seen by both agents (1 cm apart, same box), one by agent 1 alone far away.
+        let a = vec![det(0.0, 0.0, 0.5, 1)];
+        let b = vec![det(0.01, 0.0, 0.5, 1), det(60.0, 0.0, 0.5, 2)];
+        for m in Method::all() {
+            let out = m.fuse_sourced(&[a.clone(), b.clone()]);
+            let mut sources: Vec<Vec<usize>> =
+                out.iter().map(|s| s.sources.iter().collect()).collect();
+            sources.sort();
+            assert_eq!(sources, vec![vec![0, 1], vec![1]], "{m}");
+            let far = out.iter().find(|s| s.det.center[0] > 30.0).unwrap();
+            assert_eq!(far.sources, AgentSet::single(1), "{m}");
+            assert_eq!(
+                m.fuse(&[a.clone(), b.clone()]),
+                out.into_iter().map(|s| s.det).collect::<Vec<_>>()
+            );
         }
     }
 

@@ -1,5 +1,6 @@
 //! What a run looks like, for Foxglove: boxes as `foxglove.SceneUpdate` messages (a cube per box
-//! coloured by its source, a text with id and class, an arrow for its velocity), written to an
+//! coloured by its source, a text with id and class (and, for fused boxes, the agents each came
+//! from), an arrow for its velocity), written to an
 //! MCAP file and/or served live over the Foxglove WebSocket protocol, each message stamped with
 //! its capture time. Topics: `/agents/NAME` (what each agent sent), `/fused`, `/ground_truth`
 //! (simulated runs), and `/stats` (one JSON message per fused window).
@@ -14,7 +15,7 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-use v2x_protocol::Detection;
+use v2x_protocol::{Detection, Provenance};
 
 /// The colour of fused boxes.
 pub const FUSED: [f64; 3] = [0.1, 0.8, 0.2];
@@ -55,6 +56,18 @@ fn yaw_quaternion(yaw: f64) -> Quaternion {
 /// One SceneUpdate of boxes from `source` at `t_us`: per box an entity `SOURCE/i` with its cube,
 /// a label `id class`, and an arrow along its velocity (length: one second of travel).
 pub fn scene(source: &str, t_us: u64, boxes: &[Detection], rgb: [f64; 3]) -> SceneUpdate {
+    scene_with_sources(source, t_us, boxes, rgb, None)
+}
+
+/// [`scene`] for fused boxes: each label also names the agents the box came from
+/// (`id class from a+b`).
+pub fn scene_with_sources(
+    source: &str,
+    t_us: u64,
+    boxes: &[Detection],
+    rgb: [f64; 3],
+    provenance: Option<&Provenance>,
+) -> SceneUpdate {
     let colour = |a: f64| Color {
         r: rgb[0],
         g: rgb[1],
@@ -114,7 +127,15 @@ pub fn scene(source: &str, t_us: u64, boxes: &[Detection], rgb: [f64; 3]) -> Sce
                     font_size: 12.0,
                     scale_invariant: true,
                     color: Some(colour(1.0)),
-                    text: format!("{} {}", d.id, d.class),
+                    text: match provenance.and_then(|p| Some((p, p.sources.get(i)?))) {
+                        Some((p, set)) => format!(
+                            "{} {} from {}",
+                            d.id,
+                            d.class,
+                            p.names(set).collect::<Vec<_>>().join("+")
+                        ),
+                        None => format!("{} {}", d.id, d.class),
+                    },
                 }],
                 arrows,
                 ..Default::default()
@@ -207,13 +228,23 @@ impl Viz {
 
     /// Logs boxes from `source` on `topic` at capture time `t_us`.
     pub fn boxes(&self, topic: &str, source: &str, t_us: u64, boxes: &[Detection], rgb: [f64; 3]) {
+        self.log_scene(topic, &scene(source, t_us, boxes, rgb), t_us);
+    }
+
+    /// Logs a fused frame's boxes on `/fused`, labelled with the agents each came from.
+    pub fn fused(&self, t_us: u64, boxes: &[Detection], provenance: &Provenance) {
+        let update = scene_with_sources("fused", t_us, boxes, FUSED, Some(provenance));
+        self.log_scene("/fused", &update, t_us);
+    }
+
+    fn log_scene(&self, topic: &str, update: &SceneUpdate, t_us: u64) {
         let Ok(mut scenes) = self.scenes.lock() else {
             return;
         };
         let channel = scenes
             .entry(topic.to_string())
             .or_insert_with(|| self.ctx.channel_builder(topic).build::<SceneUpdate>());
-        channel.log_with_time(&scene(source, t_us, boxes, rgb), t_us * 1000);
+        channel.log_with_time(update, t_us * 1000);
     }
 
     /// Logs one fused window's statistics at its reference time.

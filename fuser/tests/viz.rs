@@ -5,7 +5,7 @@ use foxglove::schemas::SceneUpdate;
 use foxglove::Decode;
 use std::collections::BTreeMap;
 use v2x_fuser::viz::{agent_colour, Viz, FUSED};
-use v2x_protocol::{Class, Detection, Uncertainty, Velocity};
+use v2x_protocol::{AgentSet, Class, Detection, Provenance, Uncertainty, Velocity};
 
 fn car(x: f64, id: u32) -> Detection {
     Detection {
@@ -47,7 +47,12 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
             &[car(10.2, 1)],
             agent_colour("rsu"),
         );
-        viz.boxes("/fused", "fused", t, &[car(10.1, 1), car(30.0, 2)], FUSED);
+        let provenance = Provenance {
+            agents: vec!["rsu".into(), "veh".into()],
+            complete: true,
+            sources: vec![[0, 1].into_iter().collect(), AgentSet::single(1)],
+        };
+        viz.fused(t, &[car(10.1, 1), car(30.0, 2)], &provenance);
         viz.window(t, &["rsu".into(), "veh".into()], true, 2, 0.2, 25.0);
     }
     viz.close().unwrap();
@@ -96,7 +101,8 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
         (2.0 * q.z.atan2(q.w) - 0.3).abs() < 1e-12,
         "yaw 0.3 about z"
     );
-    assert_eq!(e.texts[0].text, "1 car");
+    assert_eq!(e.texts[0].text, "1 car from rsu+veh");
+    assert_eq!(scene.entities[1].texts[0].text, "2 car from veh");
     assert_eq!(e.arrows[0].shaft_length, 10.0);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -6,15 +6,18 @@ use crate::nuscenes_json::{parse_results, results_json, MissingStd, TokenTable};
 use crate::{wire, wrap_angle, Uncertainty};
 use std::path::Path;
 
-/// The wire's one-domain property: whatever decodes encodes again, to a payload that decodes to
-/// the same frame; [`wire::peek`] agrees with [`wire::decode`] on the header.
+/// The wire's one-domain property: whatever decodes (with its provenance, when a fused frame)
+/// encodes again, to a payload that decodes to the same frame and provenance; [`wire::peek`]
+/// agrees with [`wire::decode`] on the header.
 pub fn wire_round_trip(data: &[u8]) {
     let peeked = wire::peek(data);
-    match wire::decode(data) {
-        Ok(f) => {
+    match wire::decode_with(data) {
+        Ok((f, p)) => {
             assert_eq!(peeked, Ok((f.agent.clone(), f.detections.len())));
-            let again = wire::encode(&f).expect("a decoded frame encodes");
-            assert_eq!(wire::decode(&again).expect("a re-encoded frame decodes"), f);
+            assert_eq!(wire::decode(data).as_ref(), Ok(&f));
+            let again = wire::encode_with(&f, p.as_ref()).expect("a decoded frame encodes");
+            let back = wire::decode_with(&again).expect("a re-encoded frame decodes");
+            assert_eq!(back, (f, p));
         }
         Err(_) => {
             // A header that peeks fine may still hold a bad object; the reverse never happens.

@@ -12,7 +12,9 @@ pub mod keys;
 pub mod limits;
 pub mod net;
 pub mod nuscenes_json;
+mod provenance;
 mod types;
 pub mod wire;
 
+pub use provenance::{AgentSet, Provenance};
 pub use types::*;

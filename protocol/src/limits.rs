@@ -5,6 +5,8 @@
 
 /// The most objects a frame may carry.
 pub const MAX_OBJECTS: usize = 4096;
+/// The most agents a fused frame's provenance may list (the fuser tracks no more at once).
+pub const MAX_WINDOW_AGENTS: usize = 1024;
 /// The longest agent name, in bytes.
 pub const MAX_AGENT_NAME: usize = 64;
 /// The largest payload a decoder looks at, in bytes (far above what `MAX_OBJECTS` objects take).

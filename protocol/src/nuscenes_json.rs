@@ -488,6 +488,13 @@ pub fn results_json(results: &Results, tokens: &TokenTable) -> Value {
     json!({ "meta": meta, "results": map })
 }
 
+/// A fused frame's provenance as a recording's `meta.v2x_provenance` holds it per sample:
+/// `{"agents": [...], "complete": bool, "sources": [[names of box 0's agents], ...]}`.
+pub fn provenance_json(p: &crate::Provenance) -> Value {
+    let sources: Vec<Vec<&str>> = p.sources.iter().map(|s| p.names(s).collect()).collect();
+    json!({ "agents": p.agents, "complete": p.complete, "sources": sources })
+}
+
 /// The `meta` block v2x-fusion writes when it has none to keep.
 pub fn default_meta() -> Value {
     json!({

@@ -8,7 +8,9 @@
 //! 1/250 steps, velocities in 0.1 m/s (zig-zag varints, when the object has one), and standard
 //! deviations on a logarithmic scale (0.2% steps). A frame carries a default uncertainty; an
 //! object carries its own only when it differs. Bits of an object's tag say which optional
-//! fields follow.
+//! fields follow. A fused frame also says where it came from ([`Provenance`]): after the header,
+//! the window's agents and whether it was complete; after each object, a bitmask of the agents
+//! that contributed to it.
 //!
 //! One validity domain ([`crate::limits`]): [`decode`] accepts exactly the frames [`encode`] can
 //! write, so a decoded frame always encodes again, and [`fit`] brings any computed frame (fused
@@ -17,17 +19,24 @@
 
 use crate::limits::{
     coord_in_range, size_in_range, std_in_range, std_of_code, vel_in_range, MAX_AGENT_NAME,
-    MAX_OBJECTS, MAX_PAYLOAD, STD_CODE_MAX, STD_MIN, STD_PER_UNIT, VEL_STEP,
+    MAX_OBJECTS, MAX_PAYLOAD, MAX_WINDOW_AGENTS, STD_CODE_MAX, STD_MIN, STD_PER_UNIT, VEL_STEP,
 };
-use crate::{keys, wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
+use crate::{
+    keys, wrap_angle, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty,
+    Velocity,
+};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The wire format version this crate writes and reads.
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 
 const SCORE_STEPS: f64 = 250.0;
+/// Kind bit 0: infrastructure (else vehicle).
+const KIND_INFRA: u8 = 0x01;
+/// Kind bit 1: a provenance section follows the header (a fused frame).
+const KIND_PROVENANCE: u8 = 0x02;
 const YAW_STEPS: f64 = 65536.0;
 /// Tag bits: the low four hold the class code.
 const TAG_CLASS: u8 = 0x0f;
@@ -67,6 +76,9 @@ pub enum EncodeError {
     /// The agent name is empty, too long or not a single key chunk.
     #[error("agent name: {0}")]
     BadAgentName(String),
+    /// The provenance does not fit the frame (agents, source sets).
+    #[error("provenance: {0}")]
+    BadProvenance(String),
 }
 
 /// Why a payload could not be decoded.
@@ -96,6 +108,9 @@ pub enum DecodeError {
     /// The agent name is empty, too long or not a single key chunk.
     #[error("agent name: {0}")]
     BadAgentName(String),
+    /// The provenance section is invalid (agents, completeness, source masks).
+    #[error("provenance: {0}")]
+    BadProvenance(String),
     /// A decoded size is outside the domain.
     #[error("object {index}: size '{field}' is out of range ({cm} cm)")]
     SizeOutOfRange {
@@ -187,6 +202,15 @@ impl Reader<'_> {
         self.0 = rest;
         Ok(v)
     }
+
+    fn take_bytes(&mut self, n: usize) -> Result<&[u8], DecodeError> {
+        if self.0.len() < n {
+            return Err(DecodeError::Truncated);
+        }
+        let (b, rest) = self.0.split_at(n);
+        self.0 = rest;
+        Ok(b)
+    }
 }
 
 impl Object {
@@ -229,13 +253,21 @@ impl Object {
     }
 }
 
-/// Writes a header and objects as a payload.
-fn assemble(header: &Header, objects: &[Object]) -> Vec<u8> {
+/// Writes a header, the provenance section when there is one, and the objects (each followed by
+/// its source mask in fused frames) as a payload.
+fn assemble(header: &Header, provenance: Option<&Provenance>, objects: &[Object]) -> Vec<u8> {
     let mut w = Writer(vec![VERSION]);
     w.put(header);
+    if let Some(p) = provenance {
+        w.put(&u8::from(p.complete));
+        w.put(&p.agents);
+    }
     w.put(&(objects.len() as u64));
-    for o in objects {
+    for (i, o) in objects.iter().enumerate() {
         o.write(&mut w);
+        if let Some(p) = provenance {
+            w.0.extend(p.sources[i].to_bytes(p.agents.len()));
+        }
     }
     w.0
 }
@@ -280,6 +312,15 @@ pub fn check_agent_name(name: &str) -> Result<(), String> {
 /// Encodes a frame into a payload. The frame-level default uncertainty is the most common one
 /// among the objects. Fails, naming the object and field, on any value outside the domain.
 pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
+    encode_with(frame, None)
+}
+
+/// Encodes a frame with its provenance (a fused frame) or without (an agent's frame).
+pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec<u8>, EncodeError> {
+    if let Some(p) = provenance {
+        p.check(frame.detections.len())
+            .map_err(EncodeError::BadProvenance)?;
+    }
     if frame.detections.len() > MAX_OBJECTS {
         return Err(EncodeError::TooManyObjects(frame.detections.len()));
     }
@@ -402,7 +443,11 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         agent: frame.agent.clone(),
         kind: match frame.kind {
             AgentKind::Vehicle => 0,
-            AgentKind::Infrastructure => 1,
+            AgentKind::Infrastructure => KIND_INFRA,
+        } | if provenance.is_some() {
+            KIND_PROVENANCE
+        } else {
+            0
         },
         seq: frame.seq,
         capture_us: frame.capture_us,
@@ -410,7 +455,7 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, EncodeError> {
         default_std,
         default_vel_std,
     };
-    Ok(assemble(&header, &objects))
+    Ok(assemble(&header, provenance, &objects))
 }
 
 /// Checks a velocity and quantizes it: (velocity in steps, std codes).
@@ -505,8 +550,54 @@ fn cm_in_range(cm: i64, index: usize, field: &'static str) -> Result<(), DecodeE
     }
 }
 
-/// Reads and checks the header and the object count, without reading any object.
-fn read_header(bytes: &[u8]) -> Result<(Header, usize, Reader<'_>), DecodeError> {
+/// A provenance section before its per-object masks are read.
+struct ProvenanceHead {
+    agents: Vec<String>,
+    complete: bool,
+}
+
+/// Reads and checks a provenance section: the completeness byte and the agent list.
+fn read_provenance(r: &mut Reader) -> Result<ProvenanceHead, DecodeError> {
+    let bad = DecodeError::BadProvenance;
+    let complete = match r.take::<u8>()? {
+        0 => false,
+        1 => true,
+        c => return Err(bad(format!("complete must be 0 or 1, not {c}"))),
+    };
+    let n: u64 = r.take()?;
+    if n > MAX_WINDOW_AGENTS as u64 {
+        return Err(bad(format!(
+            "{n} agents, more than the limit {MAX_WINDOW_AGENTS}"
+        )));
+    }
+    let mut agents = Vec::with_capacity(n as usize);
+    for _ in 0..n {
+        agents.push(r.take::<String>()?);
+    }
+    let head = Provenance {
+        agents,
+        complete,
+        sources: Vec::new(),
+    };
+    head.check(0).map_err(bad)?;
+    Ok(ProvenanceHead {
+        agents: head.agents,
+        complete,
+    })
+}
+
+/// Everything before the first object, checked.
+struct Head<'a> {
+    header: Header,
+    provenance: Option<ProvenanceHead>,
+    count: usize,
+    /// The bytes from the first object on.
+    rest: Reader<'a>,
+}
+
+/// Reads and checks the header, the provenance section if any and the object count, without
+/// reading any object.
+fn read_header(bytes: &[u8]) -> Result<Head<'_>, DecodeError> {
     if bytes.len() > MAX_PAYLOAD {
         return Err(DecodeError::TooLarge(bytes.len()));
     }
@@ -517,7 +608,7 @@ fn read_header(bytes: &[u8]) -> Result<(Header, usize, Reader<'_>), DecodeError>
     let mut r = Reader(body);
     let header: Header = r.take()?;
     check_agent_name(&header.agent).map_err(DecodeError::BadAgentName)?;
-    if header.kind > 1 {
+    if header.kind & !(KIND_INFRA | KIND_PROVENANCE) != 0 {
         return Err(DecodeError::OutOfRange {
             index: FRAME,
             field: "kind",
@@ -529,23 +620,45 @@ fn read_header(bytes: &[u8]) -> Result<(Header, usize, Reader<'_>), DecodeError>
     }
     decode_stds(header.default_std, FRAME)?;
     decode_vel_stds(header.default_vel_std, FRAME)?;
+    let provenance = if header.kind & KIND_PROVENANCE != 0 {
+        Some(read_provenance(&mut r)?)
+    } else {
+        None
+    };
     let count: u64 = r.take()?;
     if count > MAX_OBJECTS as u64 {
         return Err(DecodeError::TooManyObjects(count));
     }
-    Ok((header, count as usize, r))
+    Ok(Head {
+        header,
+        provenance,
+        count: count as usize,
+        rest: r,
+    })
 }
 
 /// Reads a payload's agent name and object count without decoding the objects (cheap checks
 /// before the full [`decode`]).
 pub fn peek(bytes: &[u8]) -> Result<(String, usize), DecodeError> {
-    let (h, n, _) = read_header(bytes)?;
-    Ok((h.agent, n))
+    let h = read_header(bytes)?;
+    Ok((h.header.agent, h.count))
 }
 
-/// Decodes and validates a payload.
+/// Decodes and validates a payload; a fused frame's provenance is checked and left out.
 pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
-    let (header, count, mut r) = read_header(bytes)?;
+    decode_with(bytes).map(|(f, _)| f)
+}
+
+/// Decodes and validates a payload, with its provenance when it is a fused frame.
+pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeError> {
+    let Head {
+        header,
+        provenance: head,
+        count,
+        rest: mut r,
+    } = read_header(bytes)?;
+    let mask_len = head.as_ref().map(|h| h.agents.len().div_ceil(8));
+    let mut sources = Vec::new();
     let default_std = decode_stds(header.default_std, FRAME)?;
     let default_vel_std = decode_vel_stds(header.default_vel_std, FRAME)?;
     let mut detections = Vec::with_capacity(count);
@@ -623,13 +736,23 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
             velocity,
             id: o.id,
         });
+        if let (Some(len), Some(h)) = (mask_len, &head) {
+            let set = AgentSet::from_bytes(r.take_bytes(len)?);
+            if set.is_empty() || set.bound() > h.agents.len() {
+                return Err(DecodeError::BadProvenance(format!(
+                    "object {i}: source mask names no agent or one beyond the {} listed",
+                    h.agents.len()
+                )));
+            }
+            sources.push(set);
+        }
     }
     if !r.0.is_empty() {
         return Err(DecodeError::TrailingBytes(r.0.len()));
     }
-    Ok(Frame {
+    let frame = Frame {
         agent: header.agent,
-        kind: if header.kind == 0 {
+        kind: if header.kind & KIND_INFRA == 0 {
             AgentKind::Vehicle
         } else {
             AgentKind::Infrastructure
@@ -638,7 +761,13 @@ pub fn decode(bytes: &[u8]) -> Result<Frame, DecodeError> {
         capture_us: header.capture_us,
         origin: header.origin_cm.map(|c| c as f64 / 100.0),
         detections,
-    })
+    };
+    let provenance = head.map(|h| Provenance {
+        agents: h.agents,
+        complete: h.complete,
+        sources,
+    });
+    Ok((frame, provenance))
 }
 
 /// What [`fit`] changed to bring a frame into the wire's domain.
@@ -670,17 +799,44 @@ impl Fit {
 /// centres, drops objects with non-finite values or out of reach of the origin, and keeps the
 /// [`MAX_OBJECTS`] highest-scoring objects. The agent name must already be valid.
 pub fn fit(frame: &mut Frame) -> Fit {
+    fit_with(frame, None)
+}
+
+/// Keeps the objects (and their source sets, when given) whose `keep` entry is true.
+fn retain_objects(frame: &mut Frame, sources: Option<&mut Vec<AgentSet>>, keep: &[bool]) {
+    let mut i = 0;
+    frame.detections.retain(|_| {
+        i += 1;
+        keep[i - 1]
+    });
+    if let Some(s) = sources {
+        let mut i = 0;
+        s.retain(|_| {
+            i += 1;
+            keep.get(i - 1).copied().unwrap_or(false)
+        });
+    }
+}
+
+/// [`fit`] for a fused frame: a dropped object's source set is dropped with it, so the
+/// provenance still has one set per object.
+pub fn fit_with(frame: &mut Frame, mut provenance: Option<&mut Provenance>) -> Fit {
     let mut fit = Fit::default();
     let before = frame.detections.len();
-    frame.detections.retain(|d| {
-        d.center.iter().all(|c| coord_in_range(*c))
-            && d.size.iter().all(|s| s.is_finite())
-            && d.yaw.is_finite()
-            && d.score.is_finite()
-            && d.std.as_array().iter().all(|s| s.is_finite())
-            && d.velocity
-                .is_none_or(|v| v.v.iter().chain(&v.std).all(|x| x.is_finite()))
-    });
+    let keep: Vec<bool> = frame
+        .detections
+        .iter()
+        .map(|d| {
+            d.center.iter().all(|c| coord_in_range(*c))
+                && d.size.iter().all(|s| s.is_finite())
+                && d.yaw.is_finite()
+                && d.score.is_finite()
+                && d.std.as_array().iter().all(|s| s.is_finite())
+                && d.velocity
+                    .is_none_or(|v| v.v.iter().chain(&v.std).all(|x| x.is_finite()))
+        })
+        .collect();
+    retain_objects(frame, provenance.as_mut().map(|p| &mut p.sources), &keep);
     fit.objects_invalid = before - frame.detections.len();
     for d in &mut frame.detections {
         let mut a = d.std.as_array();
@@ -726,11 +882,7 @@ pub fn fit(frame: &mut Frame) -> Fit {
         for &i in &order[..MAX_OBJECTS] {
             keep[i] = true;
         }
-        let mut i = 0;
-        frame.detections.retain(|_| {
-            i += 1;
-            keep[i - 1]
-        });
+        retain_objects(frame, provenance.as_mut().map(|p| &mut p.sources), &keep);
         fit.objects_capped = order.len() - MAX_OBJECTS;
     }
     // Origin: the median centre, so that one far-away object cannot push the others out of reach.
@@ -746,12 +898,17 @@ pub fn fit(frame: &mut Frame) -> Fit {
     }
     let before = frame.detections.len();
     let origin = frame.origin;
-    frame.detections.retain(|d| {
-        (0..3).all(|k| {
-            let rel = (d.center[k] * 100.0).round() - (origin[k] * 100.0).round();
-            (i32::MIN as f64..=i32::MAX as f64).contains(&rel)
+    let keep: Vec<bool> = frame
+        .detections
+        .iter()
+        .map(|d| {
+            (0..3).all(|k| {
+                let rel = (d.center[k] * 100.0).round() - (origin[k] * 100.0).round();
+                (i32::MIN as f64..=i32::MAX as f64).contains(&rel)
+            })
         })
-    });
+        .collect();
+    retain_objects(frame, provenance.as_mut().map(|p| &mut p.sources), &keep);
     fit.objects_invalid += before - frame.detections.len();
     fit
 }

@@ -1,7 +1,9 @@
 //! `docs/wire-format.md` matches the code: the document's example bytes decode to the frame it
 //! describes, and that frame encodes to exactly those bytes.
 
-use v2x_protocol::{wire, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
+use v2x_protocol::{
+    wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty, Velocity,
+};
 
 /// The example frame of the document, field by field.
 fn documented_frame() -> Frame {
@@ -41,15 +43,28 @@ fn documented_frame() -> Frame {
     }
 }
 
-/// The hex bytes of the document's example block (between the `example-bytes` markers).
-fn documented_bytes() -> Vec<u8> {
+/// The fused example: the same boxes published by the fuser from a complete window of `rsu1` and
+/// `veh1`, the car seen by both, the pedestrian by `rsu1` alone.
+fn documented_fused() -> (Frame, Provenance) {
+    let mut f = documented_frame();
+    f.agent = "fuser".into();
+    let p = Provenance {
+        agents: vec!["rsu1".into(), "veh1".into()],
+        complete: true,
+        sources: vec![[0, 1].into_iter().collect(), AgentSet::single(0)],
+    };
+    (f, p)
+}
+
+/// The hex bytes of a document's example block (between the `NAME` markers).
+fn documented_bytes(name: &str) -> Vec<u8> {
     let doc = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../docs/wire-format.md"
     ))
     .expect("docs/wire-format.md is in the repository");
-    let start = doc.find("<!-- example-bytes -->").expect("start marker");
-    let end = doc.find("<!-- /example-bytes -->").expect("end marker");
+    let start = doc.find(&format!("<!-- {name} -->")).expect("start marker");
+    let end = doc.find(&format!("<!-- /{name} -->")).expect("end marker");
     let mut bytes = Vec::new();
     for line in doc[start..end].lines() {
         // each line: hex bytes, then `|` and a comment
@@ -65,7 +80,7 @@ fn documented_bytes() -> Vec<u8> {
 
 #[test]
 fn the_documented_bytes_are_the_documented_frame() {
-    let bytes = documented_bytes();
+    let bytes = documented_bytes("example-bytes");
     let frame = documented_frame();
     let encoded = wire::encode(&frame).unwrap();
     if std::env::var_os("PRINT_WIRE_EXAMPLE").is_some() {
@@ -102,4 +117,34 @@ fn the_documented_bytes_are_the_documented_frame() {
     assert!((car.std.pos[0] - 0.5).abs() < 0.5 * 1e-3);
     assert_eq!(walker.size, [0.8, 0.6, 1.7]);
     assert_eq!(walker.velocity, None);
+}
+
+#[test]
+fn the_documented_fused_bytes_are_the_documented_fused_frame() {
+    let bytes = documented_bytes("fused-example-bytes");
+    let (frame, provenance) = documented_fused();
+    let encoded = wire::encode_with(&frame, Some(&provenance)).unwrap();
+    if std::env::var_os("PRINT_WIRE_EXAMPLE").is_some() {
+        for b in &encoded {
+            print!("{b:02x} ");
+        }
+        println!();
+    }
+    assert_eq!(
+        encoded, bytes,
+        "encode(documented fused frame) differs from the document's bytes"
+    );
+    let (decoded, p) = wire::decode_with(&bytes).unwrap();
+    let p = p.expect("a fused frame carries its provenance");
+    assert_eq!(p, provenance);
+    assert_eq!(p.names(&p.sources[0]).collect::<Vec<_>>(), ["rsu1", "veh1"]);
+    assert_eq!(
+        decoded,
+        wire::decode(&documented_bytes("example-bytes"))
+            .map(|mut f| {
+                f.agent = "fuser".into();
+                f
+            })
+            .unwrap()
+    );
 }

@@ -128,8 +128,8 @@ async fn frames_stamped_far_ahead_are_rejected_and_fusion_goes_on() {
     let mut last = 0;
     for _ in 0..3 {
         let f = honest_round(&mut s, &mut last).await;
-        assert_eq!(f.members, vec!["a", "b"]);
-        assert!(f.complete);
+        assert_eq!(f.provenance.agents, vec!["a", "b"]);
+        assert!(f.provenance.complete);
     }
     let st = finish(s).await;
     assert_eq!(st.windows, 3);
@@ -216,7 +216,10 @@ async fn ten_thousand_agent_names_leave_the_fuser_bounded() {
     let mut last = now_us();
     for _ in 0..3 {
         let f = honest_round(&mut s, &mut last).await;
-        assert!(f.members.contains(&"a".to_string()) && f.members.contains(&"b".to_string()));
+        assert!(
+            f.provenance.agents.contains(&"a".to_string())
+                && f.provenance.agents.contains(&"b".to_string())
+        );
     }
     let st = finish(s).await;
     assert!(st.agents_tracked <= 256);
@@ -236,7 +239,7 @@ async fn a_token_without_frames_costs_three_windows_at_most() {
     let mut last = 0;
     let mut complete = Vec::new();
     for _ in 0..6 {
-        complete.push(honest_round(&mut s, &mut last).await.complete);
+        complete.push(honest_round(&mut s, &mut last).await.provenance.complete);
     }
     assert_eq!(complete, [false, false, false, true, true, true]);
     drop(ghost);
@@ -281,7 +284,7 @@ async fn of_a_fast_agents_frames_the_closest_to_the_anchor_is_fused() {
     put("fast", 1, t + 5_000, 10.0).await.unwrap();
     put("third", 0, t, 10.0).await.unwrap();
     let f = next_fused(&mut s.fuser.1).await;
-    assert_eq!(f.members, vec!["fast", "slow", "third"]);
+    assert_eq!(f.provenance.agents, vec!["fast", "slow", "third"]);
     let st = stats(&s.sa, ns).await;
     assert_eq!(st["agents"]["fast"]["replaced"], 1);
     assert_eq!(st["agents"]["fast"]["duplicate"], 0);

@@ -65,7 +65,11 @@ async fn fused_errors(ns: &'static str, motion: Option<MotionParams>, offset_us:
                 .unwrap();
         }
         let f = next_fused(&mut fuser.1).await;
-        assert_eq!(f.members, vec!["a", "b"], "both captures in one window");
+        assert_eq!(
+            f.provenance.agents,
+            vec!["a", "b"],
+            "both captures in one window"
+        );
         assert_eq!(
             f.frame.capture_us,
             t + offset_us,

@@ -48,8 +48,8 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
     a.send(frame(t)).unwrap();
     b.send(frame(t)).unwrap();
     let f = next_fused(&mut fused).await;
-    assert_eq!(f.members, vec!["a", "b"]);
-    assert!(f.complete);
+    assert_eq!(f.provenance.agents, vec!["a", "b"]);
+    assert!(f.provenance.complete);
     assert_eq!(
         f.frame.detections.len(),
         2,
@@ -62,8 +62,11 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
     let t0 = std::time::Instant::now();
     a.send(frame(next_t(&mut last))).unwrap();
     let f = next_fused(&mut fused).await;
-    assert_eq!(f.members, vec!["a"]);
-    assert!(f.complete, "b is gone, so a alone completes the window");
+    assert_eq!(f.provenance.agents, vec!["a"]);
+    assert!(
+        f.provenance.complete,
+        "b is gone, so a alone completes the window"
+    );
     assert!(
         t0.elapsed() < Duration::from_secs(4),
         "the fuser did not wait out the 5 s deadline"
@@ -78,7 +81,7 @@ async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
     a.send(frame(t)).unwrap();
     b.send(frame(t)).unwrap();
     let f = next_fused(&mut fused).await;
-    assert_eq!(f.members, vec!["a", "b"]);
+    assert_eq!(f.provenance.agents, vec!["a", "b"]);
 
     stop.send(()).unwrap();
     let stats = within(10, "fuser shutdown", task).await.unwrap();
@@ -125,15 +128,37 @@ async fn fusion_resumes_after_the_fuser_restarts() {
         for _ in 0..3 {
             let t = next_t(&mut last);
             a.send(frame(t)).unwrap();
-            b.send(frame(t)).unwrap();
+            // b also sees a third object, far from the others.
+            let mut fb = frame(t);
+            fb.detections.push(v2x_tests::fuser::det(90.0, 3));
+            b.send(fb).unwrap();
             let f = next_fused(&mut fused).await;
             assert_eq!(f.frame.capture_us, t, "round {round}");
-            assert_eq!(f.members, vec!["a", "b"]);
+            assert_eq!(f.provenance.agents, vec!["a", "b"]);
             let on_wire = within(10, "fused frame on the network", observer.recv_async())
                 .await
                 .unwrap();
-            let decoded = wire::decode(&on_wire.payload().to_bytes()).unwrap();
+            let (decoded, provenance) = wire::decode_with(&on_wire.payload().to_bytes()).unwrap();
             assert_eq!(decoded.capture_us, t);
+            // The frame on the network says where each box came from: the two shared objects
+            // from both agents, the third from b alone.
+            let provenance = provenance.expect("fused frames carry their provenance");
+            assert_eq!(provenance, f.provenance);
+            assert!(provenance.complete);
+            let sources: Vec<(f64, Vec<&str>)> = decoded
+                .detections
+                .iter()
+                .zip(&provenance.sources)
+                .map(|(d, s)| (d.center[0], provenance.names(s).collect()))
+                .collect();
+            assert_eq!(
+                sources,
+                vec![
+                    (10.0, vec!["a", "b"]),
+                    (30.0, vec!["a", "b"]),
+                    (90.0, vec!["b"])
+                ]
+            );
         }
         stop.send(()).unwrap();
         within(10, "fuser shutdown", task).await.unwrap();

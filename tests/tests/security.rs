@@ -207,7 +207,11 @@ async fn each_identity_may_do_only_what_the_policy_allows() {
         a.send(fa.clone()).unwrap();
         b.send(fb.clone()).unwrap();
         let f = next_fused(&mut fuser.1).await;
-        assert_eq!(f.members, vec!["a", "b"], "exactly the two honest frames");
+        assert_eq!(
+            f.provenance.agents,
+            vec!["a", "b"],
+            "exactly the two honest frames"
+        );
         // Unchanged by everything above: the fusion of the two honest frames alone.
         let quantized = |f: &Frame| {
             let mut g = f.clone();

@@ -2,6 +2,11 @@ use super::*;
 use crate::method::Method;
 use v2x_protocol::Class;
 
+/// The boxes of a method's output, without their sources.
+fn dets(out: Vec<Sourced>) -> Vec<Detection> {
+    out.into_iter().map(|s| s.det).collect()
+}
+
 fn bx(class: Class, x: f64, y: f64, score: f64, id: u32) -> Detection {
     Detection {
         class,
@@ -54,14 +59,14 @@ fn wbf_averages_a_cluster() {
     // scores 0.6 and 0.2, 0.4 m apart (IoU = 3.6/4.4 > 0.55): centre = (0*0.6 + 0.4*0.2)/0.8
     let a = vec![bx(Class::Car, 0.0, 0.0, 0.6, 1)];
     let b = vec![bx(Class::Car, 0.4, 0.0, 0.2, 2)];
-    let out = wbf_3d(&[a, b]);
+    let out = dets(wbf_3d(&[a, b]));
     assert_eq!(out.len(), 1);
     assert!((out[0].center[0] - 0.1).abs() < 1e-12);
     // score: mean 0.4 x min(2, 2)/2
     assert!((out[0].score - 0.4).abs() < 1e-12);
     assert_eq!(out[0].id, 1);
     // a lone box is down-weighted by min(W, n)/W = 1/2
-    let out = wbf_3d(&[vec![bx(Class::Car, 0.0, 0.0, 0.6, 1)], vec![]]);
+    let out = dets(wbf_3d(&[vec![bx(Class::Car, 0.0, 0.0, 0.6, 1)], vec![]]));
     assert!((out[0].score - 0.3).abs() < 1e-12);
 }
 
@@ -73,7 +78,7 @@ fn psa_keeps_the_argmax() {
         bx(Class::Car, 2.0, 0.0, 0.5, 3),
     ];
     let b = vec![bx(Class::Car, 1.0, 0.0, 0.4, 2)];
-    let out = psa(&[a, b]);
+    let out = dets(psa(&[a, b]));
     // v(middle) = 0.4 + 2 * 0.6 * 0.5 = 1.0; v(sides) = 0.5 + 0.6*0.4 + (1/3... no overlap at 2 m? IoU(0, 2) = 2*2/12 = 1/3)
     // v(side) = 0.5 + 0.6 * 0.4 + (1/3) * 0.5 = 0.9067 < 1.0
     assert_eq!(out.len(), 1);
@@ -100,7 +105,7 @@ fn infradet_takes_the_first_agents_yaw_and_ignores_class() {
     let mut b = bx(Class::Truck, 1.0, 0.0, 0.7, 2);
     b.yaw = 0.5;
     b.size = [6.0, 2.0, 1.6];
-    let out = infradet3d_late(&[vec![a.clone()], vec![b.clone()]]);
+    let out = dets(infradet3d_late(&[vec![a.clone()], vec![b.clone()]]));
     assert_eq!(out.len(), 1);
     assert_eq!(out[0].yaw, 0.1);
     assert_eq!(out[0].class, Class::Car);
@@ -108,7 +113,7 @@ fn infradet_takes_the_first_agents_yaw_and_ignores_class() {
     // DAIR-V2X-Late does not match different classes
     assert_eq!(dair_v2x_late(&[vec![a.clone()], vec![b.clone()]]).len(), 2);
     b.class = Class::Car;
-    let out = dair_v2x_late(&[vec![a], vec![b]]);
+    let out = dets(dair_v2x_late(&[vec![a], vec![b]]));
     assert_eq!(out.len(), 1);
     assert!((out[0].yaw - 0.3).abs() < 1e-12, "mean yaw");
     assert!((out[0].score - 0.6).abs() < 1e-12, "mean score");
@@ -126,7 +131,7 @@ fn hungarian_is_global_not_greedy() {
         bx(Class::Car, 1.4, 0.0, 0.5, 3),
         bx(Class::Car, -1.2, 0.0, 0.5, 4),
     ];
-    let out = dair_v2x_late(&[a, b]);
+    let out = dets(dair_v2x_late(&[a, b]));
     assert_eq!(out.len(), 2);
     assert!((out[0].center[0] + 0.6).abs() < 1e-12);
     assert!((out[1].center[0] - 1.95).abs() < 1e-12);
@@ -142,7 +147,7 @@ fn gt_wls_groups_by_id() {
         bx(Class::Car, 5.0, 0.0, 0.5, 7),
         bx(Class::Car, 10.0, 0.0, 0.5, v2x_protocol::NO_ID),
     ];
-    let out = gt_wls(&[a, b]);
+    let out = dets(gt_wls(&[a, b]));
     assert_eq!(out.len(), 3);
     let g = out.iter().find(|d| d.id == 7).unwrap();
     assert!((g.center[0] - 2.5).abs() < 1e-12, "grouped even 5 m apart");

@@ -25,7 +25,7 @@ use std::future::Future;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
-use v2x_protocol::{keys, Frame};
+use v2x_protocol::{keys, Frame, Provenance};
 use zenoh::bytes::Encoding;
 use zenoh::sample::SampleKind;
 
@@ -77,10 +77,9 @@ pub struct Fused {
     /// The fused frame (agent "fuser", capture time = the window's reference time: its latest
     /// capture).
     pub frame: Frame,
-    /// Agents whose frames were fused.
-    pub members: Vec<String>,
-    /// Whether every awaited agent contributed.
-    pub complete: bool,
+    /// The window's agents, whether it was complete, and each fused box's contributing agents
+    /// (published with the frame).
+    pub provenance: Provenance,
 }
 
 /// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in
@@ -247,27 +246,21 @@ impl State {
             }
             return;
         }
-        self.ingest.fused(&d.fused.members);
+        self.ingest.fused(&d.fused.provenance.agents);
         self.stats.windows += 1;
-        if !d.fused.complete {
+        if !d.fused.provenance.complete {
             self.stats.windows_incomplete += 1;
         }
         self.stats.fused_objects += d.fused.frame.detections.len() as u64;
         let fusion_us = d.done_at_us.saturating_sub(d.closed_at_us);
         if let Some(v) = &self.viz {
             let f = &d.fused;
-            v.boxes(
-                "/fused",
-                "fused",
-                f.frame.capture_us,
-                &f.frame.detections,
-                crate::viz::FUSED,
-            );
+            v.fused(f.frame.capture_us, &f.frame.detections, &f.provenance);
             let e2e_ms = (d.done_at_us as f64 - f.frame.capture_us as f64) / 1000.0;
             v.window(
                 f.frame.capture_us,
-                &f.members,
-                f.complete,
+                &f.provenance.agents,
+                f.provenance.complete,
                 f.frame.detections.len(),
                 fusion_us as f64 / 1000.0,
                 e2e_ms,
@@ -336,6 +329,12 @@ pub async fn run(
     }
     if cfg.ingest.max_agents == 0 || cfg.queue == 0 {
         anyhow::bail!("the agent table and the fusion queue must hold at least one entry");
+    }
+    if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
+        anyhow::bail!(
+            "the agent table may hold at most {} agents (the most a fused frame can name)",
+            v2x_protocol::limits::MAX_WINDOW_AGENTS
+        );
     }
     let ns = cfg.ns.clone();
     let z = |e: zenoh::Error| anyhow!("{e}");

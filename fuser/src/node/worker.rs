@@ -9,7 +9,7 @@ use crate::window::Closed;
 use crate::Method;
 use tokio::sync::mpsc;
 use v2x_protocol::wire::{self, Fit};
-use v2x_protocol::{AgentKind, Frame};
+use v2x_protocol::{AgentKind, Frame, Provenance};
 
 /// A closed window to fuse.
 pub(super) struct Job {
@@ -37,9 +37,13 @@ pub fn fuse_window(
     closed: Closed,
     seq: u32,
 ) -> Fused {
-    let members: Vec<String> = closed.frames.keys().cloned().collect();
+    let agents: Vec<String> = closed.frames.keys().cloned().collect();
     let (t_ref, lists) = align_window(&closed, motion);
-    let detections = method.fuse(&lists);
+    let (detections, sources) = method
+        .fuse_sourced(&lists)
+        .into_iter()
+        .map(|s| (s.det, s.sources))
+        .unzip();
     Fused {
         frame: Frame {
             agent: "fuser".into(),
@@ -49,8 +53,11 @@ pub fn fuse_window(
             origin: [0.0; 3],
             detections,
         },
-        members,
-        complete: closed.complete,
+        provenance: Provenance {
+            agents,
+            complete: closed.complete,
+            sources,
+        },
     }
 }
 
@@ -71,15 +78,15 @@ pub(super) async fn run(
         } = job;
         let this_seq = seq;
         seq = seq.wrapping_add(1);
-        let (anchor, members, complete) = (
+        let (anchor, agents, complete) = (
             closed.anchor_us,
             closed.frames.keys().cloned().collect::<Vec<_>>(),
             closed.complete,
         );
         let work = tokio::task::spawn_blocking(move || {
             let mut fused = fuse_window(&method, motion.as_ref(), closed, this_seq);
-            let fit = wire::fit(&mut fused.frame);
-            let bytes = wire::encode(&fused.frame);
+            let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
+            let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
             (fused, fit, bytes)
         })
         .await;
@@ -100,8 +107,11 @@ pub(super) async fn run(
                         origin: [0.0; 3],
                         detections: Vec::new(),
                     },
-                    members,
-                    complete,
+                    provenance: Provenance {
+                        agents,
+                        complete,
+                        sources: Vec::new(),
+                    },
                 },
                 Fit::default(),
                 Some(format!("fusion failed: {e}")),

@@ -194,9 +194,11 @@ fn encode_rejects_bad_values() {
 
 fn parts(f: &Frame) -> (Header, Vec<Object>) {
     let bytes = encode(f).unwrap();
-    let (header, count, mut r) = read_header(&bytes).unwrap();
-    let objects = (0..count).map(|_| Object::read(&mut r).unwrap()).collect();
-    (header, objects)
+    let mut h = read_header(&bytes).unwrap();
+    let objects = (0..h.count)
+        .map(|_| Object::read(&mut h.rest).unwrap())
+        .collect();
+    (h.header, objects)
 }
 
 fn valid() -> (Header, Vec<Object>) {
@@ -213,21 +215,21 @@ fn decode_reports_each_invalid_field() {
     );
 
     let (h, o) = valid();
-    let mut b = assemble(&h, &o);
+    let mut b = assemble(&h, None, &o);
     b.push(0);
     assert_eq!(decode(&b), Err(DecodeError::TrailingBytes(1)));
 
     let (mut h, o) = valid();
     h.kind = 5;
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange { field: "kind", .. })
     ));
 
     let (h, mut o) = valid();
     o[1].tag = 12;
     assert_eq!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange {
             index: 1,
             field: "class",
@@ -238,14 +240,14 @@ fn decode_reports_each_invalid_field() {
     let (h, mut o) = valid();
     o[0].tag |= 0x80; // a bit this version does not define
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange { field: "tag", .. })
     ));
 
     let (h, mut o) = valid();
     o[0].size_delta_cm[1] = -10_000;
     assert_eq!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::SizeOutOfRange {
             index: 0,
             field: "size.w",
@@ -257,7 +259,7 @@ fn decode_reports_each_invalid_field() {
     let (h, mut o) = valid();
     o[0].size_delta_cm[0] = 100_000;
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::SizeOutOfRange {
             field: "size.l",
             ..
@@ -268,7 +270,7 @@ fn decode_reports_each_invalid_field() {
     o[1].tag |= TAG_VEL;
     o[1].vel = Some([0, 1001]); // 100.1 m/s
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange {
             index: 1,
             field: "velocity.y",
@@ -279,14 +281,14 @@ fn decode_reports_each_invalid_field() {
     let (h, mut o) = valid();
     o[1].score = 251;
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange { field: "score", .. })
     ));
 
     let (mut h, o) = valid();
     h.default_std[6] = 0;
     assert_eq!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::BadStdCode {
             index: usize::MAX,
             field: "std.yaw",
@@ -298,7 +300,7 @@ fn decode_reports_each_invalid_field() {
     o[0].tag |= TAG_STD;
     o[0].std = Some([5, 5, STD_CODE_MAX + 1, 5, 5, 5, 5]);
     assert_eq!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::BadStdCode {
             index: 0,
             field: "std.z",
@@ -310,7 +312,10 @@ fn decode_reports_each_invalid_field() {
         let (mut h, o) = valid();
         h.agent = name.into();
         assert!(
-            matches!(decode(&assemble(&h, &o)), Err(DecodeError::BadAgentName(_))),
+            matches!(
+                decode(&assemble(&h, None, &o)),
+                Err(DecodeError::BadAgentName(_))
+            ),
             "{name}"
         );
     }
@@ -318,7 +323,7 @@ fn decode_reports_each_invalid_field() {
     let (mut h, o) = valid();
     h.origin_cm[0] = i64::MAX;
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange {
             field: "origin",
             ..
@@ -330,7 +335,7 @@ fn decode_reports_each_invalid_field() {
     h.origin_cm[1] = (limits::COORD_MAX * 100.0) as i64;
     o[1].pos_cm[1] = 1;
     assert!(matches!(
-        decode(&assemble(&h, &o)),
+        decode(&assemble(&h, None, &o)),
         Err(DecodeError::OutOfRange {
             index: 1,
             field: "center.y",
@@ -349,7 +354,7 @@ fn the_object_count_is_checked_before_any_object_is_read() {
     assert_eq!(decode(&w.0), Err(DecodeError::TooManyObjects(5_000)));
     assert_eq!(peek(&w.0), Err(DecodeError::TooManyObjects(5_000)));
     let (h, o) = valid();
-    assert_eq!(peek(&assemble(&h, &o)), Ok(("veh1".to_string(), 2)));
+    assert_eq!(peek(&assemble(&h, None, &o)), Ok(("veh1".to_string(), 2)));
 }
 
 #[test]
@@ -418,6 +423,23 @@ fn fit_makes_any_fused_frame_encodable() {
 }
 
 #[test]
+fn fit_drops_a_dropped_objects_source_set() {
+    let (mut f, mut p) = fused_frame(5);
+    f.detections[2].center = [1e8, 1e8, 0.0];
+    f.detections[3].center[0] = f64::NAN;
+    let kept = [
+        p.sources[0].clone(),
+        p.sources[1].clone(),
+        p.sources[4].clone(),
+    ];
+    let report = fit_with(&mut f, Some(&mut p));
+    assert_eq!(report.objects_invalid, 2);
+    assert_eq!(p.sources, kept);
+    let (_, q) = decode_with(&encode_with(&f, Some(&p)).unwrap()).unwrap();
+    assert_eq!(q, Some(p));
+}
+
+#[test]
 fn every_truncation_is_an_error() {
     let bytes = encode(&sample_frame(25)).unwrap();
     for n in 0..bytes.len() {
@@ -438,10 +460,128 @@ fn every_truncation_is_an_error() {
 /// The one-domain property: whatever decodes encodes again, to a payload that decodes to the
 /// same frame.
 pub(crate) fn assert_decoded_reencodes(bytes: &[u8]) {
-    if let Ok(f) = decode(bytes) {
-        let again = encode(&f).unwrap_or_else(|e| panic!("decoded frame does not encode: {e}"));
-        assert_eq!(decode(&again).unwrap(), f);
+    if let Ok((f, p)) = decode_with(bytes) {
+        let again = encode_with(&f, p.as_ref())
+            .unwrap_or_else(|e| panic!("decoded frame does not encode: {e}"));
+        assert_eq!(decode_with(&again).unwrap(), (f, p));
     }
+}
+
+/// A fused frame of `n` boxes over three agents, box i from the agents of the bits of i % 7 + 1.
+fn fused_frame(n: usize) -> (Frame, Provenance) {
+    let mut f = sample_frame(n);
+    f.agent = "fuser".into();
+    f.kind = AgentKind::Infrastructure;
+    let p = Provenance {
+        agents: vec!["veh1".into(), "rsu1".into(), "veh2".into()],
+        complete: false,
+        sources: (0..n)
+            .map(|i| (0..3).filter(|k| (i % 7 + 1) & (1 << k) != 0).collect())
+            .collect(),
+    };
+    (f, p)
+}
+
+#[test]
+fn provenance_round_trips_and_costs_a_byte_per_box() {
+    for n in [0, 1, 30] {
+        let (f, p) = fused_frame(n);
+        let plain = encode(&f).unwrap();
+        let bytes = encode_with(&f, Some(&p)).unwrap();
+        // complete (1) + count (1) + three names with their lengths (15), one mask byte a box.
+        assert_eq!(bytes.len(), plain.len() + 1 + 1 + 15 + n, "{n} boxes");
+        assert_eq!(bytes[0], VERSION);
+        let (g, q) = decode_with(&bytes).unwrap();
+        assert_close(&f, &g);
+        assert_eq!(q.as_ref(), Some(&p));
+        // A plain decode reads the same frame and leaves the provenance out.
+        assert_eq!(decode(&bytes).unwrap(), g);
+        assert_eq!(peek(&bytes), Ok(("fuser".to_string(), n)));
+        // An agent's frame has none.
+        assert_eq!(decode_with(&plain).unwrap().1, None);
+    }
+    // Nine agents take two mask bytes a box.
+    let (f, mut p) = fused_frame(4);
+    p.agents = (0..9).map(|k| format!("a{k}")).collect();
+    p.sources[3] = AgentSet::single(8);
+    let bytes = encode_with(&f, Some(&p)).unwrap();
+    assert_eq!(decode_with(&bytes).unwrap().1, Some(p.clone()));
+    assert_eq!(&bytes[bytes.len() - 2..], &[0, 1]);
+}
+
+#[test]
+fn provenance_errors_name_the_problem() {
+    let (f, p) = fused_frame(3);
+    let mut q = p.clone();
+    q.sources.pop();
+    assert!(matches!(
+        encode_with(&f, Some(&q)),
+        Err(EncodeError::BadProvenance(m)) if m.contains("2 source sets for 3 boxes")
+    ));
+    let mut q = p.clone();
+    q.sources[1] = AgentSet::single(3);
+    assert!(matches!(
+        encode_with(&f, Some(&q)),
+        Err(EncodeError::BadProvenance(_))
+    ));
+
+    let bytes = encode_with(&f, Some(&p)).unwrap();
+    let (h, _) = parts(&f);
+    // The completeness byte sits right after the header.
+    let at = {
+        let mut w = Writer(vec![VERSION]);
+        w.put(&Header {
+            kind: h.kind | KIND_PROVENANCE,
+            ..h.clone()
+        });
+        w.0.len()
+    };
+    let mut b = bytes.clone();
+    b[at] = 2;
+    assert!(matches!(decode(&b), Err(DecodeError::BadProvenance(m)) if m.contains("complete")));
+    // A mask bit beyond the three agents.
+    let mut b = bytes.clone();
+    *b.last_mut().unwrap() = 0b1000;
+    assert!(matches!(decode(&b), Err(DecodeError::BadProvenance(m)) if m.contains("object 2")));
+    *b.last_mut().unwrap() = 0;
+    assert!(matches!(decode(&b), Err(DecodeError::BadProvenance(_))));
+    // Without its last mask the frame is truncated; an unknown kind bit is refused.
+    assert_eq!(
+        decode(&bytes[..bytes.len() - 1]),
+        Err(DecodeError::Truncated)
+    );
+    // The kind byte follows the version and the name "fuser" with its length.
+    let kind_at = 1 + 1 + "fuser".len();
+    let mut b2 = bytes.clone();
+    b2[kind_at] |= 0x04;
+    assert!(matches!(
+        decode(&b2),
+        Err(DecodeError::OutOfRange { field: "kind", .. })
+    ));
+    // Duplicate agents are refused on both sides.
+    let mut q = p.clone();
+    q.agents[2] = "veh1".into();
+    assert!(encode_with(&f, Some(&q)).is_err());
+    let mut w = Writer(vec![VERSION]);
+    w.put(&Header {
+        kind: h.kind | KIND_PROVENANCE,
+        ..h.clone()
+    });
+    w.put(&1u8);
+    w.put(&vec!["a".to_string(), "a".to_string()]);
+    w.put(&0u64);
+    assert!(matches!(decode(&w.0), Err(DecodeError::BadProvenance(m)) if m.contains("twice")));
+    // Too many agents are refused before any name is read.
+    let mut w = Writer(vec![VERSION]);
+    w.put(&Header {
+        kind: h.kind | KIND_PROVENANCE,
+        ..h
+    });
+    w.put(&1u8);
+    w.put(&5_000u64);
+    assert!(
+        matches!(decode(&w.0), Err(DecodeError::BadProvenance(m)) if m.contains("5000 agents"))
+    );
 }
 
 fn arb_detection() -> impl Strategy<Value = Detection> {
@@ -501,6 +641,32 @@ proptest! {
     }
 
     #[test]
+    fn provenance_round_trip_property(
+        n in 0usize..20,
+        agents in 1usize..40,
+        complete in any::<bool>(),
+        seeds in prop::collection::vec(any::<u64>(), 20),
+    ) {
+        let (f, _) = fused_frame(n);
+        let p = Provenance {
+            agents: (0..agents).map(|k| format!("agent-{k}")).collect(),
+            complete,
+            sources: (0..n)
+                .map(|i| {
+                    let s = seeds[i];
+                    let mut set: AgentSet = (0..agents).filter(|k| s >> (k % 64) & 1 == 1).collect();
+                    set.insert((s % agents as u64) as usize);
+                    set
+                })
+                .collect(),
+        };
+        let bytes = encode_with(&f, Some(&p)).unwrap();
+        let (g, q) = decode_with(&bytes).unwrap();
+        assert_close(&f, &g);
+        prop_assert_eq!(q, Some(p));
+    }
+
+    #[test]
     fn random_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..300)) {
         assert_decoded_reencodes(&bytes);
         let mut v = vec![VERSION];
@@ -511,6 +677,11 @@ proptest! {
     #[test]
     fn corrupted_frames_never_panic_and_reencode(pos in 0usize..400, val in any::<u8>()) {
         let mut bytes = encode(&sample_frame(20)).unwrap();
+        let p = pos % bytes.len();
+        bytes[p] = val;
+        assert_decoded_reencodes(&bytes);
+        let (f, prov) = fused_frame(20);
+        let mut bytes = encode_with(&f, Some(&prov)).unwrap();
         let p = pos % bytes.len();
         bytes[p] = val;
         assert_decoded_reencodes(&bytes);

@@ -1,0 +1,203 @@
+//! Where a fused frame came from: the agents whose frames its window held, whether every awaited
+//! agent was there, and, per fused box, which of those agents contributed to it ([`AgentSet`], a
+//! bitmask over the window's agent list). The wire carries it in fused frames
+//! (`docs/wire-format.md`, "Provenance").
+
+use crate::limits::MAX_WINDOW_AGENTS;
+
+/// A set of agents, as indices into a window's agent list (bit k of byte k / 8: agent k).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
+pub struct AgentSet(Vec<u8>);
+
+impl AgentSet {
+    /// The empty set.
+    pub fn new() -> Self {
+        AgentSet(Vec::new())
+    }
+
+    /// The set holding only agent `k`.
+    pub fn single(k: usize) -> Self {
+        let mut s = AgentSet::new();
+        s.insert(k);
+        s
+    }
+
+    /// Adds agent `k`.
+    pub fn insert(&mut self, k: usize) {
+        if self.0.len() <= k / 8 {
+            self.0.resize(k / 8 + 1, 0);
+        }
+        self.0[k / 8] |= 1 << (k % 8);
+    }
+
+    /// Adds every agent of `other`.
+    pub fn union_with(&mut self, other: &AgentSet) {
+        if self.0.len() < other.0.len() {
+            self.0.resize(other.0.len(), 0);
+        }
+        for (a, b) in self.0.iter_mut().zip(&other.0) {
+            *a |= b;
+        }
+    }
+
+    /// True when agent `k` is in the set.
+    pub fn contains(&self, k: usize) -> bool {
+        self.0.get(k / 8).is_some_and(|b| b & (1 << (k % 8)) != 0)
+    }
+
+    /// The agents in the set, ascending.
+    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.0.len() * 8).filter(|&k| self.contains(k))
+    }
+
+    /// How many agents the set holds.
+    pub fn len(&self) -> usize {
+        self.0.iter().map(|b| b.count_ones() as usize).sum()
+    }
+
+    /// True when the set holds no agent.
+    pub fn is_empty(&self) -> bool {
+        self.0.iter().all(|&b| b == 0)
+    }
+
+    /// One more than the largest agent in the set (0 when empty): the list length it needs.
+    pub fn bound(&self) -> usize {
+        match self.0.iter().rposition(|&b| b != 0) {
+            Some(i) => i * 8 + 8 - self.0[i].leading_zeros() as usize,
+            None => 0,
+        }
+    }
+
+    /// The mask as the wire writes it for a list of `n` agents: exactly `ceil(n / 8)` bytes.
+    /// The set must lie within the list (`bound() <= n`).
+    pub fn to_bytes(&self, n: usize) -> Vec<u8> {
+        let mut b = self.0.clone();
+        b.resize(n.div_ceil(8), 0);
+        b
+    }
+
+    /// The set a wire mask stands for.
+    pub fn from_bytes(bytes: &[u8]) -> Self {
+        let mut b = bytes.to_vec();
+        while b.last() == Some(&0) {
+            b.pop();
+        }
+        AgentSet(b)
+    }
+}
+
+impl FromIterator<usize> for AgentSet {
+    fn from_iter<I: IntoIterator<Item = usize>>(iter: I) -> Self {
+        let mut s = AgentSet::new();
+        for k in iter {
+            s.insert(k);
+        }
+        s
+    }
+}
+
+/// The provenance of a fused frame.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Provenance {
+    /// The agents whose frames the window held, in the order the masks index them.
+    pub agents: Vec<String>,
+    /// Whether every agent the fuser awaited had a frame in the window.
+    pub complete: bool,
+    /// Per fused box (in frame order), the agents whose boxes went into it.
+    pub sources: Vec<AgentSet>,
+}
+
+impl Provenance {
+    /// Checks the provenance of a frame of `n_boxes` boxes: at most [`MAX_WINDOW_AGENTS`]
+    /// distinct agents, one non-empty source set per box, each within the agent list.
+    pub fn check(&self, n_boxes: usize) -> Result<(), String> {
+        if self.agents.len() > MAX_WINDOW_AGENTS {
+            return Err(format!(
+                "{} agents, more than the limit {MAX_WINDOW_AGENTS}",
+                self.agents.len()
+            ));
+        }
+        let mut seen = std::collections::HashSet::with_capacity(self.agents.len());
+        for (i, a) in self.agents.iter().enumerate() {
+            crate::wire::check_agent_name(a).map_err(|e| format!("agent {i}: {e}"))?;
+            if !seen.insert(a) {
+                return Err(format!("agent {i}: '{a}' is listed twice"));
+            }
+        }
+        if self.sources.len() != n_boxes {
+            return Err(format!(
+                "{} source sets for {n_boxes} boxes",
+                self.sources.len()
+            ));
+        }
+        for (i, s) in self.sources.iter().enumerate() {
+            if s.is_empty() {
+                return Err(format!("box {i}: no source agent"));
+            }
+            if s.bound() > self.agents.len() {
+                return Err(format!(
+                    "box {i}: source agent {} beyond the {} listed",
+                    s.bound() - 1,
+                    self.agents.len()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The names of the agents in `set`.
+    pub fn names<'a>(&'a self, set: &'a AgentSet) -> impl Iterator<Item = &'a str> + 'a {
+        set.iter()
+            .filter_map(|k| self.agents.get(k).map(String::as_str))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sets_as_bits() {
+        let s: AgentSet = [0, 3, 9].into_iter().collect();
+        assert_eq!(s.len(), 3);
+        assert_eq!(s.bound(), 10);
+        assert!(s.contains(3) && !s.contains(4) && !s.contains(100));
+        assert_eq!(s.iter().collect::<Vec<_>>(), vec![0, 3, 9]);
+        // bits 0 and 3 in the first byte, bit 1 in the second.
+        assert_eq!(s.to_bytes(10), vec![0b0000_1001, 0b0000_0010]);
+        assert_eq!(s.to_bytes(16), vec![0b0000_1001, 0b0000_0010]);
+        assert_eq!(AgentSet::from_bytes(&[9, 2, 0, 0]), s);
+        assert_eq!(AgentSet::single(7).bound(), 8);
+        assert_eq!(AgentSet::single(8).to_bytes(9), vec![0, 1]);
+        assert!(AgentSet::from_bytes(&[0, 0]).is_empty());
+        assert_eq!(AgentSet::new().bound(), 0);
+        let mut u = AgentSet::single(1);
+        u.union_with(&s);
+        assert_eq!(u.iter().collect::<Vec<_>>(), vec![0, 1, 3, 9]);
+    }
+
+    #[test]
+    fn check_names_the_problem() {
+        let p = Provenance {
+            agents: vec!["a".into(), "b".into()],
+            complete: true,
+            sources: vec![AgentSet::single(0), [0, 1].into_iter().collect()],
+        };
+        assert_eq!(p.check(2), Ok(()));
+        assert_eq!(p.names(&p.sources[1]).collect::<Vec<_>>(), vec!["a", "b"]);
+        assert!(p
+            .check(3)
+            .unwrap_err()
+            .contains("2 source sets for 3 boxes"));
+        let mut q = p.clone();
+        q.sources[0] = AgentSet::single(2);
+        assert!(q.check(2).unwrap_err().contains("box 0"));
+        q.sources[0] = AgentSet::new();
+        assert!(q.check(2).unwrap_err().contains("no source"));
+        let mut q = p.clone();
+        q.agents[1] = "a".into();
+        assert!(q.check(2).unwrap_err().contains("twice"));
+        q.agents[1] = "a/b".into();
+        assert!(q.check(2).unwrap_err().starts_with("agent 1"));
+    }
+}
