@@ -148,6 +148,51 @@ pub fn table(rows: &[Row]) -> String {
     s
 }
 
+/// Distance-matched (nuScenes benchmark) figures as a Markdown table, one row per named result.
+pub fn detection_table(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
+    let mut s = String::from("| predictions | precision | recall | mAP | NDS | mATE (m) | mASE | mAOE (rad) | mAVE (m/s) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (name, m) in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
+            name,
+            cell(m.precision, 4),
+            cell(m.recall, 4),
+            m.m_ap,
+            m.nds,
+            m.m_ate,
+            m.m_ase,
+            m.m_aoe,
+            m.m_ave
+        ));
+    }
+    s
+}
+
+/// Distance-matched figures as CSV.
+pub fn detection_csv(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
+    let mut s =
+        String::from("predictions,precision,recall,mAP,NDS,mATE,mASE,mAOE,mAVE,mAAE,tp,fp,fn\n");
+    let c = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
+    for (name, m) in rows {
+        s.push_str(&format!(
+            "{name},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            c(m.precision),
+            c(m.recall),
+            m.m_ap,
+            m.nds,
+            m.m_ate,
+            m.m_ase,
+            m.m_aoe,
+            m.m_ave,
+            m.m_aae,
+            m.tp,
+            m.fp,
+            m.fn_
+        ));
+    }
+    s
+}
+
 /// The rows as CSV.
 pub fn csv(rows: &[Row]) -> String {
     let mut s = String::from("noise,method,precision,recall,mATE,mASE,mAOE,tp,fp,fn,tp_only_mATE,tp_only_mASE,tp_only_mAOE\n");

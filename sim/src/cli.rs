@@ -2,13 +2,14 @@
 //! and reading predictions against it.
 
 use crate::dataset::{load_nuscenes, GroundTruth};
+use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::town::{generate, TownConfig};
 use anyhow::{bail, Context};
 use clap::Args;
 use std::path::{Path, PathBuf};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd};
-use v2x_protocol::Uncertainty;
+use v2x_protocol::{Uncertainty, NO_ID};
 
 /// Where the ground truth comes from: nuScenes tables, or the synthetic town (the default).
 #[derive(Args, Clone, Debug)]
@@ -146,6 +147,27 @@ pub fn sample_times(
     (known, unknown)
 }
 
+/// How predictions are matched to ground truth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Match {
+    /// By ground-truth id when the file's boxes carry ids, else by distance.
+    Auto,
+    /// By ground-truth id, closest claimant first (the paper's protocol).
+    Id,
+    /// By centre distance, as the nuScenes detection benchmark (AP, TP errors, NDS).
+    Distance,
+}
+
+/// The metrics of a file, by either protocol.
+#[derive(Clone, Debug, serde::Serialize)]
+#[serde(untagged)]
+pub enum Evaluation {
+    /// Matched by id.
+    Id(Metrics),
+    /// Matched by distance.
+    Distance(DetectionMetrics),
+}
+
 /// Scores a results file against the ground truth. Each sample is scored at its time against
 /// the ground truth of that instant: the time is the `v2x_timestamps` entry of the file's meta
 /// when there is one (fused output carries its windows' reference times there), else the time
@@ -153,13 +175,15 @@ pub fn sample_times(
 /// them, mapped back through `replay` when the agents replayed on the real clock). A time within
 /// 1 ms of a frame is that frame; between frames the ground truth is interpolated. Only the
 /// frames the file covers are scored unless `all_frames`, which counts every other frame's
-/// objects as missed. Returns the metrics and a note on coverage.
+/// objects as missed. `how` says how predictions are matched to ground truth. Returns the
+/// metrics and a note on coverage and matching.
 pub fn evaluate_file(
     gt: &GroundTruth,
     path: &Path,
     all_frames: bool,
     replay: Option<ReplayMap>,
-) -> anyhow::Result<(Metrics, String)> {
+    how: Match,
+) -> anyhow::Result<(Evaluation, String)> {
     let mut tokens = gt.tokens.clone();
     let results = read_results(
         path,
@@ -169,6 +193,13 @@ pub fn evaluate_file(
     let (samples, unknown) = sample_times(gt, &results, replay);
     let mut covered = vec![false; gt.frames.len()];
     let mut acc = Accumulator::new();
+    let mut det = DetectionEval::new();
+    let has_ids = results.samples.values().flatten().any(|d| d.id != NO_ID);
+    let by_distance = match how {
+        Match::Id => false,
+        Match::Distance => true,
+        Match::Auto => !has_ids,
+    };
     let mut scored = 0;
     for (key, t, scene) in &samples {
         let near = gt.nearest_frame(*scene, *t);
@@ -184,7 +215,11 @@ pub fn evaluate_file(
                 gt.objects_at(*scene, *t)
             }
         };
-        acc.add_frame(&objects, &results.samples[key]);
+        if by_distance {
+            det.add_frame(&objects, &results.samples[key]);
+        } else {
+            acc.add_frame(&objects, &results.samples[key]);
+        }
         scored += 1;
     }
     if !unknown.is_empty() {
@@ -199,7 +234,11 @@ pub fn evaluate_file(
     if all_frames {
         for (i, f) in gt.frames.iter().enumerate() {
             if !covered[i] {
-                acc.add_frame(&f.objects, &[]);
+                if by_distance {
+                    det.add_frame(&f.objects, &[]);
+                } else {
+                    acc.add_frame(&f.objects, &[]);
+                }
                 missed += 1;
             }
         }
@@ -214,7 +253,22 @@ pub fn evaluate_file(
             String::new()
         }
     );
-    Ok((acc.summary(), note))
+    let matching = match (how, by_distance) {
+        (Match::Auto, true) => {
+            "; matched by centre distance (nuScenes detection benchmark), as no box carries a ground-truth id"
+        }
+        (_, true) => "; matched by centre distance (nuScenes detection benchmark)",
+        (Match::Auto, false) => {
+            "; matched by ground-truth id (the paper's protocol), as the boxes carry ids (--match distance for the nuScenes benchmark)"
+        }
+        (_, false) => "; matched by ground-truth id (the paper's protocol)",
+    };
+    let evaluation = if by_distance {
+        Evaluation::Distance(det.summary())
+    } else {
+        Evaluation::Id(acc.summary())
+    };
+    Ok((evaluation, format!("{note}{matching}")))
 }
 
 /// Reads a file's text with the path in the error.

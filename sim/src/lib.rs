@@ -10,6 +10,7 @@ pub mod bench;
 pub mod certs;
 pub mod cli;
 pub mod dataset;
+pub mod detection_eval;
 pub mod gen;
 pub mod load;
 pub mod metrics;

@@ -10,7 +10,7 @@ use std::time::Instant;
 use v2x_fuser::Method;
 use v2x_protocol::nuscenes_json::write_results;
 use v2x_sim::bench::{self, BenchConfig};
-use v2x_sim::cli::{evaluate_file, DataArgs};
+use v2x_sim::cli::{evaluate_file, DataArgs, Evaluation};
 use v2x_sim::noise::{place_agents, NoiseSetting};
 
 #[derive(Parser)]
@@ -69,6 +69,13 @@ enum Command {
         /// frames the file has).
         #[arg(long)]
         all_frames: bool,
+        /// How predictions are matched to ground truth: `id` (the paper's protocol: by
+        /// ground-truth id, precision, recall, mATE...), `distance` (the nuScenes detection
+        /// benchmark: by centre distance, AP at 0.5/1/2/4 m, TP errors at 2 m, NDS), or `auto`:
+        /// by id when the file's boxes carry ground-truth ids, else by distance (a detector's own
+        /// output has none).
+        #[arg(long = "match", value_enum, default_value = "auto")]
+        matching: v2x_sim::cli::Match,
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
         format: Format,
@@ -276,6 +283,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval {
             data,
             all_frames,
+            matching,
             format,
             replay_start_at,
             replay_speed,
@@ -299,11 +307,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             };
             let gt = data.load()?;
-            let (m, note) = evaluate_file(&gt, &pred, all_frames, replay)?;
+            let (evaluation, note) = evaluate_file(&gt, &pred, all_frames, replay, matching)?;
             eprintln!("{note}");
-            match format {
-                Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
-                Format::Table | Format::Csv => {
+            let csv = format == Format::Csv;
+            match evaluation {
+                e if format == Format::Json => println!("{}", serde_json::to_string_pretty(&e)?),
+                Evaluation::Distance(d) => {
+                    let rows = [(pred.display().to_string(), &d)];
+                    print!(
+                        "{}",
+                        if csv {
+                            bench::detection_csv(&rows)
+                        } else {
+                            bench::detection_table(&rows)
+                        }
+                    );
+                }
+                Evaluation::Id(m) => {
                     let rows = [bench::Row {
                         noise: "-".into(),
                         method: pred.display().to_string(),
@@ -311,7 +331,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     }];
                     print!(
                         "{}",
-                        if format == Format::Csv {
+                        if csv {
                             bench::csv(&rows)
                         } else {
                             bench::table(&rows)

@@ -156,3 +156,54 @@ fn plot_draws_ground_truth_agents_and_fused_boxes() {
     assert!(polygons >= 3 * gt, "{polygons} polygons for {gt} objects");
     assert!(svg.contains("#2ca02c") && svg.contains("#1f77b4") && svg.contains("#ff7f0e"));
 }
+
+#[test]
+fn files_without_ids_are_scored_by_distance() {
+    let dir = tempdir("cli-distance");
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild", "--seed", "4", "--out"])
+        .arg(&dir)
+        .args(TOWN));
+    assert!(ok, "{err}");
+    // A detector's own output: no ground-truth ids.
+    let text = std::fs::read_to_string(dir.join("agent1.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for boxes in v["results"].as_object_mut().unwrap().values_mut() {
+        for b in boxes.as_array_mut().unwrap() {
+            b.as_object_mut().unwrap().remove("instance_token");
+        }
+    }
+    let plain = dir.join("no-ids.json");
+    std::fs::write(&plain, v.to_string()).unwrap();
+    let eval = |file: &std::path::Path, how: &str| {
+        let (ok, json, err) = run(Command::new(bin("v2x-sim"))
+            .args(["eval", "--format", "json", "--match", how])
+            .args(TOWN)
+            .arg(file));
+        assert!(ok, "{err}");
+        (serde_json::from_str::<serde_json::Value>(&json).unwrap(), err)
+    };
+    let (auto, note) = eval(&plain, "auto");
+    assert!(note.contains("no box carries a ground-truth id"), "{note}");
+    let (nds, map) = (auto["NDS"].as_f64().unwrap(), auto["mAP"].as_f64().unwrap());
+    // Mild noise: every box within 2 m (AP 1 there), fewer within 0.5 m; the town has no bus
+    // or bicycle, and those classes score 0 as in the devkit.
+    assert_eq!(auto["recall"].as_f64(), Some(1.0), "{auto}");
+    let car = &auto["per_class"]["car"]["AP"];
+    assert!((car["2"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{auto}");
+    assert!(car["0.5"].as_f64().unwrap() < car["1"].as_f64().unwrap(), "{auto}");
+    assert_eq!(auto["per_class"]["bus"]["mean_AP"].as_f64(), Some(0.0));
+    assert!(map > 0.5 && nds > 0.4 && nds < map, "{auto}");
+    // Ids play no part in distance matching; matched by id, the same boxes find nothing.
+    let (with_ids, _) = eval(&dir.join("agent1.json"), "distance");
+    assert_eq!(with_ids["mAP"], auto["mAP"]);
+    assert_eq!(with_ids["NDS"], auto["NDS"]);
+    let (by_id, _) = eval(&plain, "id");
+    assert_eq!(by_id["recall"].as_f64(), Some(0.0));
+    // A file with ids is matched by id unless asked otherwise.
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["eval"])
+        .args(TOWN)
+        .arg(dir.join("agent1.json")));
+    assert!(ok && err.contains("matched by ground-truth id"), "{err}");
+}

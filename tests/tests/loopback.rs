@@ -3,7 +3,7 @@
 //! recorded results file read back by `eval`.
 
 use v2x_protocol::{wire, Frame};
-use v2x_sim::cli::evaluate_file;
+use v2x_sim::cli::{evaluate_file, Evaluation, Match};
 use v2x_sim::metrics::Accumulator;
 use v2x_sim::run::{agent_view, recorded, run_local, Schedule};
 use v2x_sim::scenario::Scenario;
@@ -67,7 +67,10 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
         &gt.tokens,
     )
     .unwrap();
-    let (m, _) = evaluate_file(&gt, &path, false, None).unwrap();
+    let (m, _) = evaluate_file(&gt, &path, false, None, Match::Id).unwrap();
+    let Evaluation::Id(m) = m else {
+        panic!("matched by id")
+    };
     assert_eq!((m.tp, m.fp, m.fn_), (offline.tp, offline.fp, offline.fn_));
     for (a, b) in [
         (m.m_ate, offline.m_ate),
