@@ -26,7 +26,7 @@ def main(path):
     assert (agent["agent"], agent["kind"], agent["seq"]) == ("rsu1", "infrastructure", 7)
     car, walker = agent["objects"]
     assert (car["class"], car["id"], car["center"]) == ("car", 12, [102.5, -48.0, 1.8]), car
-    assert (walker["class"], walker["size"]) == ("pedestrian", [0.8, 0.6, 1.7]), walker
+    assert (walker["class"], walker["size"], walker["id"]) == ("pedestrian", [0.8, 0.6, 1.7], None), walker
     assert "agents" not in agent and "sources" not in car
     fused = decode(example(doc, "fused-example-bytes"))
     assert (fused["agent"], fused["agents"], fused["complete"]) == ("fuser", ["rsu1", "veh1"], True)

@@ -1,7 +1,7 @@
 """A decoder of v2x-fusion frames, written from docs/wire-format.md alone (wire version 3).
 
 decode(payload) -> dict with agent, kind, seq, capture_us, origin and objects; each object has
-class, center, size (l, w, h), yaw, score, id, std (x, y, z, l, w, h, yaw) and, when present,
+class, center, size (l, w, h), yaw, score, id (None when absent), std (x, y, z, l, w, h, yaw) and, when present,
 velocity and velocity_std. A fused frame also has agents (the window's) and complete, and each of
 its objects sources (the names of the agents that contributed). Raises ValueError on anything the
 specification does not allow.
@@ -121,7 +121,7 @@ def decode(payload):
     objects = []
     for _ in range(count):
         tag = r.u8()
-        if tag & 0xC0 or (tag & 0x0F) >= len(CLASSES):
+        if tag & 0x80 or (tag & 0x0F) >= len(CLASSES):
             raise ValueError(f"invalid tag {tag:#x}")
         name, typical = CLASSES[tag & 0x0F]
         pos_cm = [r.zigzag(32) for _ in range(3)]
@@ -138,8 +138,12 @@ def decode(payload):
             "size": [s / 100 for s in size_cm],
             "yaw": wrap(yaw),
             "score": score / 250,
-            "id": r.varint(32),
+            "id": None,
         }
+        if tag & 0x40:
+            obj["id"] = int.from_bytes(r.raw(4), "little")
+            if obj["id"] == 0xFFFFFFFF:
+                raise ValueError("id 4294967295 is written by leaving the id out")
         has_std, has_vel = bool(tag & 0x10), bool(tag & 0x20)
         if has_vel:
             obj["velocity"] = [r.zigzag(32) * 0.1 for _ in range(2)]

@@ -4,6 +4,7 @@
 //!
 //! Run: `cargo run --release -p v2x-protocol --example wire_sizes`
 
+use v2x_protocol::nuscenes_json::stable_id;
 use v2x_protocol::wire::{encode, encode_json, encode_plain_f32};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
 
@@ -18,7 +19,8 @@ fn uniform(mut state: u64) -> impl FnMut() -> f64 {
 }
 
 /// A deterministic urban-like frame: objects of mixed classes within 70 m of the agent, sizes
-/// within +-15% of typical, ground-truth ids in the hundreds.
+/// within +-15% of typical, ground-truth ids as the simulation gives them (hashes of instance
+/// tokens).
 fn urban_frame(n: usize) -> Frame {
     let mut next = uniform(0x9E37_79B9_7F4A_7C15);
     let mix = [
@@ -51,7 +53,7 @@ fn urban_frame(n: usize) -> Frame {
                 std: Uncertainty::uniform(0.5, 0.1, 5f64.to_radians()),
                 pos_cov: None,
                 velocity: None,
-                id: 100 + i as u32,
+                id: stable_id(&format!("instance-{i}")),
             }
         })
         .collect();
@@ -101,6 +103,22 @@ fn main() {
             per(w),
             per(p),
             per(j)
+        );
+    }
+    println!();
+    println!("| objects | without ids (a detector's own boxes): bytes/frame | bytes/object | saved per object |");
+    println!("|---:|---:|---:|---:|");
+    for n in [1usize, 25, 75, 250] {
+        let with = encode(&urban_frame(n)).expect("frame encodes").len();
+        let mut f = urban_frame(n);
+        for d in &mut f.detections {
+            d.id = v2x_protocol::NO_ID;
+        }
+        let w = encode(&f).expect("frame encodes").len();
+        println!(
+            "| {n} | {w} | {:.1} | {:.2} |",
+            w as f64 / n as f64,
+            (with as f64 - w as f64) / n as f64
         );
     }
     println!();

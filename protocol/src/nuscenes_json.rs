@@ -6,8 +6,8 @@
 //! extension fields: `translation_std` [3], `size_std` [3] (w, l, h order), `yaw_std` (rad),
 //! `velocity_std` [2] (m/s; a `velocity` counts only with it),
 //! `translation_cov` [9] (row-major 3x3, m^2), `instance_token` (the ground-truth object) and
-//! `instance_id` (the object's number in the ground truth's instance order, written when no token
-//! is known, e.g. by the fuser node's recorder).
+//! `instance_id` (the object's id, [`stable_id`] of its token, written when no token is known,
+//! e.g. by the fuser node's recorder).
 //! Errors name the file, the sample token, the box index and the field.
 
 use crate::{limits, wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
@@ -49,11 +49,28 @@ impl fmt::Display for JsonError {
 
 impl std::error::Error for JsonError {}
 
-/// Maps instance tokens (strings) to the compact `u32` object ids detections carry.
+/// The object id of an instance token, the same in every process: the 32-bit FNV-1a hash of its
+/// UTF-8 bytes, with `NO_ID` (4294967295) moved to 4294967294.
+pub fn stable_id(token: &str) -> u32 {
+    let mut h: u32 = 0x811c_9dc5;
+    for b in token.bytes() {
+        h ^= b as u32;
+        h = h.wrapping_mul(0x0100_0193);
+    }
+    if h == NO_ID {
+        NO_ID - 1
+    } else {
+        h
+    }
+}
+
+/// Maps instance tokens (strings) to the compact `u32` object ids detections carry: each token's
+/// [`stable_id`], so that processes reading different files agree on every object's id.
 #[derive(Debug, Clone, Default)]
 pub struct TokenTable {
     ids: HashMap<String, u32>,
-    names: Vec<String>,
+    names: HashMap<u32, String>,
+    collisions: usize,
 }
 
 impl TokenTable {
@@ -62,15 +79,28 @@ impl TokenTable {
         Self::default()
     }
 
-    /// The id of a token, assigning the next free one to a new token.
+    /// The id of a token: its [`stable_id`]. Should two tokens of one table share a hash (odds
+    /// about n^2 / 2^33 for n tokens), the later one takes the next free id and the collision is
+    /// counted ([`TokenTable::collisions`]): its id then depends on the order of interning.
     pub fn intern(&mut self, token: &str) -> u32 {
         if let Some(&id) = self.ids.get(token) {
             return id;
         }
-        let id = self.names.len() as u32;
-        self.names.push(token.to_string());
+        let mut id = stable_id(token);
+        if self.names.contains_key(&id) {
+            self.collisions += 1;
+            while self.names.contains_key(&id) || id == NO_ID {
+                id = id.wrapping_add(1);
+            }
+        }
+        self.names.insert(id, token.to_string());
         self.ids.insert(token.to_string(), id);
         id
+    }
+
+    /// Tokens that did not get their own [`stable_id`] because another token had it.
+    pub fn collisions(&self) -> usize {
+        self.collisions
     }
 
     /// The id of a known token.
@@ -80,7 +110,7 @@ impl TokenTable {
 
     /// The token of an id, if the id was interned.
     pub fn name(&self, id: u32) -> Option<&str> {
-        self.names.get(id as usize).map(String::as_str)
+        self.names.get(&id).map(String::as_str)
     }
 
     /// Number of tokens.
@@ -751,6 +781,35 @@ mod tests {
             r.samples["s1"][0].pos_cov,
             Some([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 1.0]])
         );
+    }
+
+    #[test]
+    fn ids_are_hashes_of_tokens_whatever_the_order() {
+        // FNV-1a 32 of "" and "a".
+        assert_eq!(stable_id(""), 0x811c_9dc5);
+        assert_eq!(stable_id("a"), 0xe40c_292c);
+        let tokens = ["4a1d", "b2c3", "ffee01", "a"];
+        let mut one = TokenTable::new();
+        let mut other = TokenTable::new();
+        for t in tokens {
+            one.intern(t);
+        }
+        for t in tokens.iter().rev().take(2) {
+            other.intern(t);
+        }
+        for t in ["a", "ffee01"] {
+            assert_eq!(one.get(t), other.get(t), "{t}");
+            assert_eq!(one.get(t), Some(stable_id(t)));
+            assert_eq!(one.name(stable_id(t)), Some(t));
+        }
+        // "1aa9" and "25054" share a hash: the second one interned moves on, counted.
+        assert_eq!(stable_id("1aa9"), stable_id("25054"));
+        let mut t = TokenTable::new();
+        assert_eq!(t.intern("1aa9"), 0x0bcd_d871);
+        assert_eq!(t.intern("25054"), 0x0bcd_d872);
+        assert_eq!(t.intern("1aa9"), 0x0bcd_d871);
+        assert_eq!((t.collisions(), t.len()), (1, 2));
+        assert_eq!(t.name(0x0bcd_d872), Some("25054"));
     }
 
     #[test]

@@ -23,7 +23,7 @@ use crate::limits::{
 };
 use crate::{
     keys, wrap_angle, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty,
-    Velocity,
+    Velocity, NO_ID,
 };
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -45,7 +45,9 @@ const TAG_STD: u8 = 0x10;
 /// Tag bit: the object carries a velocity.
 const TAG_VEL: u8 = 0x20;
 /// The tag bits this version defines.
-const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD | TAG_VEL;
+/// Tag bit: an object id follows (4 bytes, little-endian); without it the object has none.
+const TAG_ID: u8 = 0x40;
+const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD | TAG_VEL | TAG_ID;
 /// Index meaning "the frame itself" in errors.
 const FRAME: usize = usize::MAX;
 
@@ -171,7 +173,8 @@ struct Object {
     size_delta_cm: [i32; 3],
     yaw: [u8; 2],
     score: u8,
-    id: u32,
+    /// Little-endian id; present exactly when `tag & TAG_ID`.
+    id: Option<[u8; 4]>,
     /// Present exactly when `tag & TAG_STD`.
     std: Option<[u16; 7]>,
     /// Velocity in [`VEL_STEP`] units; present exactly when `tag & TAG_VEL`.
@@ -220,7 +223,9 @@ impl Object {
         w.put(&self.size_delta_cm);
         w.put(&self.yaw);
         w.put(&self.score);
-        w.put(&self.id);
+        if let Some(id) = &self.id {
+            w.put(id);
+        }
         if let Some(v) = &self.vel {
             w.put(v);
         }
@@ -241,7 +246,11 @@ impl Object {
             size_delta_cm: r.take()?,
             yaw: r.take()?,
             score: r.take()?,
-            id: r.take()?,
+            id: if tag & TAG_ID != 0 {
+                Some(r.take()?)
+            } else {
+                None
+            },
             vel: if has_vel { Some(r.take()?) } else { None },
             std: if has_std { Some(r.take()?) } else { None },
             vel_std: if has_std && has_vel {
@@ -427,13 +436,16 @@ pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec
         if vel.is_some() {
             tag |= TAG_VEL;
         }
+        if d.id != NO_ID {
+            tag |= TAG_ID;
+        }
         objects.push(Object {
             tag,
             pos_cm,
             size_delta_cm,
             yaw: yaw.to_le_bytes(),
             score: (d.score * SCORE_STEPS).round() as u8,
-            id: d.id,
+            id: (d.id != NO_ID).then(|| d.id.to_le_bytes()),
             vel: vel.map(|(v, _)| v),
             std: own.then_some(std_codes),
             vel_std: if own { vel.map(|(_, s)| s) } else { None },
@@ -669,6 +681,14 @@ pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeEr
             field: "class",
             value: (o.tag & TAG_CLASS) as i64,
         })?;
+        if o.id == Some(NO_ID.to_le_bytes()) {
+            // "No id" is said by leaving the id out.
+            return Err(DecodeError::OutOfRange {
+                index: i,
+                field: "id",
+                value: NO_ID as i64,
+            });
+        }
         if o.tag & !TAG_KNOWN != 0 {
             return Err(DecodeError::OutOfRange {
                 index: i,
@@ -734,7 +754,7 @@ pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeEr
             std,
             pos_cov: None,
             velocity,
-            id: o.id,
+            id: o.id.map_or(NO_ID, u32::from_le_bytes),
         });
         if let (Some(len), Some(h)) = (mask_len, &head) {
             let set = AgentSet::from_bytes(r.take_bytes(len)?);

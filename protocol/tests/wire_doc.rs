@@ -2,7 +2,7 @@
 //! describes, and that frame encodes to exactly those bytes.
 
 use v2x_protocol::{
-    wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty, Velocity,
+    wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty, Velocity, NO_ID,
 };
 
 /// The example frame of the document, field by field.
@@ -37,7 +37,7 @@ fn documented_frame() -> Frame {
                 std: Uncertainty::uniform(0.3, 0.1, 5f64.to_radians()),
                 pos_cov: None,
                 velocity: None,
-                id: 300,
+                id: NO_ID,
             },
         ],
     }
@@ -104,7 +104,7 @@ fn the_documented_bytes_are_the_documented_frame() {
     let (car, walker) = (&decoded.detections[0], &decoded.detections[1]);
     assert_eq!(
         (car.class, car.id, walker.class, walker.id),
-        (Class::Car, 12, Class::Pedestrian, 300)
+        (Class::Car, 12, Class::Pedestrian, NO_ID)
     );
     assert_eq!(car.center, [102.5, -48.0, 1.8]);
     assert_eq!(car.size, [4.6, 1.95, 1.75]);

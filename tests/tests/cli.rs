@@ -181,7 +181,10 @@ fn files_without_ids_are_scored_by_distance() {
             .args(TOWN)
             .arg(file));
         assert!(ok, "{err}");
-        (serde_json::from_str::<serde_json::Value>(&json).unwrap(), err)
+        (
+            serde_json::from_str::<serde_json::Value>(&json).unwrap(),
+            err,
+        )
     };
     let (auto, note) = eval(&plain, "auto");
     assert!(note.contains("no box carries a ground-truth id"), "{note}");
@@ -191,7 +194,10 @@ fn files_without_ids_are_scored_by_distance() {
     assert_eq!(auto["recall"].as_f64(), Some(1.0), "{auto}");
     let car = &auto["per_class"]["car"]["AP"];
     assert!((car["2"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{auto}");
-    assert!(car["0.5"].as_f64().unwrap() < car["1"].as_f64().unwrap(), "{auto}");
+    assert!(
+        car["0.5"].as_f64().unwrap() < car["1"].as_f64().unwrap(),
+        "{auto}"
+    );
     assert_eq!(auto["per_class"]["bus"]["mean_AP"].as_f64(), Some(0.0));
     assert!(map > 0.5 && nds > 0.4 && nds < map, "{auto}");
     // Ids play no part in distance matching; matched by id, the same boxes find nothing.

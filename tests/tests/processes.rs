@@ -35,7 +35,18 @@ fn agents_and_fuser_as_separate_processes() {
         "9",
     ];
     let out = Command::new(bin("v2x-sim"))
-        .args(["gen", "--noise", "mild+large", "--seed", "3", "--out"])
+        // A sensing range, so that each agent sees objects the other does not: each process
+        // then reads a different set of instance tokens, and the ids must still agree.
+        .args([
+            "gen",
+            "--noise",
+            "mild+large",
+            "--seed",
+            "3",
+            "--range",
+            "60",
+            "--out",
+        ])
         .arg(&dir)
         .args(town)
         .output()
@@ -137,11 +148,15 @@ fn agents_and_fuser_as_separate_processes() {
         String::from_utf8_lossy(&out.stderr)
     );
     let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Every fused box carries its object's id: had the two processes numbered the objects each
+    // its own way, the boxes only the roadside unit saw would be false positives.
     assert_eq!(m["precision"], 1.0, "{m}");
-    assert_eq!(m["recall"], 1.0, "{m}");
-    // mild+large: fused error close to the mild agent's (about 0.6 m) and far below the large one's
+    // About half the town lies beyond both agents' 60 m (252 of 510 boxes seen).
+    let recall = m["recall"].as_f64().unwrap();
+    assert!((0.45..0.55).contains(&recall), "{m}");
+    // mild+large: the boxes both saw near the mild agent's error, the roadside unit's own larger.
     let ate = m["mATE"].as_f64().unwrap();
-    assert!(ate < 0.8, "{ate}");
+    assert!(ate < 2.2, "{ate}");
 }
 
 fn sigterm(child: &std::process::Child) {

@@ -687,3 +687,37 @@ proptest! {
         assert_decoded_reencodes(&bytes);
     }
 }
+
+#[test]
+fn ids_take_four_bytes_and_none_takes_none() {
+    let mut f = sample_frame(3);
+    f.detections[0].id = 7;
+    f.detections[1].id = 0xdead_beef;
+    f.detections[2].id = NO_ID;
+    let bytes = encode(&f).unwrap();
+    let g = decode(&bytes).unwrap();
+    let ids: Vec<u32> = g.detections.iter().map(|d| d.id).collect();
+    assert_eq!(ids, vec![7, 0xdead_beef, NO_ID]);
+    let (_, objects) = parts(&f);
+    assert_eq!(objects[0].tag & TAG_ID, TAG_ID);
+    assert_eq!(objects[1].id, Some([0xef, 0xbe, 0xad, 0xde]));
+    assert_eq!((objects[2].tag & TAG_ID, objects[2].id), (0, None));
+    // Every id costs the same four bytes; leaving it out saves them.
+    let mut small = f.clone();
+    small.detections[1].id = 1;
+    assert_eq!(encode(&small).unwrap().len(), bytes.len());
+    let mut none = f.clone();
+    none.detections[0].id = NO_ID;
+    assert_eq!(encode(&none).unwrap().len(), bytes.len() - 4);
+    // "No id" written as an id is refused: the decoder accepts one spelling of each frame.
+    let (h, mut o) = parts(&f);
+    o[0].id = Some(NO_ID.to_le_bytes());
+    assert!(matches!(
+        decode(&assemble(&h, None, &o)),
+        Err(DecodeError::OutOfRange {
+            index: 0,
+            field: "id",
+            ..
+        })
+    ));
+}

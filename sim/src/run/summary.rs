@@ -300,3 +300,74 @@ pub fn print_table(s: &Summary) {
 fn f(v: Option<f64>) -> String {
     v.map_or("-".into(), |x| format!("{x:.2}"))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::town::{generate, TownConfig};
+
+    /// A run of `n` frames whose fuser published the exact ground truth for the frames `fused`
+    /// says, and nothing for the others.
+    fn run_with(fused: impl Fn(usize) -> bool, reached_frames: usize) -> Summary {
+        let scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
+        let gt = generate(&TownConfig {
+            scenes: 1,
+            seconds: 2.0,
+            hz: 10.0,
+            seed: 5,
+        });
+        let schedule = Schedule::of(&gt, 2.0);
+        let mut outcome = FuserOutcome {
+            stats: Default::default(),
+            fused: BTreeMap::new(),
+            reached_us: 0,
+            epoch_us: 0,
+        };
+        for (k, &gi) in schedule.frames.iter().enumerate() {
+            let f = &gt.frames[gi];
+            if fused(k) {
+                let boxes = f.objects.iter().map(|o| o.as_detection()).collect();
+                outcome.fused.insert(f.timestamp_us, boxes);
+            }
+            if k < reached_frames {
+                outcome.reached_us = f.timestamp_us;
+            }
+        }
+        summarize(&scenario, &gt, &schedule, &outcome, &BTreeMap::new(), 2.0)
+    }
+
+    #[test]
+    fn windows_never_fused_count_their_objects_as_missed() {
+        let all = run_with(|_| true, 20);
+        assert_eq!(
+            (all.fused.precision, all.fused.recall),
+            (Some(1.0), Some(1.0))
+        );
+        let n = all.fused.tp;
+        // Every other frame lost: the even frames' objects are found, the odd ones' missed.
+        let half = run_with(|k| k % 2 == 0, 20);
+        assert_eq!(half.fused.precision, Some(1.0));
+        assert_eq!(
+            half.fused.tp + half.fused.fn_,
+            n,
+            "every scheduled frame scored"
+        );
+        let even: usize = (0..20).step_by(2).map(frame_objects).sum();
+        assert_eq!(half.fused.tp, even);
+        assert!(half.fused.recall.unwrap() < 0.6 && half.fused.recall.unwrap() > 0.4);
+        // Frames after the fuser stopped are not held against it.
+        let early = run_with(|k| k < 10, 10);
+        assert_eq!(early.fused.recall, Some(1.0));
+    }
+
+    fn frame_objects(k: usize) -> usize {
+        let gt = generate(&TownConfig {
+            scenes: 1,
+            seconds: 2.0,
+            hz: 10.0,
+            seed: 5,
+        });
+        let schedule = Schedule::of(&gt, 2.0);
+        gt.frames[schedule.frames[k]].objects.len()
+    }
+}
