@@ -4,7 +4,11 @@
 //! z = (sum R_n^-1)^-1 sum R_n^-1 y_n and P = (sum R_n^-1)^-1 over the M members, R_n being the
 //! member's covariance: a full 3x3 block for the centre when the member carries one, diagonal
 //! otherwise, and diagonal for size and yaw. Yaw is circular: each member's yaw is unwrapped
-//! against the most certain member's before the weighted sum, and the result is wrapped.
+//! against the member with the smallest yaw std before the weighted sum, and the result is
+//! wrapped. A member more than pi/2 and more than 4 combined stds from that reference (a heading
+//! turned by pi, not noise) is turned back by pi: for the symmetric barrier (yaw period pi) that
+//! is the same box; for the other classes a detector flipped its heading, and the fused yaw
+//! variance grows by q pi^2, q being the flipped members' share of the yaw weight.
 //! Velocities are fused the same way over the members that have one. The fused detection carries
 //! P's stds, the highest member score, and the id of the most certain member (smallest sum of
 //! variances; ties go to the earliest member).
@@ -32,6 +36,41 @@ pub fn most_certain(members: &[&Detection]) -> usize {
         }
     }
     best
+}
+
+/// How many combined stds apart two headings must be (beyond pi/2) to be taken as a flip.
+pub const FLIP_SIGMAS: f64 = 4.0;
+
+/// WLS of the members' yaws (`docs/method.md` §2), unwrapped against the member with the
+/// smallest yaw std; members more than pi/2 from it and beyond [`FLIP_SIGMAS`] of their combined
+/// std (so not explained by noise) are turned by pi. With yaw period pi that costs nothing; with
+/// 2 pi (a flipped heading) the fused variance is P + q pi^2 for the share q of yaw weight that
+/// was flipped. Returns (yaw, variance).
+pub fn fuse_yaw(members: &[&Detection], period: f64) -> (f64, f64) {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let reference = members
+        .iter()
+        .enumerate()
+        .min_by(|(i, a), (j, b)| a.std.yaw.total_cmp(&b.std.yaw).then(i.cmp(j)))
+        .map(|(_, m)| *m)
+        .expect("non-empty group");
+    let ref_var = reference.std.yaw * reference.std.yaw;
+    let reference = reference.yaw;
+    let (mut flipped, mut total) = (0.0, 0.0);
+    let (yaw, var) = wls_scalar(members.iter().map(|m| {
+        let r = m.std.yaw * m.std.yaw;
+        let mut d = wrap_angle(m.yaw - reference);
+        total += 1.0 / r;
+        if d.abs() > FRAC_PI_2 && d * d > FLIP_SIGMAS.powi(2) * (r + ref_var) {
+            d = wrap_angle(d + PI);
+            if period > PI {
+                flipped += 1.0 / r;
+            }
+        }
+        (reference + d, r)
+    }));
+    let q = if total > 0.0 { flipped / total } else { 0.0 };
+    (wrap_angle(yaw), var + q * PI * PI)
 }
 
 /// Fuses a non-empty group of detections of one object with WLS-3D.
@@ -95,19 +134,7 @@ fn finish(
         size[k] = z;
         size_std[k] = p.sqrt();
     }
-    // Yaw: unwrap against the member with the smallest yaw std.
-    let reference = members
-        .iter()
-        .enumerate()
-        .min_by(|(i, a), (j, b)| a.std.yaw.total_cmp(&b.std.yaw).then(i.cmp(j)))
-        .map(|(_, m)| m.yaw)
-        .expect("non-empty group");
-    let (yaw, yaw_var) = wls_scalar(members.iter().map(|m| {
-        (
-            reference + wrap_angle(m.yaw - reference),
-            m.std.yaw * m.std.yaw,
-        )
-    }));
+    let (yaw, yaw_var) = fuse_yaw(members, members[best].class.yaw_period());
     let pos = match full {
         Some(p) => [p[0][0].sqrt(), p[1][1].sqrt(), p[2][2].sqrt()],
         None => [0.0; 3],
@@ -130,7 +157,7 @@ fn finish(
         class: members[best].class,
         center,
         size,
-        yaw: wrap_angle(yaw),
+        yaw,
         score: members.iter().map(|m| m.score).fold(f64::MIN, f64::max),
         std: Uncertainty {
             pos,
@@ -201,6 +228,51 @@ mod tests {
             "{}",
             f.yaw.to_degrees()
         );
+    }
+
+    #[test]
+    fn barriers_have_period_pi() {
+        // 0.05 and pi - 0.05: the same barrier orientation (symmetric), not 90 degrees.
+        let mut a = det([0.0; 3], 0.05, 1.0, 0.1, 1);
+        let mut b = det([0.0; 3], PI - 0.05, 1.0, 0.1, 2);
+        a.class = Class::Barrier;
+        b.class = Class::Barrier;
+        let f = fuse_group(&[&a, &b]);
+        assert!(f.yaw.abs() < 1e-12, "{}", f.yaw);
+        assert!(
+            (f.std.yaw - 0.1 / 2f64.sqrt()).abs() < 1e-12,
+            "no flip for a barrier"
+        );
+        // A car at the same two yaws is one flipped heading: it keeps the first (most certain
+        // on ties) member's direction.
+        a.class = Class::Car;
+        b.class = Class::Car;
+        let f = fuse_group(&[&a, &b]);
+        assert!(f.yaw.abs() < 1e-12, "{}", f.yaw);
+    }
+
+    #[test]
+    fn a_flipped_heading_is_aligned_and_widens_the_std() {
+        // 0.3 rad with std 0.05, and the same car seen at 0.3 + pi with std 0.1.
+        let a = det([0.0; 3], 0.3, 1.0, 0.05, 1);
+        let b = det([0.0; 3], wrap_angle(0.3 + PI), 1.0, 0.1, 2);
+        for f in [fuse_group(&[&a, &b]), fuse_group(&[&b, &a])] {
+            assert!((f.yaw - 0.3).abs() < 1e-12, "{}", f.yaw);
+            // P = 1 / (400 + 100) = 0.002; q = 100 / 500 = 0.2: var = 0.002 + 0.2 pi^2.
+            let want = (0.002 + 0.2 * PI * PI).sqrt();
+            assert!((f.std.yaw - want).abs() < 1e-12, "{}", f.std.yaw);
+        }
+        // Members within pi/2 are not flipped: 0 and 1.5 rad, equal stds, average to 0.75.
+        let c = det([0.0; 3], 0.0, 1.0, 0.1, 1);
+        let d = det([0.0; 3], 1.5, 1.0, 0.1, 2);
+        assert!((fuse_group(&[&c, &d]).yaw - 0.75).abs() < 1e-12);
+        // Nor beyond pi/2 when the stds explain it: 0 and 2 rad at 60 degrees each (4 combined
+        // stds are 5.9 rad) average to 1, with the plain WLS std.
+        let c = det([0.0; 3], 0.0, 1.0, 60f64.to_radians(), 1);
+        let d = det([0.0; 3], 2.0, 1.0, 60f64.to_radians(), 2);
+        let f = fuse_group(&[&c, &d]);
+        assert!((f.yaw - 1.0).abs() < 1e-12);
+        assert!((f.std.yaw - 60f64.to_radians() / 2f64.sqrt()).abs() < 1e-12);
     }
 
     #[test]
