@@ -56,6 +56,16 @@ fn documented_fused() -> (Frame, Provenance) {
     (f, p)
 }
 
+/// With `PRINT_WIRE_EXAMPLE` set, prints the bytes the encoder writes (to update the document).
+fn print_if_asked(encoded: &[u8]) {
+    if std::env::var_os("PRINT_WIRE_EXAMPLE").is_some() {
+        for b in encoded {
+            print!("{b:02x} ");
+        }
+        println!();
+    }
+}
+
 /// The hex bytes of a document's example block (between the `NAME` markers).
 fn documented_bytes(name: &str) -> Vec<u8> {
     let doc = std::fs::read_to_string(concat!(
@@ -83,12 +93,7 @@ fn the_documented_bytes_are_the_documented_frame() {
     let bytes = documented_bytes("example-bytes");
     let frame = documented_frame();
     let encoded = wire::encode(&frame).unwrap();
-    if std::env::var_os("PRINT_WIRE_EXAMPLE").is_some() {
-        for b in &encoded {
-            print!("{b:02x} ");
-        }
-        println!();
-    }
+    print_if_asked(&encoded);
     assert_eq!(
         encoded, bytes,
         "encode(documented frame) differs from the document's bytes"
@@ -124,12 +129,7 @@ fn the_documented_fused_bytes_are_the_documented_fused_frame() {
     let bytes = documented_bytes("fused-example-bytes");
     let (frame, provenance) = documented_fused();
     let encoded = wire::encode_with(&frame, Some(&provenance)).unwrap();
-    if std::env::var_os("PRINT_WIRE_EXAMPLE").is_some() {
-        for b in &encoded {
-            print!("{b:02x} ");
-        }
-        println!();
-    }
+    print_if_asked(&encoded);
     assert_eq!(
         encoded, bytes,
         "encode(documented fused frame) differs from the document's bytes"

@@ -197,14 +197,18 @@ impl DetectionEval {
         self.gt.len()
     }
 
-    /// The devkit's `accumulate` for one class and threshold.
-    fn accumulate(&self, class: Class, th: f64) -> Curves {
-        let npos = self
-            .gt
+    /// Ground-truth boxes of a class over all frames.
+    fn ground_truth(&self, class: Class) -> usize {
+        self.gt
             .iter()
             .flatten()
             .filter(|g| g.class == class)
-            .count();
+            .count()
+    }
+
+    /// The devkit's `accumulate` for one class and threshold.
+    fn accumulate(&self, class: Class, th: f64) -> Curves {
+        let npos = self.ground_truth(class);
         if npos == 0 {
             return Curves::no_predictions();
         }
@@ -331,12 +335,7 @@ impl DetectionEval {
             for (k, e) in errs.iter().enumerate() {
                 tp_by_metric[k].extend(*e);
             }
-            let n_gt = self
-                .gt
-                .iter()
-                .flatten()
-                .filter(|g| g.class == class)
-                .count();
+            let n_gt = self.ground_truth(class);
             tp2 += c.tp;
             fp2 += c.fp;
             npos += n_gt;

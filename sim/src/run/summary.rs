@@ -306,10 +306,8 @@ mod tests {
     use super::*;
     use crate::town::{generate, TownConfig};
 
-    /// A run of `n` frames whose fuser published the exact ground truth for the frames `fused`
-    /// says, and nothing for the others.
-    fn run_with(fused: impl Fn(usize) -> bool, reached_frames: usize) -> Summary {
-        let scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
+    /// A 2 s town at 10 Hz and its schedule.
+    fn town() -> (GroundTruth, Schedule) {
         let gt = generate(&TownConfig {
             scenes: 1,
             seconds: 2.0,
@@ -317,6 +315,14 @@ mod tests {
             seed: 5,
         });
         let schedule = Schedule::of(&gt, 2.0);
+        (gt, schedule)
+    }
+
+    /// A run of the town's 20 frames whose fuser published the exact ground truth for the frames
+    /// `fused` says, and nothing for the others; it stopped after `reached_frames`.
+    fn run_with(fused: impl Fn(usize) -> bool, reached_frames: usize) -> Summary {
+        let scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
+        let (gt, schedule) = town();
         let mut outcome = FuserOutcome {
             stats: Default::default(),
             fused: BTreeMap::new(),
@@ -361,13 +367,7 @@ mod tests {
     }
 
     fn frame_objects(k: usize) -> usize {
-        let gt = generate(&TownConfig {
-            scenes: 1,
-            seconds: 2.0,
-            hz: 10.0,
-            seed: 5,
-        });
-        let schedule = Schedule::of(&gt, 2.0);
+        let (gt, schedule) = town();
         gt.frames[schedule.frames[k]].objects.len()
     }
 }
