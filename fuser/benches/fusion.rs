@@ -1,5 +1,6 @@
 //! Time per fusion step: csba-wls (and csba-wls+) for 2 agents x {10, 25, 80, 200, 1000} objects
-//! at mild, moderate and large noise, {2, 4, 8} agents x 80 objects, and every method at 2 x 80.
+//! at mild, moderate and large noise, {2, 4, 8} agents x 80 objects, every method at 2 x 80, and
+//! the registration of `--align` at 2 x 80.
 //! Scenes have nuScenes-like density (80 objects within 50 m, the area grows with the count)
 //! and class mix.
 //!
@@ -125,5 +126,37 @@ fn bench_methods(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_objects, bench_agents, bench_methods);
+/// Registration of agent 1 to agent 2 at 2 x 80 objects (per window, and pooling 10 windows
+/// in steady state), beside the csba-wls+ step it precedes.
+fn bench_align(c: &mut Criterion) {
+    use v2x_fuser::align::{align, AlignParams, Aligner, ALIGN_WINDOWS};
+    let mut group = c.benchmark_group("align/2x80");
+    group
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .sample_size(30);
+    let p = AlignParams::default();
+    for noise in [NoiseProfile::Mild, NoiseProfile::Moderate] {
+        let s = scene(80, 2, noise, 4);
+        group.bench_with_input(BenchmarkId::new("per-window", noise.name()), &s, |b, s| {
+            b.iter(|| black_box(align(black_box(s), 1, &p)))
+        });
+        let mut pooled = Aligner::new(p, ALIGN_WINDOWS);
+        for _ in 0..ALIGN_WINDOWS {
+            pooled.align(&["a", "b"], &s, 1);
+        }
+        group.bench_with_input(BenchmarkId::new("pooled", noise.name()), &s, |b, s| {
+            b.iter(|| black_box(pooled.align(&["a", "b"], black_box(s), 1)))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_objects,
+    bench_agents,
+    bench_methods,
+    bench_align
+);
 criterion_main!(benches);

@@ -83,6 +83,10 @@ pub struct CsbaParams {
     pub centre: Centre,
     /// How scores combine.
     pub combine: Combine,
+    /// The consistency test of a new member against its group (`docs/method.md` §2.1): the
+    /// chi-square bound on the squared Mahalanobis distance of the member's centre to the
+    /// group's fused centre; a member beyond it starts a group of its own. `None`: no test.
+    pub consistency: Option<f64>,
 }
 
 impl CsbaParams {
@@ -94,6 +98,7 @@ impl CsbaParams {
         dimension: Dimension::Paper,
         centre: Centre::Linear,
         combine: Combine::Sum,
+        consistency: None,
     };
     /// The improved variant `csba-wls+`: a scale-consistent gate, the wrapped orientation
     /// score and the symmetric dimension score (README, "csba-wls+").
@@ -106,6 +111,7 @@ impl CsbaParams {
         dimension: Dimension::LogRatio,
         centre: Centre::Gaussian,
         combine: Combine::LogProduct,
+        consistency: None,
     };
 }
 
@@ -119,6 +125,10 @@ impl Default for CsbaParams {
 /// standard deviations. A true pair's 3D distance (chi, 3 degrees of freedom) exceeds it about
 /// once in 13 million, where the paper's 6 x sigma gate rejects 2.9% of true pairs at mild noise.
 pub const MAHALANOBIS_GATE: f64 = 6.0;
+
+/// The 99.9% quantile of the chi-square distribution with 3 degrees of freedom: a consistent
+/// member's squared centre distance to its group exceeds it once in a thousand.
+pub const CHI2_3_999: f64 = 16.266;
 
 // ---------------------------------------------------------------------------------------------
 // The three scores

@@ -1,6 +1,7 @@
 //! Late fusion of 3D boxes from several V2X agents.
 //!
-//! The sans-IO core: [`association`] (CSBA-3D), [`fusion`] (WLS-3D), [`geometry`] and
+//! The sans-IO core: [`association`] (CSBA-3D), [`fusion`] (WLS-3D), [`align`] (box-level
+//! registration of agents with a wrong pose), [`geometry`] and
 //! [`baselines`] (the comparison methods), [`method`] (the `Fuser` API: a [`Method`] value fuses
 //! one time step), [`window`] (time alignment of frames) and [`ingest`] (admission of frames:
 //! validation, clock tolerance, bounded agent table). [`offline`] fuses nuScenes results files,
@@ -8,6 +9,7 @@
 //! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
 //! tokio, clap or tracing.
 
+pub mod align;
 pub mod association;
 pub mod baselines;
 pub mod fusion;

@@ -46,6 +46,15 @@ enum Command {
         /// Window width delta t (ms) when files carry capture times.
         #[arg(long, default_value_t = 100.0)]
         window_ms: f64,
+        /// Register every agent to the agent of --align-to by the boxes both see (a rigid shift
+        /// and turn per agent, solved over its last 10 windows) before association: for agents
+        /// whose pose is wrong.
+        #[arg(long)]
+        align: bool,
+        /// With --align: the reference agent, as its position among the inputs (1 = first).
+        /// `v2x-sim gen` writes the roadside unit as agent2.json.
+        #[arg(long, default_value_t = 2, requires = "align")]
+        align_to: usize,
         /// Where to write the fused results file.
         #[arg(long, short)]
         output: PathBuf,
@@ -72,6 +81,11 @@ enum Command {
         limits: IngestArgs,
         #[command(flatten)]
         motion: MotionArgs,
+        /// Register every agent to the first roadside unit (else the first agent) by the boxes
+        /// both see (a rigid shift and turn per agent, solved over its last 10 windows) before
+        /// association: for agents whose pose is wrong.
+        #[arg(long)]
+        align: bool,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
         /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
         /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -219,16 +233,26 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             default_std,
             motion,
             window_ms,
+            align,
+            align_to,
             output,
             inputs,
         } => {
             if !(window_ms > 0.0 && window_ms.is_finite()) {
                 anyhow::bail!("--window-ms must be > 0");
             }
+            if align && !(1..=inputs.len()).contains(&align_to) {
+                anyhow::bail!(
+                    "--align-to {align_to}: there are {} inputs (give 1 to {})",
+                    inputs.len(),
+                    inputs.len()
+                );
+            }
             let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
             let opts = v2x_fuser::offline::OfflineOptions {
                 motion: motion.params()?,
                 window_ms,
+                align: align.then(|| (v2x_fuser::align::AlignParams::default(), align_to - 1)),
             };
             let (samples, n_in, n_out, by_time) =
                 v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
@@ -251,6 +275,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             max_wait_ms,
             limits,
             motion,
+            align,
             record,
             viz,
             duration_s,
@@ -271,6 +296,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 cfg.max_wait_ms = max_wait_ms;
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
+                cfg.align = align.then(v2x_fuser::align::AlignParams::default);
                 cfg.viz = viz.open().await?;
                 let shown = cfg.viz.clone();
                 let session = v2x_protocol::net::open_session(&zenoh).await?;

@@ -2,7 +2,7 @@
 //! A [`Method`] is a value, so CSBA-WLS, its variants, the baselines and the oracle are used the
 //! same way, by name, from the library, the `v2x-fuser fuse` command and the fuser node.
 
-use crate::association::{associate, CsbaParams};
+use crate::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
 use crate::baselines;
 use crate::fusion::fuse_group;
 use std::fmt;
@@ -58,6 +58,10 @@ pub const METHODS: &[(&str, &str)] = &[
     (
         "csba-wls+",
         "csba-wls with a scale-consistent Mahalanobis gate and the wrapped orientation score",
+    ),
+    (
+        "csba-wls+chi2",
+        "csba-wls+ where a member beyond the 99.9% chi-square bound of its group starts its own",
     ),
     (
         "csba-wls+gate",
@@ -186,12 +190,19 @@ impl FromStr for Method {
 }
 
 /// The named CSBA-3D parameter sets: the paper's, ours, and the one-change ablations.
-pub fn csba_variants() -> [(&'static str, CsbaParams); 6] {
+pub fn csba_variants() -> [(&'static str, CsbaParams); 7] {
     let paper = CsbaParams::PAPER;
     let plus = CsbaParams::PLUS;
     [
         ("csba-wls", paper),
         ("csba-wls+", plus),
+        (
+            "csba-wls+chi2",
+            CsbaParams {
+                consistency: Some(CHI2_3_999),
+                ..plus
+            },
+        ),
         (
             "csba-wls+gate",
             CsbaParams {
@@ -238,6 +249,9 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
         };
         let mut taken = vec![false; list.len()];
         for (g, j) in pairs {
+            if !consistent(p, &fused[g], &list[j]) {
+                continue;
+            }
             taken[j] = true;
             groups[g].push(&list[j]);
             sources[g].insert(k);
@@ -252,6 +266,14 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
         }
     }
     Sourced::zip(fused, sources)
+}
+
+/// The chi-square test of a new member against its group's fused box: its squared centre
+/// Mahalanobis distance (with the group's fused and the member's own covariance) within the
+/// bound of `p.consistency`.
+pub fn consistent(p: &CsbaParams, group: &Detection, member: &Detection) -> bool {
+    p.consistency
+        .is_none_or(|bound| mahalanobis(group, member).powi(2) <= bound)
 }
 
 #[cfg(test)]

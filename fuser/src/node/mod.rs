@@ -49,6 +49,9 @@ pub struct NodeConfig {
     /// Motion compensation of each window to its latest capture time (`None`: boxes are fused
     /// as captured).
     pub motion: Option<MotionParams>,
+    /// Registration of every agent to the roadside unit by its boxes before association
+    /// (`None`: agents' poses are trusted).
+    pub align: Option<crate::align::AlignParams>,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
 }
@@ -66,6 +69,7 @@ impl NodeConfig {
             queue: 16,
             log_interval_s: 10.0,
             motion: Some(MotionParams::default()),
+            align: None,
             viz: None,
         }
     }
@@ -366,7 +370,7 @@ pub async fn run(
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
     let worker = tokio::spawn(worker::run(
-        cfg.method, cfg.motion, publisher, clock, job_rx, done_tx,
+        cfg.method, cfg.motion, cfg.align, publisher, clock, job_rx, done_tx,
     ));
     let now = clock.now_us();
     let mut st = State {

@@ -4,6 +4,7 @@
 //! the receive loop, which keeps the statistics.
 
 use super::{Clock, Fused};
+use crate::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
 use crate::motion::{align_window, MotionParams};
 use crate::window::Closed;
 use crate::Method;
@@ -30,15 +31,22 @@ pub(super) struct Done {
 
 /// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire),
 /// stamped with the window's reference time: its latest capture. With `motion`, every frame is
-/// first predicted to that time.
+/// first predicted to that time; with an `aligner`, every agent is then registered to the
+/// roadside unit (`crate::align`).
 pub fn fuse_window(
     method: &Method,
     motion: Option<&MotionParams>,
+    aligner: Option<&mut Aligner>,
     closed: Closed,
     seq: u32,
 ) -> Fused {
     let agents: Vec<String> = closed.frames.keys().cloned().collect();
-    let (t_ref, lists) = align_window(&closed, motion);
+    let (t_ref, mut lists) = align_window(&closed, motion);
+    if let Some(aligner) = aligner {
+        let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
+        let names: Vec<&str> = agents.iter().map(String::as_str).collect();
+        lists = aligner.align(&names, &lists, reference_agent(&kinds)).0;
+    }
     let (detections, sources) = method
         .fuse_sourced(&lists)
         .into_iter()
@@ -65,12 +73,15 @@ pub fn fuse_window(
 pub(super) async fn run(
     method: Method,
     motion: Option<MotionParams>,
+    align: Option<AlignParams>,
     publisher: zenoh::pubsub::Publisher<'static>,
     clock: Clock,
     mut jobs: mpsc::Receiver<Job>,
     done: mpsc::UnboundedSender<Done>,
 ) {
     let mut seq = 0u32;
+    let fresh = || align.map(|p| Aligner::new(p, ALIGN_WINDOWS));
+    let mut aligner = fresh();
     while let Some(job) = jobs.recv().await {
         let Job {
             closed,
@@ -83,13 +94,25 @@ pub(super) async fn run(
             closed.frames.keys().cloned().collect::<Vec<_>>(),
             closed.complete,
         );
+        let mut state = aligner.take();
         let work = tokio::task::spawn_blocking(move || {
-            let mut fused = fuse_window(&method, motion.as_ref(), closed, this_seq);
+            let mut fused = fuse_window(&method, motion.as_ref(), state.as_mut(), closed, this_seq);
             let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
             let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
-            (fused, fit, bytes)
+            (fused, fit, bytes, state)
         })
         .await;
+        // A fusion that panicked took the aligner with it: start a fresh one.
+        let work = match work {
+            Ok((fused, fit, bytes, state)) => {
+                aligner = state;
+                Ok((fused, fit, bytes))
+            }
+            Err(e) => {
+                aligner = fresh();
+                Err(e)
+            }
+        };
         let (fused, fit, error) = match work {
             Ok((fused, fit, Ok(bytes))) => {
                 let error = publisher.put(bytes).await.err().map(|e| e.to_string());
