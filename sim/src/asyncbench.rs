@@ -16,7 +16,7 @@
 use crate::bench::BenchConfig;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
-use crate::noise::{detect, place_agents, NoiseSetting};
+use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::motion::{compensate, MotionParams};
@@ -106,9 +106,14 @@ pub fn run_timing(
                         let objects = gt.objects_at(frame.scene, caps[a]);
                         let draw = if a == 0 { k as u64 } else { draw2 };
                         let noise = &setting.agents[a];
+                        let capture = Capture {
+                            draw,
+                            scene: frame.scene,
+                            t_us: caps[a],
+                        };
                         detect(
                             &objects,
-                            draw,
+                            capture,
                             a,
                             noise,
                             places[a].position,

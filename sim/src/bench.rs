@@ -3,10 +3,12 @@
 //! the noise of a frame depends only on (seed, agent, frame), so results do not depend on threads.
 
 use crate::dataset::GroundTruth;
+use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
-use crate::noise::{detect, place_agents, NoiseSetting};
+use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use rayon::prelude::*;
 use serde::Serialize;
+use v2x_fuser::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
@@ -52,7 +54,7 @@ pub fn agent_detections(
         .map(|(a, noise)| {
             detect(
                 &frame.objects,
-                i as u64,
+                Capture::of(frame, i as u64),
                 a,
                 noise,
                 places[a].position,
@@ -118,6 +120,99 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
             method: "bound".into(),
             metrics: bound,
         });
+    }
+    rows
+}
+
+/// One row of the distance-matched table (`bench --profile`).
+#[derive(Clone, Debug, Serialize)]
+pub struct DetectionRow {
+    /// The noise setting.
+    pub noise: String,
+    /// `agentN`, the method name, or `METHOD --align`.
+    pub method: String,
+    /// The nuScenes detection benchmark's figures.
+    #[serde(flatten)]
+    pub metrics: DetectionMetrics,
+}
+
+/// The distance-matched table (the nuScenes detection benchmark, `bench --profile`): under each
+/// setting, each single agent and each method, and with `align` each method again after the
+/// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::align`], pooling
+/// [`ALIGN_WINDOWS`] frames of a scene.
+pub fn run_detection(
+    gt: &GroundTruth,
+    cfg: &BenchConfig,
+    align_with: Option<&AlignParams>,
+    tick: &(dyn Fn() + Sync),
+) -> Vec<DetectionRow> {
+    let mut rows = Vec::new();
+    for setting in &cfg.settings {
+        let n_agents = setting.agents.len();
+        let n_methods = cfg.methods.len();
+        let slots = n_agents + n_methods * (1 + usize::from(align_with.is_some()));
+        // Scenes in parallel, each scene's frames in order: the aligner pools over windows.
+        let mut scenes: Vec<Vec<usize>> = Vec::new();
+        for (i, f) in gt.frames.iter().enumerate() {
+            match scenes.last_mut() {
+                Some(s) if gt.frames[s[0]].scene == f.scene => s.push(i),
+                _ => scenes.push(vec![i]),
+            }
+        }
+        let names: Vec<String> = (0..n_agents).map(|a| format!("agent{}", a + 1)).collect();
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let evals = scenes
+            .into_par_iter()
+            .fold(
+                || vec![DetectionEval::new(); slots],
+                |mut evals, frames| {
+                    let mut aligner = align_with.map(|p| Aligner::new(*p, ALIGN_WINDOWS));
+                    for i in frames {
+                        let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+                        let objects = &gt.frames[i].objects;
+                        for (a, d) in dets.iter().enumerate() {
+                            evals[a].add_frame(objects, d);
+                        }
+                        for (m, method) in cfg.methods.iter().enumerate() {
+                            evals[n_agents + m].add_frame(objects, &method.fuse(&dets));
+                        }
+                        if let Some(aligner) = &mut aligner {
+                            let kinds: Vec<_> = place_agents(&gt.frames[i], n_agents, cfg.seed)
+                                .iter()
+                                .map(|p| p.kind)
+                                .collect();
+                            let (aligned, _) =
+                                aligner.align(&names, &dets, reference_agent(&kinds));
+                            for (m, method) in cfg.methods.iter().enumerate() {
+                                let slot = n_agents + n_methods + m;
+                                evals[slot].add_frame(objects, &method.fuse(&aligned));
+                            }
+                        }
+                        tick();
+                    }
+                    evals
+                },
+            )
+            .reduce(
+                || vec![DetectionEval::new(); slots],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        x.merge(y);
+                    }
+                    a
+                },
+            );
+        let names = (0..n_agents)
+            .map(|a| format!("agent{}", a + 1))
+            .chain(cfg.methods.iter().map(|m| m.name()))
+            .chain(cfg.methods.iter().map(|m| format!("{m} --align")));
+        for (name, eval) in names.zip(&evals) {
+            rows.push(DetectionRow {
+                noise: setting.name.clone(),
+                method: name,
+                metrics: eval.summary(),
+            });
+        }
     }
     rows
 }

@@ -192,6 +192,17 @@ impl DetectionEval {
         }));
     }
 
+    /// Appends another evaluation's frames after this one's (in order, so that a parallel
+    /// fold-and-reduce over frames gives the same result as one pass).
+    pub fn merge(&mut self, other: DetectionEval) {
+        let offset = self.gt.len();
+        self.gt.extend(other.gt);
+        self.preds.extend(other.preds.into_iter().map(|mut p| {
+            p.frame += offset;
+            p
+        }));
+    }
+
     /// Frames added so far.
     pub fn frames(&self) -> usize {
         self.gt.len()

@@ -9,7 +9,7 @@
 //! `v2x-sim eval` align them in time.
 
 use crate::dataset::GroundTruth;
-use crate::noise::{detect, place_agents, NoiseSetting};
+use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use v2x_protocol::nuscenes_json::{default_meta, Results};
 
 /// When an agent captures.
@@ -139,7 +139,12 @@ pub fn generate(
                 };
                 let places = place_agents(frame, setting.agents.len(), seed);
                 let objects = gt.objects_at(scene, t);
-                let dets = detect(&objects, draw, a, noise, places[a].position, range, seed);
+                let capture = Capture {
+                    draw,
+                    scene,
+                    t_us: t,
+                };
+                let dets = detect(&objects, capture, a, noise, places[a].position, range, seed);
                 times.insert(key.clone(), t.into());
                 r.samples.insert(key, dets);
             }

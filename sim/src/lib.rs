@@ -11,6 +11,7 @@ pub mod certs;
 pub mod cli;
 pub mod dataset;
 pub mod detection_eval;
+pub mod faults;
 pub mod gen;
 pub mod load;
 pub mod metrics;

@@ -34,12 +34,19 @@ enum Format {
 #[derive(Subcommand)]
 enum Command {
     /// Write each agent's noisy detections as nuScenes results files (agent1.json, ...).
+    #[command(after_help = faults_help())]
     Gen {
         #[command(flatten)]
         data: DataArgs,
-        /// Noise: mild, moderate, large, a mix such as mild+large (one per agent), or POS,SIZE,YAW_DEG.
+        /// Noise: mild, moderate, large, realistic, a mix such as mild+large (one per agent), or
+        /// POS,SIZE,YAW_DEG.
         #[arg(long, default_value = "mild+large")]
         noise: String,
+        /// Detector faults, replacing the noise profile's own (none, except for `realistic`):
+        /// `none`, `realistic`, or KEY=VALUE,... (keys below); one for all agents or one per
+        /// agent joined by '+'.
+        #[arg(long)]
+        faults: Option<String>,
         /// Number of agents.
         #[arg(long, default_value_t = 2)]
         agents: usize,
@@ -115,6 +122,15 @@ enum Command {
         /// Directory for --plot.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Instead of Table 2: the nuScenes detection benchmark (distance matching: precision,
+        /// recall, mAP, NDS, mATE...) for every method and single agent under these noise
+        /// settings, comma-separated, e.g. `realistic` (detector faults and pose errors).
+        #[arg(long, conflicts_with_all = ["asynchronous", "plot"])]
+        profile: Option<String>,
+        /// With --profile: every method again after registering each agent to the roadside
+        /// unit by its boxes (`v2x-fuser fuse --align`), rows `METHOD --align`.
+        #[arg(long, requires = "profile")]
+        align: bool,
         /// Instead of Table 2: two agents captured at different instants (10+10 Hz at offsets
         /// 0, 25, 50 and 100 ms, and a 10+20 Hz pair), each fused with and without motion
         /// compensation. --noise is then one setting (default mild); --methods defaults to
@@ -183,6 +199,18 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+fn faults_help() -> String {
+    let mut s = String::from("Fault keys (--faults KEY=VALUE,...; default in brackets):\n");
+    for (k, what) in v2x_sim::faults::FAULT_KEYS {
+        s.push_str(&format!("  {k:<11} {what}\n"));
+    }
+    s.push_str(&format!(
+        "  realistic = {}\n",
+        v2x_sim::faults::Faults::REALISTIC
+    ));
+    s
 }
 
 fn parse_list<T>(
@@ -255,6 +283,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen {
             data,
             noise,
+            faults,
             agents,
             seed,
             range,
@@ -263,7 +292,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
         } => {
             let gt = data.load()?;
-            let setting = NoiseSetting::parse(&noise, agents).map_err(anyhow::Error::msg)?;
+            let mut setting = NoiseSetting::parse(&noise, agents).map_err(anyhow::Error::msg)?;
+            if let Some(f) = &faults {
+                setting
+                    .set_faults(f)
+                    .map_err(|e| anyhow::anyhow!("--faults: {e}"))?;
+            }
             let timings = v2x_sim::gen::Timing::parse(
                 agent_hz.as_deref(),
                 phase_ms.as_deref(),
@@ -349,9 +383,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             format,
             plot: plot_frame,
             out,
+            profile,
+            align,
             asynchronous,
         } => {
             let gt = data.load()?;
+            if let Some(profile) = profile {
+                let cfg = BenchConfig {
+                    methods: parse_list(&methods, Method::all(), |s| s.parse())?,
+                    settings: parse_list(&profile, vec![], |s| NoiseSetting::parse(s, 2))?,
+                    seed,
+                    range,
+                };
+                let start = Instant::now();
+                let params = v2x_fuser::align::AlignParams::default();
+                let rows = bench::run_detection(&gt, &cfg, align.then_some(&params), &|| {});
+                let named: Vec<(String, &v2x_sim::detection_eval::DetectionMetrics)> = rows
+                    .iter()
+                    .map(|r| (format!("{} {}", r.noise, r.method), &r.metrics))
+                    .collect();
+                match format {
+                    Format::Table => {
+                        println!(
+                            "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s\n",
+                            data.describe(&gt),
+                            start.elapsed().as_secs_f64()
+                        );
+                        print!("{}", bench::detection_table(&named));
+                    }
+                    Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+                    Format::Csv => print!("{}", bench::detection_csv(&named)),
+                }
+                return Ok(());
+            }
             if asynchronous {
                 let noise = if noise == "all" { "mild".into() } else { noise };
                 let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;

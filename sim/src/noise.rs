@@ -2,16 +2,20 @@
 //! optional sensing range restricts that) through zero-mean Gaussian noise of its profile,
 //! independent per axis; sizes are clamped to >= 0.05 m, yaws wrapped; each detection reports the
 //! profile's stds and a confidence of base + N(0, 0.05), clamped to [0.01, 1], which does not
-//! depend on the box's own error. Every draw comes from a generator seeded by (seed, agent, frame),
-//! so output is reproducible byte for byte and independent of evaluation order or threads.
+//! depend on the box's own error. An agent's [`Faults`] (misses, false positives, flipped headings,
+//! confused classes, a pose error) come on top, from a stream of their own. Every draw comes from
+//! a generator seeded by (seed, agent, frame), so output is reproducible byte for byte and
+//! independent of evaluation order or threads.
 
 use crate::dataset::{GtFrame, GtObject};
+use crate::faults::{false_positive_class, hidden, look_alike, Faults};
+use crate::faults::{FALSE_POSITIVE_RADIUS, FALSE_POSITIVE_SCORE_DROP};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
+use rand_distr::{Distribution, Poisson, StandardNormal};
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{wrap_angle, AgentKind, Detection, NoiseProfile, Uncertainty, Velocity};
+use v2x_protocol::{wrap_angle, AgentKind, Detection, NoiseProfile, Uncertainty, Velocity, NO_ID};
 
 /// How one agent perceives.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,6 +26,8 @@ pub struct AgentNoise {
     pub velocity_std: f64,
     /// Base confidence.
     pub base_confidence: f64,
+    /// What the agent's detector does wrong besides the Gaussian noise.
+    pub faults: Faults,
     /// The profile name, or "custom".
     pub label: String,
 }
@@ -33,7 +39,35 @@ impl AgentNoise {
             std: p.std(),
             velocity_std: p.velocity_std(),
             base_confidence: p.base_confidence(),
+            faults: Faults::NONE,
             label: p.name().into(),
+        }
+    }
+
+    /// The `realistic` profile: a lidar detector's errors (0.2 m, 0.1 m, 6 degrees, 0.25 m/s,
+    /// confidence 0.8) with [`Faults::REALISTIC`]; the README gives the published figures.
+    pub fn realistic() -> Self {
+        AgentNoise {
+            std: Uncertainty::uniform(0.2, 0.1, 6f64.to_radians()),
+            velocity_std: 0.25,
+            base_confidence: 0.8,
+            faults: Faults::REALISTIC,
+            label: "realistic".into(),
+        }
+    }
+
+    /// `realistic-rsu`: [`AgentNoise::realistic`] for a roadside unit, whose pose is surveyed once
+    /// and does not move: no pose error.
+    pub fn realistic_rsu() -> Self {
+        AgentNoise {
+            faults: Faults {
+                pose_m: 0.0,
+                pose_yaw: 0.0,
+                drift_s: None,
+                ..Faults::REALISTIC
+            },
+            label: "realistic-rsu".into(),
+            ..AgentNoise::realistic()
         }
     }
 
@@ -43,6 +77,7 @@ impl AgentNoise {
             std,
             velocity_std: 0.5,
             base_confidence: 0.7,
+            faults: Faults::NONE,
             label: "custom".into(),
         }
     }
@@ -50,10 +85,16 @@ impl AgentNoise {
 
 impl FromStr for AgentNoise {
     type Err = String;
-    /// A profile name, `POS,SIZE,YAW_DEG`, or `POS,SIZE,YAW_DEG,VEL` (VEL in m/s).
+    /// A profile name (`realistic` included), `POS,SIZE,YAW_DEG`, or `POS,SIZE,YAW_DEG,VEL`
+    /// (VEL in m/s).
     fn from_str(s: &str) -> Result<Self, String> {
         if let Ok(p) = s.parse::<NoiseProfile>() {
             return Ok(AgentNoise::profile(p));
+        }
+        match s {
+            "realistic" => return Ok(AgentNoise::realistic()),
+            "realistic-rsu" => return Ok(AgentNoise::realistic_rsu()),
+            _ => {}
         }
         let parts: Vec<&str> = s.split(',').collect();
         let (stds, vel) = match parts.len() {
@@ -71,8 +112,9 @@ impl FromStr for AgentNoise {
             }
             _ => (s.to_string(), None),
         };
-        let std = v2x_protocol::parse_std(&stds)
-            .map_err(|e| format!("{e} (or POS,SIZE,YAW_DEG,VEL with a velocity std in m/s)"))?;
+        let std = v2x_protocol::parse_std(&stds).map_err(|e| {
+            format!("{e} (or realistic, or POS,SIZE,YAW_DEG,VEL with a velocity std in m/s)")
+        })?;
         let mut n = AgentNoise::custom(std);
         n.label = s.to_string();
         if let Some(v) = vel {
@@ -92,8 +134,19 @@ pub struct NoiseSetting {
 }
 
 impl NoiseSetting {
-    /// Parses `PROFILE` (repeated for `n_agents`) or `P1+P2+...` (one per agent).
+    /// Parses `PROFILE` (repeated for `n_agents`) or `P1+P2+...` (one per agent). `realistic`
+    /// alone gives agent 2, the roadside unit of [`place_agents`], `realistic-rsu`.
     pub fn parse(s: &str, n_agents: usize) -> Result<Self, String> {
+        if s == "realistic" {
+            let mut agents = vec![AgentNoise::realistic(); n_agents.max(1)];
+            if n_agents >= 2 {
+                agents[1] = AgentNoise::realistic_rsu();
+            }
+            return Ok(NoiseSetting {
+                name: s.to_string(),
+                agents,
+            });
+        }
         let parts: Vec<&str> = s.split('+').collect();
         let agents: Vec<AgentNoise> = if parts.len() == 1 {
             vec![parts[0].parse()?; n_agents.max(1)]
@@ -110,6 +163,17 @@ impl NoiseSetting {
             name: s.to_string(),
             agents,
         })
+    }
+
+    /// Replaces the agents' faults: one spec for all, or one per agent joined by '+' (the last
+    /// repeats).
+    pub fn set_faults(&mut self, spec: &str) -> Result<(), String> {
+        let parts: Vec<Faults> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
+        for (a, agent) in self.agents.iter_mut().enumerate() {
+            agent.faults = parts[a.min(parts.len() - 1)];
+        }
+        self.name = format!("{} faults {spec}", self.name);
+        Ok(())
     }
 
     /// The four settings of the paper's Table 2.
@@ -189,41 +253,86 @@ pub fn mix(a: u64, b: u64, c: u64) -> u64 {
     z
 }
 
-/// One agent's detections of `objects` (the ground truth at its capture time). `draw` numbers
-/// the capture (the frame index for an agent that captures on the data's frames), so that every
-/// capture draws its own noise. `range` (m) limits what the agent sees around `position`; `None`
-/// means every object (the paper's setting). Velocity noise comes from a stream of its own, so
-/// that the position, size and yaw noise are the same with or without velocities.
+/// One capture of an agent: which draw it is and when.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Capture {
+    /// Numbers the capture (the frame index for an agent that captures on the data's frames),
+    /// so that every capture draws its own noise.
+    pub draw: u64,
+    /// The scene.
+    pub scene: usize,
+    /// Data time of the capture (us), which the pose error drifts with.
+    pub t_us: u64,
+}
+
+impl Capture {
+    /// The capture of frame number `draw` of `frame`.
+    pub fn of(frame: &GtFrame, draw: u64) -> Self {
+        Capture {
+            draw,
+            scene: frame.scene,
+            t_us: frame.timestamp_us,
+        }
+    }
+}
+
+/// One agent's detections of `objects` (the ground truth at its capture time). `range` (m)
+/// limits what the agent sees around `position`; `None` means every object (the paper's
+/// setting). Velocity noise and faults come from streams of their own, so that the position,
+/// size and yaw noise are the same with or without velocities and faults.
 pub fn detect(
     objects: &[GtObject],
-    draw: u64,
+    capture: Capture,
     agent: usize,
     noise: &AgentNoise,
     position: [f64; 3],
     range: Option<f64>,
     seed: u64,
 ) -> Vec<Detection> {
+    let draw = capture.draw;
     let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, agent as u64 + 1, draw));
     let mut vrng = ChaCha8Rng::seed_from_u64(mix(seed ^ VELOCITY_STREAM, agent as u64 + 1, draw));
+    let mut frng = ChaCha8Rng::seed_from_u64(mix(seed ^ FAULT_STREAM, agent as u64 + 1, draw));
     let s = &noise.std;
+    let f = &noise.faults;
     let mut g = move || -> f64 { StandardNormal.sample(&mut rng) };
     let mut gv = move || -> f64 { StandardNormal.sample(&mut vrng) };
+    let hidden = if f.occlusion > 0.0 {
+        let boxes: Vec<_> = objects.iter().map(|o| (o.center, o.size)).collect();
+        hidden(&boxes, position)
+    } else {
+        vec![false; objects.len()]
+    };
+    let sv = noise.velocity_std;
     let mut out = Vec::with_capacity(objects.len());
-    for o in objects {
-        // Draw for every object, seen or not, so that the range does not shift the stream.
+    for (o, hidden) in objects.iter().zip(hidden) {
+        // Draw for every object, seen or not, so that the range does not shift the streams.
         let e: [f64; 8] = std::array::from_fn(|_| g());
         let ev: [f64; 2] = std::array::from_fn(|_| gv());
-        if let Some(r) = range {
-            if (o.center[0] - position[0]).hypot(o.center[1] - position[1]) > r {
-                continue;
-            }
+        let u: [f64; 4] = std::array::from_fn(|_| frng.gen::<f64>());
+        let r = (o.center[0] - position[0]).hypot(o.center[1] - position[1]);
+        if range.is_some_and(|max| r > max) {
+            continue;
         }
-        let sv = noise.velocity_std;
+        let missed = u[0] >= f.detection_probability(r) || (hidden && u[1] < f.occlusion);
+        if missed {
+            continue;
+        }
+        let flip = if u[2] < f.flip {
+            std::f64::consts::PI
+        } else {
+            0.0
+        };
+        let class = if u[3] < f.confusion {
+            look_alike(o.class)
+        } else {
+            o.class
+        };
         out.push(Detection {
-            class: o.class,
+            class,
             center: std::array::from_fn(|k| o.center[k] + s.pos[k] * e[k]),
             size: std::array::from_fn(|k| (o.size[k] + s.size[k] * e[3 + k]).max(0.05)),
-            yaw: wrap_angle(o.yaw + s.yaw * e[6]),
+            yaw: wrap_angle(o.yaw + s.yaw * e[6] + flip),
             score: (noise.base_confidence + 0.05 * e[7]).clamp(0.01, 1.0),
             std: *s,
             pos_cov: None,
@@ -234,8 +343,70 @@ pub fn detect(
             id: o.id,
         });
     }
+    if f.false_positives > 0.0 {
+        let radius = range.map_or(FALSE_POSITIVE_RADIUS, |r| r.min(FALSE_POSITIVE_RADIUS));
+        let n = Poisson::new(f.false_positives).map_or(0.0, |p| p.sample(&mut frng)) as usize;
+        let with_velocity = objects.iter().any(|o| o.velocity.is_some());
+        for _ in 0..n {
+            let class = false_positive_class(frng.gen());
+            // uniform over the disc's area
+            let r = radius * frng.gen::<f64>().sqrt();
+            let a = frng.gen_range(0.0..std::f64::consts::TAU);
+            let e: [f64; 4] = std::array::from_fn(|_| StandardNormal.sample(&mut frng));
+            let size = class.typical_size();
+            out.push(Detection {
+                class,
+                center: [
+                    position[0] + r * a.cos(),
+                    position[1] + r * a.sin(),
+                    position[2] + size[2] / 2.0,
+                ],
+                size: std::array::from_fn(|k| (size[k] * (1.0 + 0.1 * e[k])).max(0.05)),
+                yaw: wrap_angle(frng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)),
+                score: (noise.base_confidence - FALSE_POSITIVE_SCORE_DROP + 0.05 * e[3])
+                    .clamp(0.01, 1.0),
+                std: *s,
+                pos_cov: None,
+                velocity: with_velocity.then_some(Velocity {
+                    v: [0.0, 0.0],
+                    std: [sv, sv],
+                }),
+                id: NO_ID,
+            });
+        }
+    }
+    let [dx, dy, dyaw] = f.pose_error(seed, agent, capture.scene, capture.t_us);
+    if dx != 0.0 || dy != 0.0 || dyaw != 0.0 {
+        for d in &mut out {
+            mislocate(d, position, [dx, dy, dyaw]);
+        }
+    }
     out
 }
+
+/// Moves a box as an agent at `position` with pose error (dx, dy, dyaw) reports it: turned by
+/// dyaw about the agent, then shifted by (dx, dy); heading and velocity turn with it.
+pub fn mislocate(d: &mut Detection, position: [f64; 3], [dx, dy, dyaw]: [f64; 3]) {
+    let (sin, cos) = dyaw.sin_cos();
+    [d.center[0], d.center[1]] = mislocate_point(d.center, position, [dx, dy, dyaw]);
+    d.yaw = wrap_angle(d.yaw + dyaw);
+    if let Some(v) = &mut d.velocity {
+        v.v = [cos * v.v[0] - sin * v.v[1], sin * v.v[0] + cos * v.v[1]];
+    }
+}
+
+/// Where a point at `p` appears to an agent at `position` with pose error (dx, dy, dyaw).
+pub fn mislocate_point(p: [f64; 3], position: [f64; 3], [dx, dy, dyaw]: [f64; 3]) -> [f64; 2] {
+    let (sin, cos) = dyaw.sin_cos();
+    let (x, y) = (p[0] - position[0], p[1] - position[1]);
+    [
+        position[0] + cos * x - sin * y + dx,
+        position[1] + sin * x + cos * y + dy,
+    ]
+}
+
+/// Salt of the fault stream.
+const FAULT_STREAM: u64 = 0xFA17_5EED;
 
 /// Salt of the velocity noise stream.
 const VELOCITY_STREAM: u64 = 0x7E10_C17E;
@@ -245,6 +416,14 @@ mod tests {
     use super::*;
     use crate::dataset::GtObject;
     use v2x_protocol::Class;
+
+    fn cap(draw: u64) -> Capture {
+        Capture {
+            draw,
+            scene: 0,
+            t_us: 0,
+        }
+    }
 
     fn frame(n: usize) -> GtFrame {
         GtFrame {
@@ -270,7 +449,7 @@ mod tests {
         let f = frame(20_000);
         for p in NoiseProfile::ALL {
             let noise = AgentNoise::profile(p);
-            let d = detect(&f.objects, 0, 0, &noise, [0.0; 3], None, 42);
+            let d = detect(&f.objects, cap(0), 0, &noise, [0.0; 3], None, 42);
             let n = d.len() as f64;
             let ex: Vec<f64> = d
                 .iter()
@@ -318,13 +497,13 @@ mod tests {
     fn same_seed_same_bytes_other_seed_other_bytes() {
         let f = frame(50);
         let noise = AgentNoise::profile(NoiseProfile::Moderate);
-        let a = detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 9);
-        let b = detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 9);
+        let a = detect(&f.objects, cap(3), 1, &noise, [0.0; 3], None, 9);
+        let b = detect(&f.objects, cap(3), 1, &noise, [0.0; 3], None, 9);
         assert_eq!(format!("{a:?}"), format!("{b:?}"));
-        assert_ne!(a, detect(&f.objects, 3, 1, &noise, [0.0; 3], None, 10));
+        assert_ne!(a, detect(&f.objects, cap(3), 1, &noise, [0.0; 3], None, 10));
         assert_ne!(
             a,
-            detect(&f.objects, 3, 0, &noise, [0.0; 3], None, 9),
+            detect(&f.objects, cap(3), 0, &noise, [0.0; 3], None, 9),
             "agents draw independently"
         );
     }
@@ -334,7 +513,7 @@ mod tests {
         let f = frame(100);
         let d = detect(
             &f.objects,
-            0,
+            cap(0),
             0,
             &AgentNoise::profile(NoiseProfile::Mild),
             [0.0; 3],
@@ -362,5 +541,18 @@ mod tests {
         let c = NoiseSetting::parse("0.2,0.1,3,0.8", 1).unwrap();
         assert_eq!(c.agents[0].velocity_std, 0.8);
         assert!(NoiseSetting::parse("0.2,0.1,3,x", 1).is_err());
+        // `realistic`: the roadside unit (agent 2) has no pose error; faults can be replaced
+        let mut r = NoiseSetting::parse("realistic", 3).unwrap();
+        let labels: Vec<&str> = r.agents.iter().map(|a| a.label.as_str()).collect();
+        assert_eq!(labels, ["realistic", "realistic-rsu", "realistic"]);
+        assert_eq!(r.agents[1].faults.pose_m, 0.0);
+        assert_eq!(r.agents[1].faults.flip, Faults::REALISTIC.flip);
+        r.set_faults("none+fp=3").unwrap();
+        assert_eq!(r.agents[0].faults, Faults::NONE);
+        assert_eq!(r.agents[2].faults.false_positives, 3.0);
+        assert!(r.set_faults("flip=9").unwrap_err().contains("flip"));
+        assert!(NoiseSetting::parse("huge", 1)
+            .unwrap_err()
+            .contains("realistic"));
     }
 }

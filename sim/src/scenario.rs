@@ -3,6 +3,7 @@
 //! `scenarios/` holds examples; the README documents every field.
 
 use crate::cli::DataArgs;
+use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -72,6 +73,9 @@ pub struct FuserSpec {
     pub max_wait_ms: f64,
     /// Motion-compensate each window to its latest capture time.
     pub compensation: bool,
+    /// Register every agent to the roadside unit by its boxes before association
+    /// (`v2x-fuser node --align`).
+    pub align: bool,
     /// The fuser's Zenoh options (used when roles run on separate hosts).
     pub zenoh: ZenohArgs,
 }
@@ -83,6 +87,7 @@ impl Default for FuserSpec {
             window_ms: 100.0,
             max_wait_ms: 150.0,
             compensation: true,
+            align: false,
             zenoh: ZenohArgs::default(),
         }
     }
@@ -132,8 +137,12 @@ pub struct AgentSpec {
     /// vehicle or infrastructure.
     #[serde(default)]
     pub kind: AgentKind,
-    /// Noise: mild, moderate, large, or "POS,SIZE,YAW_DEG".
+    /// Noise: mild, moderate, large, realistic, or "POS,SIZE,YAW_DEG".
     pub noise: String,
+    /// Detector faults: none, realistic, or "KEY=VALUE,..." (`v2x-sim gen --help` lists the
+    /// keys); absent: the noise profile's own (none, except for `realistic`).
+    #[serde(default)]
+    pub faults: Option<String>,
     /// Sensing range (m); absent: the agent sees every object.
     #[serde(default)]
     pub range_m: Option<f64>,
@@ -149,6 +158,20 @@ pub struct AgentSpec {
     /// The agent's Zenoh options (used when roles run on separate hosts).
     #[serde(default)]
     pub zenoh: ZenohArgs,
+}
+
+impl AgentSpec {
+    /// The agent's noise with its faults (checked when the scenario loaded).
+    pub fn agent_noise(&self) -> AgentNoise {
+        let mut n: AgentNoise = self
+            .noise
+            .parse()
+            .expect("checked when the scenario loaded");
+        if let Some(f) = &self.faults {
+            n.faults = f.parse().expect("checked when the scenario loaded");
+        }
+        n
+    }
 }
 
 /// A whole scenario.
@@ -251,6 +274,10 @@ impl Scenario {
             a.noise
                 .parse::<AgentNoise>()
                 .map_err(|e| format!("agent {}: noise: {e}", a.name))?;
+            if let Some(f) = &a.faults {
+                f.parse::<Faults>()
+                    .map_err(|e| format!("agent {}: faults: {e}", a.name))?;
+            }
             a.link
                 .validate()
                 .map_err(|e| format!("agent {}: link: {e}", a.name))?;
@@ -280,11 +307,7 @@ impl Scenario {
                 .map(|a| a.noise.as_str())
                 .collect::<Vec<_>>()
                 .join("+"),
-            agents: self
-                .agents
-                .iter()
-                .map(|a| a.noise.parse().expect("checked"))
-                .collect(),
+            agents: self.agents.iter().map(AgentSpec::agent_noise).collect(),
         }
     }
 
@@ -330,5 +353,27 @@ mod tests {
         );
         assert!(bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\ncolour = 3").contains("colour"));
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
+        assert!(
+            bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\nfaults = \"flip=3\"")
+                .contains("agent a: faults: invalid faults 'flip=3': flip must be a probability")
+        );
+    }
+
+    #[test]
+    fn faults_override_the_profiles_own() {
+        let t = "[[agents]]\nname = \"v\"\nnoise = \"realistic\"\n\
+                 [[agents]]\nname = \"r\"\nnoise = \"mild\"\nfaults = \"fp=2\"\n\
+                 [[agents]]\nname = \"w\"\nnoise = \"realistic\"\nfaults = \"none\"";
+        let s = Scenario::parse(t, "x.toml", None).unwrap();
+        let n = s.noise();
+        assert_eq!(n.agents[0].faults, Faults::REALISTIC);
+        assert_eq!(n.agents[1].faults.false_positives, 2.0);
+        assert_eq!(
+            n.agents[1].std,
+            AgentNoise::profile(v2x_protocol::NoiseProfile::Mild).std
+        );
+        assert_eq!(n.agents[2].faults, Faults::NONE);
+        assert_eq!(n.agents[2].std, AgentNoise::realistic().std);
+        assert!(!s.fuser.align);
     }
 }

@@ -4,7 +4,7 @@
 use super::epoch::serve_epoch;
 use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
-use crate::noise::{detect, place_agents, AgentNoise};
+use crate::noise::{detect, place_agents, Capture};
 use crate::scenario::Scenario;
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -25,10 +25,7 @@ pub fn agent_view(
     t_us: u64,
 ) -> (Vec<Detection>, [f64; 3]) {
     let spec = &scenario.agents[idx];
-    let noise: AgentNoise = spec
-        .noise
-        .parse()
-        .expect("checked when the scenario loaded");
+    let noise = spec.agent_noise();
     let objects = gt.objects_at(schedule.scene, t_us);
     let near = gt
         .nearest_frame(schedule.scene, t_us)
@@ -39,7 +36,11 @@ pub fn agent_view(
     (
         detect(
             &objects,
-            draw as u64,
+            Capture {
+                draw: draw as u64,
+                scene: schedule.scene,
+                t_us,
+            },
             idx,
             &noise,
             place,
@@ -137,6 +138,10 @@ pub async fn fuser_role(
         time_scale: scenario.speed,
         ..Default::default()
     });
+    cfg.align = scenario
+        .fuser
+        .align
+        .then(v2x_fuser::align::AlignParams::default);
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
