@@ -22,6 +22,7 @@ pub mod motion;
 pub mod node;
 pub mod offline;
 pub mod ratelog;
+pub mod tracker;
 #[cfg(feature = "node")]
 pub mod viz;
 pub mod window;

@@ -12,13 +12,14 @@
 
 use crate::align::{AlignParams, Aligner, ALIGN_WINDOWS};
 use crate::motion::{align_window, MotionParams};
+use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Windows;
 use crate::Method;
 use serde_json::Value;
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::PathBuf;
 use v2x_protocol::nuscenes_json::{
-    read_results, write_results, JsonError, MissingStd, Results, TokenTable,
+    read_results, tracking_json, write_results, JsonError, MissingStd, Results, TokenTable,
 };
 use v2x_protocol::{AgentKind, Detection, Frame};
 
@@ -174,6 +175,76 @@ fn fuse_by_time(
         out.meta = m;
     }
     out
+}
+
+/// Fused boxes followed over time: the tracked boxes per sample, each box's track id, and the
+/// tracker's counters.
+pub struct Tracks {
+    /// Boxes as the tracks estimate them, per sample (the fused output's samples).
+    pub results: Results,
+    /// The track id of each box, in the same order.
+    pub ids: BTreeMap<String, Vec<u32>>,
+    /// Lifecycle counters at the end.
+    pub stats: TrackStats,
+}
+
+/// Fuses the agents' files, then runs the tracker over the fused windows in time order. The
+/// files must carry capture times (`meta.v2x_timestamps`, as `v2x-sim gen` writes them).
+pub fn track_results(
+    method: &Method,
+    agents: &[Results],
+    opts: &OfflineOptions,
+    params: TrackerParams,
+) -> Result<Tracks, String> {
+    if agents.is_empty() || !agents.iter().all(|r| capture_times(r).is_some()) {
+        return Err("tracking needs every input to carry capture times \
+                    (meta.v2x_timestamps with one entry per sample, as `v2x-sim gen` writes it)"
+            .into());
+    }
+    let fused = fuse_results(method, agents, opts);
+    let times = capture_times(&fused).expect("fusion by time stamps every sample");
+    let mut order: Vec<(&u64, &String)> = fused.samples.keys().map(|s| (&times[s], s)).collect();
+    order.sort();
+    let mut tracker = Tracker::new(params);
+    let mut results = Results {
+        meta: fused.meta.clone(),
+        ..Default::default()
+    };
+    let mut ids = BTreeMap::new();
+    for (t, sample) in order {
+        let (boxes, track_ids) = tracker
+            .step(*t, &fused.samples[sample])
+            .into_iter()
+            .map(|tr| (tr.det, tr.tracking_id))
+            .unzip();
+        results.samples.insert(sample.clone(), boxes);
+        ids.insert(sample.clone(), track_ids);
+    }
+    Ok(Tracks {
+        results,
+        ids,
+        stats: tracker.stats(),
+    })
+}
+
+/// Reads, fuses, tracks and writes nuScenes tracking results: the `v2x-fuser track` command.
+pub fn track_files(
+    method: &Method,
+    inputs: &[PathBuf],
+    output: &std::path::Path,
+    missing: MissingStd,
+    opts: &OfflineOptions,
+    params: TrackerParams,
+) -> Result<Tracks, String> {
+    let Inputs { agents, tokens } = read_inputs(inputs, missing).map_err(|e| e.to_string())?;
+    let tracks = track_results(method, &agents, opts, params)?;
+    let doc = tracking_json(&tracks.results, &tracks.ids, &tokens);
+    std::fs::write(
+        output,
+        serde_json::to_string(&doc).expect("JSON values always serialize"),
+    )
+    .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
+    Ok(tracks)
 }
 
 /// Reads, fuses and writes: the `v2x-fuser fuse` command. Returns (samples, boxes in, boxes out,

@@ -518,6 +518,31 @@ pub fn results_json(results: &Results, tokens: &TokenTable) -> Value {
     json!({ "meta": meta, "results": map })
 }
 
+/// A tracking results document (the nuScenes tracking format): each box also carries
+/// `tracking_id` (a string, as the format has it), `tracking_name` and `tracking_score`, beside
+/// the detection fields, so the same file scores as detections too. `ids[sample][k]` is the
+/// track of box k of that sample.
+pub fn tracking_json(
+    results: &Results,
+    ids: &BTreeMap<String, Vec<u32>>,
+    tokens: &TokenTable,
+) -> Value {
+    let mut doc = results_json(results, tokens);
+    let samples = doc["results"].as_object_mut().expect("built as an object");
+    for (sample, boxes) in samples.iter_mut() {
+        let ids = ids.get(sample).map(Vec::as_slice).unwrap_or_default();
+        for (b, id) in boxes.as_array_mut().into_iter().flatten().zip(ids) {
+            let m = b.as_object_mut().expect("built as an object");
+            let name = m["detection_name"].clone();
+            let score = m["detection_score"].clone();
+            m.insert("tracking_id".into(), json!(id.to_string()));
+            m.insert("tracking_name".into(), name);
+            m.insert("tracking_score".into(), score);
+        }
+    }
+    doc
+}
+
 /// A fused frame's provenance as a recording's `meta.v2x_provenance` holds it per sample:
 /// `{"agents": [...], "complete": bool, "sources": [[names of box 0's agents], ...]}`.
 pub fn provenance_json(p: &crate::Provenance) -> Value {

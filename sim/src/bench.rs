@@ -6,9 +6,11 @@ use crate::dataset::GroundTruth;
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
+use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
+use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
@@ -152,16 +154,9 @@ pub fn run_detection(
         let n_methods = cfg.methods.len();
         let slots = n_agents + n_methods * (1 + usize::from(align_with.is_some()));
         // Scenes in parallel, each scene's frames in order: the aligner pools over windows.
-        let mut scenes: Vec<Vec<usize>> = Vec::new();
-        for (i, f) in gt.frames.iter().enumerate() {
-            match scenes.last_mut() {
-                Some(s) if gt.frames[s[0]].scene == f.scene => s.push(i),
-                _ => scenes.push(vec![i]),
-            }
-        }
         let names: Vec<String> = (0..n_agents).map(|a| format!("agent{}", a + 1)).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let evals = scenes
+        let evals = scenes(gt)
             .into_par_iter()
             .fold(
                 || vec![DetectionEval::new(); slots],
@@ -215,6 +210,149 @@ pub fn run_detection(
         }
     }
     rows
+}
+
+/// One row of the tracking table (`bench --tracking`).
+#[derive(Clone, Debug, Serialize)]
+pub struct TrackingRow {
+    /// The noise setting.
+    pub noise: String,
+    /// `agentN tracked`, `METHOD` (single-frame) or `METHOD tracked`.
+    pub method: String,
+    /// The id-matched figures of the boxes (the paper's protocol).
+    #[serde(flatten)]
+    pub metrics: Metrics,
+    /// The tracking figures, for tracked rows.
+    pub tracking: Option<TrackingMetrics>,
+}
+
+/// The tracking table: under each setting, each single agent tracked, and each method single-frame
+/// and tracked ([`v2x_fuser::tracker`] over the fused boxes of each scene in time order).
+pub fn run_tracking(
+    gt: &GroundTruth,
+    cfg: &BenchConfig,
+    params: TrackerParams,
+) -> Vec<TrackingRow> {
+    let mut rows = Vec::new();
+    for setting in &cfg.settings {
+        let n_agents = setting.agents.len();
+        let n_methods = cfg.methods.len();
+        // slots: agents tracked, then per method (single-frame, tracked)
+        let slots = n_agents + 2 * n_methods;
+        let (accs, evals) = scenes(gt)
+            .into_par_iter()
+            .fold(
+                || {
+                    (
+                        vec![Accumulator::new(); slots],
+                        vec![TrackingEval::new(); slots],
+                    )
+                },
+                |(mut accs, mut evals), frames| {
+                    let mut trackers = vec![Tracker::new(params); slots];
+                    let scene = gt.frames[frames[0]].scene;
+                    for i in frames {
+                        let f = &gt.frames[i];
+                        let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+                        let mut tracked = |slot: usize, boxes: &[Detection]| {
+                            let out = trackers[slot].step(f.timestamp_us, boxes);
+                            let marks: Vec<TrackBox> = out
+                                .iter()
+                                .map(|t| TrackBox {
+                                    track: format!("{scene}-{}", t.tracking_id),
+                                    class: t.det.class,
+                                    center: [t.det.center[0], t.det.center[1]],
+                                })
+                                .collect();
+                            let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
+                            accs[slot].add_frame(&f.objects, &boxes);
+                            evals[slot].add_frame(&f.objects, &marks);
+                        };
+                        for (a, d) in dets.iter().enumerate() {
+                            tracked(a, d);
+                        }
+                        let fused: Vec<Vec<Detection>> =
+                            cfg.methods.iter().map(|m| m.fuse(&dets)).collect();
+                        for (m, fused) in fused.iter().enumerate() {
+                            tracked(n_agents + 2 * m + 1, fused);
+                        }
+                        for (m, fused) in fused.iter().enumerate() {
+                            accs[n_agents + 2 * m].add_frame(&f.objects, fused);
+                        }
+                    }
+                    (accs, evals)
+                },
+            )
+            .reduce(
+                || {
+                    (
+                        vec![Accumulator::new(); slots],
+                        vec![TrackingEval::new(); slots],
+                    )
+                },
+                |(mut a, mut e), (b, f)| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        x.merge(y);
+                    }
+                    for (x, y) in e.iter_mut().zip(f) {
+                        x.merge(y);
+                    }
+                    (a, e)
+                },
+            );
+        let names = (0..n_agents)
+            .map(|a| (format!("agent{} tracked", a + 1), true))
+            .chain(
+                cfg.methods
+                    .iter()
+                    .flat_map(|m| [(m.name(), false), (format!("{m} tracked"), true)]),
+            );
+        for ((method, is_tracked), (acc, eval)) in names.zip(accs.iter().zip(evals)) {
+            rows.push(TrackingRow {
+                noise: setting.name.clone(),
+                method,
+                metrics: acc.summary(),
+                tracking: is_tracked.then(|| eval.summary()),
+            });
+        }
+    }
+    rows
+}
+
+/// The tracking rows as a Markdown table.
+pub fn tracking_table(rows: &[TrackingRow]) -> String {
+    let mut s = String::from("| noise | boxes | precision | recall | mATE (m) | mAOE (deg) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for r in rows {
+        let m = &r.metrics;
+        let t = r.tracking.as_ref();
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            r.noise,
+            r.method,
+            cell(m.precision, 4),
+            cell(m.recall, 4),
+            cell(m.m_ate, 3),
+            cell(m.m_aoe, 2),
+            cell(t.map(|t| t.mota), 4),
+            cell(t.map(|t| t.motp), 3),
+            t.map_or("-".into(), |t| t.ids.to_string()),
+            cell(t.map(|t| t.ids_per_100_tracks), 2),
+            t.map_or("-".into(), |t| t.frag.to_string()),
+        ));
+    }
+    s
+}
+
+/// The frames of each scene, in order.
+fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
+    let mut scenes: Vec<Vec<usize>> = Vec::new();
+    for (i, f) in gt.frames.iter().enumerate() {
+        match scenes.last_mut() {
+            Some(s) if gt.frames[s[0]].scene == f.scene => s.push(i),
+            _ => scenes.push(vec![i]),
+        }
+    }
+    scenes
 }
 
 fn cell(v: Option<f64>, digits: usize) -> String {
@@ -360,5 +498,42 @@ mod tests {
         // deterministic
         let again = run(&gt, &cfg, &|| {});
         assert_eq!(table(&rows), table(&again));
+    }
+
+    #[test]
+    fn tracking_beats_single_frames_over_time() {
+        let gt = generate(&TownConfig {
+            scenes: 2,
+            seconds: 6.0,
+            hz: 10.0,
+            seed: 2,
+        });
+        let cfg = BenchConfig {
+            methods: vec!["csba-wls+".parse().unwrap()],
+            settings: vec![NoiseSetting::parse("moderate", 2).unwrap()],
+            seed: 3,
+            range: None,
+        };
+        let rows = run_tracking(&gt, &cfg, TrackerParams::default());
+        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "agent1 tracked",
+                "agent2 tracked",
+                "csba-wls+",
+                "csba-wls+ tracked"
+            ]
+        );
+        let (single, tracked) = (&rows[2], &rows[3]);
+        assert!(single.tracking.is_none());
+        let t = tracked.tracking.as_ref().unwrap();
+        assert!(t.mota > 0.85 && t.ids_per_100_tracks <= 5.0, "{t:?}");
+        let (a, b) = (
+            single.metrics.m_ate.unwrap(),
+            tracked.metrics.m_ate.unwrap(),
+        );
+        assert!(b < 0.7 * a, "tracked {b} single-frame {a}");
+        assert!(tracking_table(&rows).contains("| moderate | csba-wls+ tracked |"));
     }
 }

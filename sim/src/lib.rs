@@ -20,3 +20,4 @@ pub mod plot;
 pub mod run;
 pub mod scenario;
 pub mod town;
+pub mod tracking_eval;

@@ -213,3 +213,84 @@ fn files_without_ids_are_scored_by_distance() {
         .arg(dir.join("agent1.json")));
     assert!(ok && err.contains("matched by ground-truth id"), "{err}");
 }
+
+#[test]
+fn track_then_score_tracks_and_boxes() {
+    // One town scene, 6 s at 10 Hz, moderate noise: tracks follow every object, and the tracked
+    // boxes are closer to the truth than the single-frame fused ones.
+    let dir = tempdir("track");
+    let town = [
+        "--scenes",
+        "1",
+        "--seconds",
+        "6",
+        "--hz",
+        "10",
+        "--town-seed",
+        "3",
+    ];
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "moderate", "--out"])
+        .arg(&dir)
+        .args(town));
+    assert!(ok, "{err}");
+    let agents = [dir.join("agent1.json"), dir.join("agent2.json")];
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--method", "csba-wls+", "--output"])
+        .arg(dir.join("fused.json"))
+        .args(&agents));
+    assert!(ok, "{err}");
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["track", "--output"])
+        .arg(dir.join("tracked.json"))
+        .args(&agents));
+    assert!(ok, "{err}");
+    assert!(err.contains("tracks confirmed"), "{err}");
+    let text = std::fs::read_to_string(dir.join("tracked.json")).unwrap();
+    for field in [
+        "tracking_id",
+        "tracking_name",
+        "tracking_score",
+        "detection_name",
+    ] {
+        assert!(text.contains(field), "{field}");
+    }
+    let eval = |file: &str, extra: &[&str]| -> serde_json::Value {
+        let (ok, json, err) = run(Command::new(bin("v2x-sim"))
+            .args(["eval", "--all-frames", "--format", "json"])
+            .args(extra)
+            .args(town)
+            .arg(dir.join(file)));
+        assert!(ok, "{file}: {err}");
+        serde_json::from_str(&json).unwrap()
+    };
+    let t = eval("tracked.json", &["--tracking"]);
+    assert!(t["MOTA"].as_f64().unwrap() > 0.8, "{t}");
+    assert!(t["ids_per_100_tracks"].as_f64().unwrap() <= 5.0, "{t}");
+    let fused = eval("fused.json", &["--match", "id"])["mATE"]
+        .as_f64()
+        .unwrap();
+    let tracked = eval("tracked.json", &["--match", "id"])["mATE"]
+        .as_f64()
+        .unwrap();
+    assert!(tracked < 0.9 * fused, "tracked {tracked} fused {fused}");
+    // A file that is not a tracking results file, and inputs without capture times.
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["eval", "--tracking"])
+        .args(town)
+        .arg(dir.join("fused.json")));
+    assert!(!ok && err.contains("tracking_id: missing"), "{err}");
+    let bare = dir.join("bare.json");
+    std::fs::write(
+        &bare,
+        r#"{"meta": {}, "results": {"s": [{"sample_token": "s", "translation": [0, 0, 0],
+        "size": [1, 1, 1], "rotation": [1, 0, 0, 0], "velocity": [0, 0],
+        "detection_name": "car", "detection_score": 0.5, "attribute_name": ""}]}}"#,
+    )
+    .unwrap();
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["track", "--default-std", "mild", "--output"])
+        .arg(dir.join("x.json"))
+        .arg(&bare));
+    assert!(!ok && err.contains("capture times"), "{err}");
+}

@@ -1,0 +1,81 @@
+//! Time per tracker step: 200 confirmed tracks of cars moving at constant velocity, one fused
+//! box each per window (0.5 m noise, with velocities), in steady state.
+//!
+//! Run: `cargo bench -p v2x-fuser --bench tracker`.
+
+#![allow(missing_docs)] // criterion_group! generates an undocumented function
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::hint::black_box;
+use std::time::Duration;
+use v2x_fuser::tracker::{Tracker, TrackerParams};
+use v2x_protocol::{Class, Detection, Uncertainty, Velocity, NO_ID};
+
+/// Windows of `n` cars on a 400 m square at 10 Hz, each moving at its own velocity.
+fn windows(n: usize, steps: usize) -> Vec<Vec<Detection>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let cars: Vec<([f64; 2], [f64; 2])> = (0..n)
+        .map(|_| {
+            (
+                [rng.gen_range(-200.0..200.0), rng.gen_range(-200.0..200.0)],
+                [rng.gen_range(-10.0..10.0), rng.gen_range(-10.0..10.0)],
+            )
+        })
+        .collect();
+    (0..steps)
+        .map(|k| {
+            let t = k as f64 * 0.1;
+            cars.iter()
+                .map(|(p, v)| {
+                    let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+                    Detection {
+                        class: Class::Car,
+                        center: [
+                            p[0] + v[0] * t + 0.5 * g(),
+                            p[1] + v[1] * t + 0.5 * g(),
+                            1.0,
+                        ],
+                        size: [4.5, 1.9, 1.6],
+                        yaw: v[1].atan2(v[0]),
+                        score: 0.8,
+                        std: Uncertainty::uniform(0.5, 0.1, 0.1),
+                        pos_cov: None,
+                        velocity: Some(Velocity {
+                            v: [v[0] + 0.3 * g(), v[1] + 0.3 * g()],
+                            std: [0.3, 0.3],
+                        }),
+                        id: NO_ID,
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn bench_step(c: &mut Criterion) {
+    let w = windows(200, 40);
+    let mut tracker = Tracker::new(TrackerParams::default());
+    for (k, boxes) in w.iter().take(20).enumerate() {
+        tracker.step(k as u64 * 100_000, boxes);
+    }
+    assert_eq!(tracker.stats().live, 200, "steady state: every car tracked");
+    let mut group = c.benchmark_group("tracker");
+    group
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3))
+        .sample_size(30);
+    group.bench_function("step/200-tracks", |b| {
+        b.iter_batched(
+            || tracker.clone(),
+            |mut t| black_box(t.step(2_000_000, black_box(&w[20]))),
+            criterion::BatchSize::SmallInput,
+        )
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_step);
+criterion_main!(benches);

@@ -1,0 +1,192 @@
+use super::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use v2x_protocol::NO_ID;
+
+const HZ10: u64 = 100_000;
+
+/// A car at (x, y) heading `yaw`, with 0.5 m position std and no velocity.
+fn car(x: f64, y: f64, yaw: f64) -> Detection {
+    Detection {
+        class: Class::Car,
+        center: [x, y, 1.0],
+        size: [4.5, 1.9, 1.6],
+        yaw,
+        score: 0.8,
+        std: Uncertainty::uniform(0.5, 0.1, 0.1),
+        pos_cov: None,
+        velocity: None,
+        id: NO_ID,
+    }
+}
+
+#[test]
+fn a_constant_velocity_track_converges() {
+    // True motion (5, 2) m/s from (0, 0); boxes with 0.5 m noise and no velocity, at 10 Hz.
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut g = move || -> f64 { StandardNormal.sample(&mut rng) };
+    let mut err_late = Vec::new();
+    for run in 0..50 {
+        let mut tr = Tracker::new(TrackerParams::default());
+        let mut last = None;
+        for k in 0..40u64 {
+            let t = k as f64 * 0.1;
+            let b = car(5.0 * t + 0.5 * g(), 2.0 * t + 0.5 * g(), 0.38);
+            let out = tr.step(k * HZ10, &[b]);
+            if k == 0 {
+                assert!(out.is_empty(), "tentative at its first box");
+            } else {
+                assert_eq!(out.len(), 1, "run {run} step {k}");
+                if let Some(id) = last {
+                    assert_eq!(out[0].tracking_id, id, "one id throughout");
+                }
+                last = Some(out[0].tracking_id);
+            }
+            if k >= 30 {
+                let v = out[0].det.velocity.unwrap();
+                err_late.push((v.v[0] - 5.0).hypot(v.v[1] - 2.0));
+                // the claimed std is honest: within 4 stds on each axis
+                assert!((v.v[0] - 5.0).abs() < 4.0 * v.std[0] + 0.05, "{v:?}");
+            }
+        }
+        assert_eq!(tr.stats().births, 1);
+    }
+    // After 3 s of 0.5 m boxes the velocity is known to a few tenths of a m/s.
+    let mean = err_late.iter().sum::<f64>() / err_late.len() as f64;
+    assert!(mean < 0.5, "mean velocity error {mean}");
+}
+
+#[test]
+fn a_crossing_pair_keeps_its_ids() {
+    // Two cars crossing at the origin at right angles, 10 m/s each, exact boxes with their
+    // velocities: at the crossing they are 0 m apart, but their velocities tell them apart.
+    let mut tr = Tracker::new(TrackerParams::default());
+    let mut ids: Option<(u32, u32)> = None;
+    for k in 0..41u64 {
+        let t = (k as f64 - 20.0) * 0.1;
+        let mut a = car(10.0 * t, 0.0, 0.0);
+        a.velocity = Some(Velocity {
+            v: [10.0, 0.0],
+            std: [0.5, 0.5],
+        });
+        let mut b = car(0.0, 10.0 * t, std::f64::consts::FRAC_PI_2);
+        b.velocity = Some(Velocity {
+            v: [0.0, 10.0],
+            std: [0.5, 0.5],
+        });
+        let out = tr.step(k * HZ10, &[a, b]);
+        if k == 0 {
+            continue;
+        }
+        assert_eq!(out.len(), 2, "step {k}");
+        let id_of = |moving_x: bool| {
+            out.iter()
+                .find(|o| (o.det.velocity.unwrap().v[0] > 5.0) == moving_x)
+                .unwrap()
+                .tracking_id
+        };
+        let now = (id_of(true), id_of(false));
+        assert_ne!(now.0, now.1);
+        if let Some(before) = ids {
+            assert_eq!(now, before, "ids swapped at step {k}");
+        }
+        ids = Some(now);
+    }
+}
+
+#[test]
+fn a_missed_window_does_not_end_a_track_but_four_do() {
+    let mut tr = Tracker::new(TrackerParams::default());
+    let mut k = 0u64;
+    let mut step = |tr: &mut Tracker, seen: bool| {
+        let t = k as f64 * 0.1;
+        let boxes = if seen {
+            vec![car(3.0 * t, 0.0, 0.0)]
+        } else {
+            vec![]
+        };
+        k += 1;
+        tr.step((k - 1) * HZ10, &boxes)
+    };
+    for _ in 0..5 {
+        step(&mut tr, true);
+    }
+    let seen = step(&mut tr, true);
+    let id = seen[0].tracking_id;
+    // a coasting track is shown where it predicts, at half the score
+    let coast = step(&mut tr, false);
+    assert_eq!(coast.len(), 1);
+    assert_eq!(coast[0].tracking_id, id);
+    assert!((coast[0].det.score - seen[0].det.score / 2.0).abs() < 0.1);
+    assert!(
+        (coast[0].det.center[0] - 3.0 * 0.6).abs() < 0.5,
+        "{:?}",
+        coast[0].det.center
+    );
+    let back = step(&mut tr, true);
+    assert_eq!(back.len(), 1);
+    assert_eq!(back[0].tracking_id, id, "one missed window: the same track");
+    assert_eq!(tr.stats().live, 1);
+    for k in 0..4 {
+        let out = step(&mut tr, false);
+        assert_eq!(out.len(), usize::from(k < 3), "miss {}", k + 1);
+    }
+    assert_eq!(
+        tr.stats(),
+        TrackStats {
+            live: 0,
+            births: 1,
+            deaths: 1
+        }
+    );
+}
+
+#[test]
+fn a_false_positive_does_not_become_a_track() {
+    let mut tr = Tracker::new(TrackerParams::default());
+    for k in 0..20u64 {
+        let mut boxes = vec![car(1.0 * k as f64, 0.0, 0.0)];
+        // a ghost in every fifth window, each time somewhere else
+        if k % 5 == 2 {
+            boxes.push(car(40.0 + 7.0 * k as f64, 30.0, 1.0));
+        }
+        let out = tr.step(k * HZ10, &boxes);
+        assert!(out.len() <= 1, "step {k}: {out:?}");
+    }
+    assert_eq!(tr.stats().births, 1);
+}
+
+#[test]
+fn a_flipped_heading_keeps_the_tracks_yaw_and_a_new_scene_starts_afresh() {
+    let mut tr = Tracker::new(TrackerParams::default());
+    for k in 0..10u64 {
+        // every third box has its heading turned by pi
+        let yaw = if k % 3 == 2 {
+            0.3 + std::f64::consts::PI
+        } else {
+            0.3
+        };
+        let out = tr.step(k * HZ10, &[car(0.0, 0.0, yaw)]);
+        for o in out {
+            assert!(wrap_angle(o.det.yaw - 0.3).abs() < 0.05, "{}", o.det.yaw);
+        }
+    }
+    // 10 s later (a gap beyond max_gap_s): the old track ends, a new one starts tentative.
+    let out = tr.step(10 * HZ10 + 10_000_000, &[car(0.0, 0.0, 0.3)]);
+    assert!(out.is_empty());
+    assert_eq!(tr.stats().deaths, 1);
+}
+
+#[test]
+fn classes_do_not_mix() {
+    let mut tr = Tracker::new(TrackerParams::default());
+    let mut truck = car(0.0, 0.0, 0.0);
+    truck.class = Class::Truck;
+    tr.step(0, &[car(0.0, 0.0, 0.0)]);
+    let out = tr.step(HZ10, &[truck.clone()]);
+    assert!(out.is_empty(), "a truck does not confirm a car's track");
+    let out = tr.step(2 * HZ10, &[truck]);
+    assert_eq!(out.len(), 1);
+    assert_eq!(out[0].det.class, Class::Truck);
+}
