@@ -116,6 +116,10 @@ enum Command {
         /// association: for agents whose pose is wrong.
         #[arg(long)]
         align: bool,
+        /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
+        /// tracks each window updated on v2x/NS/tracks, each box's id its track's.
+        #[arg(long)]
+        track: bool,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
         /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
         /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -347,6 +351,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             limits,
             motion,
             align,
+            track,
             record,
             viz,
             duration_s,
@@ -368,6 +373,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
                 cfg.align = align.then(v2x_fuser::align::AlignParams::default);
+                cfg.track = track.then(v2x_fuser::tracker::TrackerParams::default);
                 cfg.viz = viz.open().await?;
                 let shown = cfg.viz.clone();
                 let session = v2x_protocol::net::open_session(&zenoh).await?;

@@ -94,7 +94,7 @@ pub struct Tracked {
 }
 
 /// Live tracks and the lifecycle counters.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct TrackStats {
     /// Confirmed tracks alive now.
     pub live: usize,

@@ -6,9 +6,9 @@
 //! - agent X may put only its detections (`v2x/NS/det/X`), declare only its own liveliness token
 //!   (`v2x/NS/alive/X`), see the fuser's subscription to its detections (so it knows a fuser is
 //!   there), and ask the simulator's shared start (`v2x/NS/sim/epoch`);
-//! - the fuser alone reads detections and tokens, and alone publishes fused output, declares its
+//! - the fuser alone reads detections and tokens, and alone publishes fused output and tracks, declares its
 //!   liveliness and answers the statistics and the shared start;
-//! - an observer may only subscribe to fused output, query the statistics and watch the fuser's
+//! - an observer may only subscribe to fused output and tracks, query the statistics and watch the fuser's
 //!   liveliness.
 //!
 //! The policy holds only where a router enforces it between clients: in peer mode sessions talk
@@ -97,8 +97,9 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
         }));
     }
     let (det, alive) = (keys::all_detections(ns), keys::all_alive(ns));
-    let (fused, stats, fuser_alive) = (
+    let (fused, tracks, stats, fuser_alive) = (
         keys::fused(ns),
+        keys::tracks(ns),
         keys::fuser_stats(ns),
         keys::fuser_alive(ns),
     );
@@ -122,13 +123,18 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &["liveliness_token", "reply"],
             &[alive.as_str()],
         ),
-        rule("fuser-publish", "ingress", &["put"], &[fused.as_str()]),
+        rule(
+            "fuser-publish",
+            "ingress",
+            &["put"],
+            &[fused.as_str(), tracks.as_str()],
+        ),
         // Observers' subscriptions reach the fuser, which then sends its output.
         rule(
             "fuser-readers",
             "egress",
             &["declare_subscriber"],
-            &[fused.as_str()],
+            &[fused.as_str(), tracks.as_str()],
         ),
         rule(
             "fuser-alive",
@@ -154,9 +160,14 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             "observer-subscribe",
             "ingress",
             &["declare_subscriber"],
-            &[fused.as_str()],
+            &[fused.as_str(), tracks.as_str()],
         ),
-        rule("observer-fused", "egress", &["put"], &[fused.as_str()]),
+        rule(
+            "observer-fused",
+            "egress",
+            &["put"],
+            &[fused.as_str(), tracks.as_str()],
+        ),
         rule(
             "observer-ask",
             "ingress",
@@ -240,7 +251,7 @@ mod tests {
         assert!(allowed(&acl, "agent-rsu", "ingress", "declare_queryable").is_empty());
         assert_eq!(
             allowed(&acl, "fuser", "ingress", "put"),
-            vec!["v2x/ns/fused"]
+            vec!["v2x/ns/fused", "v2x/ns/tracks"]
         );
         assert_eq!(
             allowed(&acl, "fuser", "egress", "put"),
@@ -249,7 +260,7 @@ mod tests {
         assert!(allowed(&acl, "observer", "ingress", "put").is_empty());
         assert_eq!(
             allowed(&acl, "observer", "egress", "put"),
-            vec!["v2x/ns/fused"]
+            vec!["v2x/ns/fused", "v2x/ns/tracks"]
         );
         assert!(reserved("fuser") && !reserved("veh"));
         let subjects = acl["subjects"].as_array().unwrap();

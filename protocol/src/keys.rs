@@ -1,7 +1,8 @@
 //! Zenoh key expressions, built and parsed in one place (specified in `docs/wire-format.md`).
 //!
 //! Everything lives under `v2x/NS/…`, `NS` being the scenario namespace:
-//! `det/AGENT` (detections), `fused` (fused frames), `alive/AGENT` (liveliness) and
+//! `det/AGENT` (detections), `fused` (fused frames), `tracks` (tracked boxes, each box's id its
+//! track), `alive/AGENT` (liveliness) and
 //! `fuser/stats` (the fuser's statistics queryable).
 
 /// Root of every key.
@@ -36,6 +37,11 @@ pub fn all_detections(ns: &str) -> String {
 /// Fused frames: `v2x/NS/fused`.
 pub fn fused(ns: &str) -> String {
     format!("{ROOT}/{ns}/fused")
+}
+
+/// Tracks: `v2x/NS/tracks`.
+pub fn tracks(ns: &str) -> String {
+    format!("{ROOT}/{ns}/tracks")
 }
 
 /// Liveliness token of one agent: `v2x/NS/alive/AGENT`.
@@ -91,6 +97,7 @@ mod tests {
             Some("rsu")
         );
         assert_eq!(fused("x"), "v2x/x/fused");
+        assert_eq!(tracks("x"), "v2x/x/tracks");
         assert_eq!(fuser_stats("x"), "v2x/x/fuser/stats");
         assert!(validate_chunk("agent", "veh-1").is_ok());
         assert!(validate_chunk("agent", "a/b").is_err());

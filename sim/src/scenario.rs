@@ -76,6 +76,9 @@ pub struct FuserSpec {
     /// Register every agent to the roadside unit by its boxes before association
     /// (`v2x-fuser node --align`).
     pub align: bool,
+    /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
+    /// (`v2x-fuser node --track`).
+    pub track: bool,
     /// The fuser's Zenoh options (used when roles run on separate hosts).
     pub zenoh: ZenohArgs,
 }
@@ -88,6 +91,7 @@ impl Default for FuserSpec {
             max_wait_ms: 150.0,
             compensation: true,
             align: false,
+            track: false,
             zenoh: ZenohArgs::default(),
         }
     }

@@ -333,3 +333,47 @@ async fn piles_of_boxes_do_not_block_the_receive_loop() {
     let st = finish(s).await;
     assert_eq!(st.windows, 4);
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn tracks_follow_the_fused_windows_on_their_key() {
+    let ns = "tracks";
+    let mut c = cfg(ns, 300.0);
+    c.track = Some(Default::default());
+    let mut s = setup(ns, c).await;
+    let sub = s.sa.declare_subscriber(keys::tracks(ns)).await.unwrap();
+    let mut last = 0;
+    // The subscription reaches the fuser while the first windows fuse; tracks are confirmed
+    // from a box's second window on (the first window's tracks frame is empty), so within a
+    // few rounds every window brings both.
+    let mut frames: Vec<Frame> = Vec::new();
+    for _ in 0..8 {
+        honest_round(&mut s, &mut last).await;
+    }
+    within(10, "tracks", async {
+        while frames.len() < 3 {
+            let sample = sub.recv_async().await.unwrap();
+            let f = wire::decode(&sample.payload().to_bytes()).unwrap();
+            if !f.detections.is_empty() {
+                frames.push(f);
+            }
+        }
+    })
+    .await;
+    let last_frame = frames.last().unwrap();
+    assert_eq!(last_frame.agent, "fuser");
+    assert_eq!(last_frame.detections.len(), 2, "{last_frame:?}");
+    // each box carries its track's id, the same in every frame
+    let ids = |f: &Frame| {
+        let mut v: Vec<u32> = f.detections.iter().map(|d| d.id).collect();
+        v.sort();
+        v
+    };
+    let first = ids(&frames[frames.len() - 3]);
+    assert_eq!(first.len(), 2);
+    assert_ne!(first[0], first[1]);
+    assert_eq!(ids(last_frame), first);
+    let v = stats_until(&s.sa, ns, "track stats", |v| v["tracks"]["live"] == 2).await;
+    assert_eq!(v["tracks"]["births"], 2);
+    let st = finish(s).await;
+    assert_eq!(st.tracks.unwrap().live, 2);
+}

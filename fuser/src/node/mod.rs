@@ -52,6 +52,8 @@ pub struct NodeConfig {
     /// Registration of every agent to the roadside unit by its boxes before association
     /// (`None`: agents' poses are trusted).
     pub align: Option<crate::align::AlignParams>,
+    /// Tracking of the fused boxes, published on `v2x/NS/tracks` (`None`: no tracks).
+    pub track: Option<crate::tracker::TrackerParams>,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
 }
@@ -70,6 +72,7 @@ impl NodeConfig {
             log_interval_s: 10.0,
             motion: Some(MotionParams::default()),
             align: None,
+            track: None,
             viz: None,
         }
     }
@@ -229,6 +232,9 @@ impl State {
     fn on_done(&mut self, d: worker::Done, on_fused: &mut impl FnMut(&Fused)) {
         self.queued = self.queued.saturating_sub(1);
         self.stats.fit.add(&d.fit);
+        if d.tracks.is_some() {
+            self.stats.tracks = d.tracks;
+        }
         if !d.fit.is_clean() {
             if let Some(line) = self.log.note(
                 "fit",
@@ -369,8 +375,24 @@ pub async fn run(
     let clock = Clock::start();
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
+    let tracks = match cfg.track {
+        Some(_) => Some(
+            session
+                .declare_publisher(keys::tracks(&ns))
+                .encoding(v2x_protocol::net::frame_encoding())
+                .await
+                .map_err(z)?,
+        ),
+        None => None,
+    };
+    let fusion = worker::Fusion {
+        method: cfg.method,
+        motion: cfg.motion,
+        align: cfg.align,
+        track: cfg.track,
+    };
     let worker = tokio::spawn(worker::run(
-        cfg.method, cfg.motion, cfg.align, publisher, clock, job_rx, done_tx,
+        fusion, publisher, tracks, clock, job_rx, done_tx,
     ));
     let now = clock.now_us();
     let mut st = State {

@@ -132,6 +132,8 @@ pub struct NodeStats {
     pub fused_objects: u64,
     /// What was changed to keep fused output within the wire's domain.
     pub fit: FitStats,
+    /// Tracks (live, confirmed so far, ended so far), when the node tracks.
+    pub tracks: Option<crate::tracker::TrackStats>,
     /// Windows open now.
     pub open_windows: usize,
     /// Windows closed and waiting to be fused now.

@@ -1,16 +1,18 @@
 //! The fusion worker: closed windows come in through a bounded queue, are fused on a blocking
 //! thread (so a heavy window never stalls the receive loop), brought into the wire's domain,
-//! encoded and published on `v2x/NS/fused`, in the order they closed. Each outcome goes back to
-//! the receive loop, which keeps the statistics.
+//! encoded and published on `v2x/NS/fused`, in the order they closed; with tracking on, the
+//! tracks the window updated follow on `v2x/NS/tracks`. Each outcome goes back to the receive
+//! loop, which keeps the statistics.
 
 use super::{Clock, Fused};
 use crate::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
 use crate::motion::{align_window, MotionParams};
+use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
 use crate::Method;
 use tokio::sync::mpsc;
 use v2x_protocol::wire::{self, Fit};
-use v2x_protocol::{AgentKind, Frame, Provenance};
+use v2x_protocol::{AgentKind, Detection, Frame, Provenance};
 
 /// A closed window to fuse.
 pub(super) struct Job {
@@ -23,6 +25,8 @@ pub(super) struct Job {
 pub(super) struct Done {
     pub fused: Fused,
     pub fit: Fit,
+    /// The tracker's counters after this window, when the node tracks.
+    pub tracks: Option<TrackStats>,
     /// Why it was not published, if it was not.
     pub error: Option<String>,
     pub closed_at_us: u64,
@@ -69,19 +73,61 @@ pub fn fuse_window(
     }
 }
 
-/// Runs the worker until its queue closes.
+/// How the worker fuses: the method and the optional steps around it.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct Fusion {
+    pub method: Method,
+    pub motion: Option<MotionParams>,
+    pub align: Option<AlignParams>,
+    pub track: Option<TrackerParams>,
+}
+
+/// What the worker carries from window to window.
+struct Carried {
+    aligner: Option<Aligner>,
+    tracker: Option<Tracker>,
+}
+
+impl Fusion {
+    fn fresh(&self) -> Carried {
+        Carried {
+            aligner: self.align.map(|p| Aligner::new(p, ALIGN_WINDOWS)),
+            tracker: self.track.map(Tracker::new),
+        }
+    }
+}
+
+/// The tracks frame of a fused window: the confirmed tracks it updated, each box's id its
+/// `tracking_id`, brought into the wire's domain.
+fn tracks_frame(tracker: &mut Tracker, fused: &Frame) -> Frame {
+    let detections = tracker
+        .step(fused.capture_us, &fused.detections)
+        .into_iter()
+        .map(|t| Detection {
+            id: t.tracking_id,
+            ..t.det
+        })
+        .collect();
+    let mut frame = Frame {
+        detections,
+        ..fused.clone()
+    };
+    wire::fit(&mut frame);
+    frame
+}
+
+/// Runs the worker until its queue closes; with `tracks`, tracks go out on it after each
+/// fused window.
 pub(super) async fn run(
-    method: Method,
-    motion: Option<MotionParams>,
-    align: Option<AlignParams>,
+    fusion: Fusion,
     publisher: zenoh::pubsub::Publisher<'static>,
+    tracks: Option<zenoh::pubsub::Publisher<'static>>,
     clock: Clock,
     mut jobs: mpsc::Receiver<Job>,
     done: mpsc::UnboundedSender<Done>,
 ) {
     let mut seq = 0u32;
-    let fresh = || align.map(|p| Aligner::new(p, ALIGN_WINDOWS));
-    let mut aligner = fresh();
+    let mut carried = fusion.fresh();
     while let Some(job) = jobs.recv().await {
         let Job {
             closed,
@@ -94,25 +140,47 @@ pub(super) async fn run(
             closed.frames.keys().cloned().collect::<Vec<_>>(),
             closed.complete,
         );
-        let mut state = aligner.take();
+        let mut state = std::mem::replace(
+            &mut carried,
+            Carried {
+                aligner: None,
+                tracker: None,
+            },
+        );
         let work = tokio::task::spawn_blocking(move || {
-            let mut fused = fuse_window(&method, motion.as_ref(), state.as_mut(), closed, this_seq);
+            let mut fused = fuse_window(
+                &fusion.method,
+                fusion.motion.as_ref(),
+                state.aligner.as_mut(),
+                closed,
+                this_seq,
+            );
             let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
             let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
-            (fused, fit, bytes, state)
+            let tracked = state.tracker.as_mut().map(|t| {
+                let frame = tracks_frame(t, &fused.frame);
+                (wire::encode(&frame), t.stats())
+            });
+            (fused, fit, bytes, tracked, state)
         })
         .await;
-        // A fusion that panicked took the aligner with it: start a fresh one.
-        let work = match work {
-            Ok((fused, fit, bytes, state)) => {
-                aligner = state;
-                Ok((fused, fit, bytes))
+        // A fusion that panicked took the aligner and the tracks with it: start afresh.
+        let (work, tracked) = match work {
+            Ok((fused, fit, bytes, tracked, state)) => {
+                carried = state;
+                (Ok((fused, fit, bytes)), tracked)
             }
             Err(e) => {
-                aligner = fresh();
-                Err(e)
+                carried = fusion.fresh();
+                (Err(e), None)
             }
         };
+        let mut track_stats = None;
+        if let (Some(p), Some((Ok(bytes), stats))) = (&tracks, tracked) {
+            // A lost tracks frame is not a lost window: the next one carries the tracks on.
+            let _ = p.put(bytes).await;
+            track_stats = Some(stats);
+        }
         let (fused, fit, error) = match work {
             Ok((fused, fit, Ok(bytes))) => {
                 let error = publisher.put(bytes).await.err().map(|e| e.to_string());
@@ -143,6 +211,7 @@ pub(super) async fn run(
         let outcome = Done {
             fused,
             fit,
+            tracks: track_stats,
             error,
             closed_at_us,
             done_at_us: clock.now_us(),

@@ -142,6 +142,10 @@ pub async fn fuser_role(
         .fuser
         .align
         .then(v2x_fuser::align::AlignParams::default);
+    cfg.track = scenario
+        .fuser
+        .track
+        .then(v2x_fuser::tracker::TrackerParams::default);
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
