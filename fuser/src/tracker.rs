@@ -39,8 +39,9 @@ pub struct TrackerParams {
     /// without boxes (an occlusion, lost windows); at 2 Hz, 1.5 s.
     pub max_misses: u32,
     /// Misses in a row during which a confirmed track is still output, at its prediction with
-    /// its score halved per miss. 1: one window without a box (two tracks' boxes merged, a
-    /// lost window) neither drops the object nor hands it to a neighbouring track.
+    /// its score halved per miss. 3, as `max_misses`: a window without a box (two tracks'
+    /// boxes merged, a lost window) neither drops the object nor hands it to a neighbouring
+    /// track, and the halved score lets the benchmark's thresholds drop long coasts.
     pub coast_output: u32,
     /// Longest gap between windows (s) tracks are carried over; beyond, they all end.
     pub max_gap_s: f64,

@@ -262,11 +262,12 @@ pub fn run_tracking(
                                     track: format!("{scene}-{}", t.tracking_id),
                                     class: t.det.class,
                                     center: [t.det.center[0], t.det.center[1]],
+                                    score: t.det.score,
                                 })
                                 .collect();
                             let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
                             accs[slot].add_frame(&f.objects, &boxes);
-                            evals[slot].add_frame(&f.objects, &marks);
+                            evals[slot].add_frame(scene, f.timestamp_us, &f.objects, &marks);
                         };
                         for (a, d) in dets.iter().enumerate() {
                             tracked(a, d);
@@ -321,18 +322,20 @@ pub fn run_tracking(
 
 /// The tracking rows as a Markdown table.
 pub fn tracking_table(rows: &[TrackingRow]) -> String {
-    let mut s = String::from("| noise | boxes | precision | recall | mATE (m) | mAOE (deg) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    let mut s = String::from("| noise | boxes | precision | recall | mATE (m) | mAOE (deg) | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for r in rows {
         let m = &r.metrics;
         let t = r.tracking.as_ref();
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.noise,
             r.method,
             cell(m.precision, 4),
             cell(m.recall, 4),
             cell(m.m_ate, 3),
             cell(m.m_aoe, 2),
+            cell(t.map(|t| t.amota), 4),
+            cell(t.map(|t| t.amotp), 3),
             cell(t.map(|t| t.mota), 4),
             cell(t.map(|t| t.motp), 3),
             t.map_or("-".into(), |t| t.ids.to_string()),

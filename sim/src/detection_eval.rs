@@ -82,7 +82,7 @@ impl Curves {
 }
 
 /// `np.interp(x, xp, fp, right=right)` for non-decreasing `xp` (left: `fp[0]`).
-fn interp(x: f64, xp: &[f64], fp: &[f64], right: f64) -> f64 {
+pub(crate) fn interp(x: f64, xp: &[f64], fp: &[f64], right: f64) -> f64 {
     let last = xp.len() - 1;
     if x > xp[last] {
         return right;

@@ -83,9 +83,10 @@ enum Command {
         /// output has none).
         #[arg(long = "match", value_enum, default_value = "auto")]
         matching: v2x_sim::cli::Match,
-        /// Score a tracking results file (`v2x-fuser track`) with the tracking metrics: MOTA,
-        /// MOTP, IDS, FRAG at a 2 m centre distance. The same file without --tracking scores its
-        /// boxes as detections.
+        /// Score a tracking results file (`v2x-fuser track`) as the nuScenes tracking benchmark
+        /// does: AMOTA, AMOTP, and MOTA, MOTP, IDS, FRAG at each class's best score threshold,
+        /// 2 m centre distance, the seven tracking classes. The same file without --tracking
+        /// scores its boxes as detections.
         #[arg(long, conflicts_with_all = ["replay_start_at"])]
         tracking: bool,
         /// Output format.
@@ -230,8 +231,8 @@ fn evaluate_tracking(
     let mut eval = v2x_sim::tracking_eval::TrackingEval::new();
     for f in &gt.frames {
         match tracks.get(&f.sample_token) {
-            Some(boxes) => eval.add_frame(&f.objects, boxes),
-            None if all_frames => eval.add_frame(&f.objects, &[]),
+            Some(boxes) => eval.add_frame(f.scene, f.timestamp_us, &f.objects, boxes),
+            None if all_frames => eval.add_frame(f.scene, f.timestamp_us, &f.objects, &[]),
             None => {}
         }
     }
@@ -367,10 +368,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 match format {
                     Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
                     Format::Table | Format::Csv => {
-                        println!("| predictions | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+                        println!("| predictions | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
                         println!(
-                            "| {} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
+                            "| {} | {:.4} | {:.3} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
                             pred.display(),
+                            m.amota,
+                            m.amotp,
                             m.mota,
                             m.motp,
                             m.ids,

@@ -87,6 +87,9 @@ pub struct Fused {
     /// The window's agents, whether it was complete, and each fused box's contributing agents
     /// (published with the frame).
     pub provenance: Provenance,
+    /// With tracking: the confirmed tracks the window updated, each box's id its tracking id
+    /// (as published on the tracks key).
+    pub tracks: Option<Vec<v2x_protocol::Detection>>,
 }
 
 /// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in

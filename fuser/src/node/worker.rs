@@ -70,6 +70,7 @@ pub fn fuse_window(
             complete: closed.complete,
             sources,
         },
+        tracks: None,
     }
 }
 
@@ -159,7 +160,9 @@ pub(super) async fn run(
             let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
             let tracked = state.tracker.as_mut().map(|t| {
                 let frame = tracks_frame(t, &fused.frame);
-                (wire::encode(&frame), t.stats())
+                let bytes = wire::encode(&frame);
+                fused.tracks = Some(frame.detections);
+                (bytes, t.stats())
             });
             (fused, fit, bytes, tracked, state)
         })
@@ -203,6 +206,7 @@ pub(super) async fn run(
                         complete,
                         sources: Vec::new(),
                     },
+                    tracks: None,
                 },
                 Fit::default(),
                 Some(format!("fusion failed: {e}")),

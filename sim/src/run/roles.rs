@@ -116,6 +116,8 @@ pub struct FuserOutcome {
     pub stats: NodeStats,
     /// Fused detections by their reference time in data time (us).
     pub fused: BTreeMap<u64, Vec<Detection>>,
+    /// With tracking: the tracks each window updated, by the same time (ids: tracking ids).
+    pub tracks: BTreeMap<u64, Vec<Detection>>,
     /// The data time the run reached before the fuser stopped (us): scheduled frames up to it
     /// are scored.
     pub reached_us: u64,
@@ -150,6 +152,7 @@ pub async fn fuser_role(
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
     let mut fused = BTreeMap::new();
+    let mut tracks = BTreeMap::new();
     let speed = scenario.speed;
     let stats = node::run(
         session,
@@ -157,6 +160,9 @@ pub async fn fuser_role(
         |f| {
             let t = schedule.data_us(epoch_us, f.frame.capture_us, speed);
             fused.insert(t, f.frame.detections.clone());
+            if let Some(tracked) = &f.tracks {
+                tracks.insert(t, tracked.clone());
+            }
         },
         stop,
     )
@@ -169,6 +175,7 @@ pub async fn fuser_role(
     Ok(FuserOutcome {
         stats,
         fused,
+        tracks,
         reached_us,
         epoch_us,
     })

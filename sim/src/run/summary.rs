@@ -6,6 +6,7 @@ use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
 use crate::scenario::Scenario;
+use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use v2x_agent::AgentTotals;
@@ -72,6 +73,9 @@ pub struct Summary {
     pub wall_s: f64,
     /// Metrics of the fused output over the fused frames.
     pub fused: Metrics,
+    /// With `[fuser] track`: the tracks scored as the nuScenes tracking benchmark does
+    /// (AMOTA, MOTA, IDS...), over the same frames.
+    pub tracking: Option<TrackingMetrics>,
     /// Metrics of each agent alone over the same frames.
     pub agents: BTreeMap<String, Metrics>,
     /// Bandwidth per agent.
@@ -122,6 +126,36 @@ pub fn summarize(
             fused_acc.add_frame(&f.objects, &[]);
         }
     }
+    let tracking = scenario.fuser.track.then(|| {
+        // each window's tracks at its time, and every reached frame no window came near empty
+        let mut frames: BTreeMap<u64, (Vec<crate::dataset::GtObject>, Vec<TrackBox>)> = outcome
+            .tracks
+            .iter()
+            .map(|(&t, dets)| {
+                let boxes = dets
+                    .iter()
+                    .map(|d| TrackBox {
+                        track: d.id.to_string(),
+                        class: d.class,
+                        center: [d.center[0], d.center[1]],
+                        score: d.score,
+                    })
+                    .collect();
+                (t, (gt.objects_at(schedule.scene, t), boxes))
+            })
+            .collect();
+        for (k, &gi) in schedule.frames.iter().enumerate() {
+            let f = &gt.frames[gi];
+            if !covered[k] && f.timestamp_us <= reached {
+                frames.insert(f.timestamp_us, (f.objects.clone(), Vec::new()));
+            }
+        }
+        let mut eval = TrackingEval::new();
+        for (t, (objects, boxes)) in &frames {
+            eval.add_frame(schedule.scene, *t, objects, boxes);
+        }
+        eval.summary()
+    });
     // Each agent alone, at its own capture times.
     let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
     for (idx, acc) in agent_acc.iter_mut().enumerate() {
@@ -196,6 +230,7 @@ pub fn summarize(
         windows_incomplete: outcome.stats.windows_incomplete,
         wall_s,
         fused: fused_acc.summary(),
+        tracking,
         agents: scenario
             .agents
             .iter()
@@ -257,6 +292,13 @@ pub fn print_table(s: &Summary) {
     }
     print!("{}", crate::bench::table(&rows));
     println!();
+    if let Some(t) = &s.tracking {
+        println!(
+            "tracks: AMOTA {:.4} · AMOTP {:.3} m · MOTA {:.4} · MOTP {:.3} m · IDS {} ({:.2} per 100 objects) · FRAG {}",
+            t.amota, t.amotp, t.mota, t.motp, t.ids, t.ids_per_100_tracks, t.frag
+        );
+        println!();
+    }
     println!("| agent | frames | objects/frame | payload B/frame | payload B/object | wire B/frame | kbit/s | late | duplicate | invalid | dropped by link |");
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (n, b) in &s.bandwidth {
@@ -326,6 +368,7 @@ mod tests {
         let mut outcome = FuserOutcome {
             stats: Default::default(),
             fused: BTreeMap::new(),
+            tracks: BTreeMap::new(),
             reached_us: 0,
             epoch_us: 0,
         };
@@ -364,6 +407,57 @@ mod tests {
         // Frames after the fuser stopped are not held against it.
         let early = run_with(|k| k < 10, 10);
         assert_eq!(early.fused.recall, Some(1.0));
+    }
+
+    /// The town's 20 frames fused and tracked exactly: ids from `id(object, frame)`.
+    fn tracked_with(id: impl Fn(u32, usize) -> u32) -> Summary {
+        let mut scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
+        scenario.fuser.track = true;
+        let (gt, schedule) = town();
+        let mut outcome = FuserOutcome {
+            stats: Default::default(),
+            fused: BTreeMap::new(),
+            tracks: BTreeMap::new(),
+            reached_us: 0,
+            epoch_us: 0,
+        };
+        for (k, &gi) in schedule.frames.iter().enumerate() {
+            let f = &gt.frames[gi];
+            let boxes: Vec<_> = f.objects.iter().map(|o| o.as_detection()).collect();
+            let tracks = boxes
+                .iter()
+                .zip(&f.objects)
+                .map(|(b, o)| v2x_protocol::Detection {
+                    id: id(o.id, k),
+                    ..b.clone()
+                })
+                .collect();
+            outcome.fused.insert(f.timestamp_us, boxes);
+            outcome.tracks.insert(f.timestamp_us, tracks);
+            outcome.reached_us = f.timestamp_us;
+        }
+        summarize(&scenario, &gt, &schedule, &outcome, &BTreeMap::new(), 2.0)
+    }
+
+    #[test]
+    fn tracks_are_scored_when_the_fuser_tracks() {
+        assert!(run_with(|_| true, 20).tracking.is_none());
+        let stable = tracked_with(|o, _| o).tracking.unwrap();
+        assert_eq!((stable.amota, stable.mota, stable.ids), (1.0, 1.0, 0));
+        // A new id for every object at frame 10: one switch per object present then and before.
+        let (gt, schedule) = town();
+        let before = &gt.frames[schedule.frames[9]].objects;
+        let at = &gt.frames[schedule.frames[10]].objects;
+        let both = at
+            .iter()
+            .filter(|o| before.iter().any(|b| b.id == o.id))
+            .filter(|o| crate::tracking_eval::TRACKING_CLASSES.contains(&o.class))
+            .count();
+        assert!(both > 0);
+        let renamed = tracked_with(|o, k| if k < 10 { o } else { o + 1000 })
+            .tracking
+            .unwrap();
+        assert_eq!(renamed.ids, both);
     }
 
     fn frame_objects(k: usize) -> usize {

@@ -1,0 +1,147 @@
+"""Makes sim/tests/data/tracking_devkit_case.json: a random tracking case and the figures the
+nuScenes devkit's tracking evaluation gives for it (the Rust test sim/tests/tracking_devkit.rs
+checks v2x-sim's metrics against them).
+
+    python -m venv venv && venv/bin/pip install nuscenes-devkit motmetrics pandas scikit-learn
+    venv/bin/python examples/python/devkit_tracking_case.py sim/tests/data/tracking_devkit_case.json
+"""
+import json
+import sys
+from collections import defaultdict
+
+import numpy as np
+from nuscenes.eval.common.config import config_factory
+from nuscenes.eval.common.utils import center_distance
+from nuscenes.eval.tracking.algo import TrackingEvaluation
+from nuscenes.eval.tracking.constants import AVG_METRIC_MAP, MOT_METRIC_MAP
+from nuscenes.eval.tracking.data_classes import TrackingBox, TrackingMetricData, TrackingMetrics
+from nuscenes.eval.tracking.loaders import interpolate_tracks
+
+CLASSES = ["car", "pedestrian", "truck", "traffic_cone"]
+
+
+def make_case(rng):
+    """Three scenes of moving objects, and a noisy tracker's output with misses, gaps,
+    ghosts and swapped ids."""
+    scenes = []
+    next_gt = 1
+    for s in range(3):
+        n_frames = int(rng.integers(12, 20))
+        objects = []
+        for _ in range(int(rng.integers(6, 12))):
+            objects.append({
+                "id": next_gt,
+                "class": CLASSES[int(rng.integers(0, len(CLASSES)))],
+                "p0": rng.uniform(-40, 40, 2),
+                "v": rng.normal(0, 3, 2),
+                "first": int(rng.integers(0, n_frames // 2)),
+                "last": int(rng.integers(n_frames // 2, n_frames)),
+            })
+            next_gt += 1
+        track_of = {o["id"]: f"t{o['id']}" for o in objects}
+        frames = []
+        for k in range(n_frames):
+            t_us = 1_000_000 * s * 100 + 500_000 * k + int(rng.integers(0, 20_000))
+            gt, boxes = [], []
+            for o in objects:
+                if not (o["first"] <= k <= o["last"]):
+                    continue
+                xy = o["p0"] + o["v"] * 0.5 * k
+                if rng.random() < 0.05 and k not in (o["first"], o["last"]):
+                    pass  # an unannotated frame: the devkit fills it in
+                else:
+                    gt.append({"id": o["id"], "class": o["class"], "xy": list(map(float, xy))})
+                if rng.random() < 0.08:
+                    track_of[o["id"]] = f"t{o['id']}-{k}"  # a new id for the same object
+                if rng.random() < 0.15:
+                    continue  # missed
+                cls = o["class"] if rng.random() > 0.05 else CLASSES[int(rng.integers(0, 3))]
+                boxes.append({
+                    "track": track_of[o["id"]],
+                    "class": cls,
+                    "xy": list(map(float, xy + rng.normal(0, 0.8, 2))),
+                    "score": float(rng.uniform(0.2, 1.0)),
+                })
+            for g in range(int(rng.poisson(1.0))):
+                boxes.append({
+                    "track": f"ghost{s}-{k}-{g}",
+                    "class": CLASSES[int(rng.integers(0, 3))],
+                    "xy": list(map(float, rng.uniform(-40, 40, 2))),
+                    "score": float(rng.uniform(0.1, 0.7)),
+                })
+            frames.append({"t_us": t_us, "gt": gt, "boxes": boxes})
+        scenes.append(frames)
+    return scenes
+
+
+def to_tracks(scenes, gt):
+    tracks = {}
+    for s, frames in enumerate(scenes):
+        by_t = defaultdict(list)
+        for f in frames:
+            by_t[f["t_us"]] = []
+            for b in (f["gt"] if gt else f["boxes"]):
+                name = b["class"]
+                if name == "traffic_cone":
+                    continue  # not a tracking class: the devkit's loader drops it
+                by_t[f["t_us"]].append(TrackingBox(
+                    sample_token=f"s{s}-{f['t_us']}",
+                    translation=(b["xy"][0], b["xy"][1], 0.0),
+                    size=(1.0, 1.0, 1.0), rotation=(1.0, 0.0, 0.0, 0.0),
+                    tracking_id=str(b["id"]) if gt else b["track"],
+                    tracking_name=name,
+                    tracking_score=-1.0 if gt else b["score"]))
+        if not gt:  # as create_tracks: each box gets its track's mean score
+            scores = defaultdict(list)
+            for boxes in by_t.values():
+                for box in boxes:
+                    scores[box.tracking_id].append(box.tracking_score)
+            for boxes in by_t.values():
+                for box in boxes:
+                    box.tracking_score = float(np.mean(scores[box.tracking_id]))
+        tracks[f"scene{s}"] = interpolate_tracks(by_t)
+        tracks[f"scene{s}"] = defaultdict(list, sorted(tracks[f"scene{s}"].items()))
+    return tracks
+
+
+def evaluate(scenes):
+    cfg = config_factory("tracking_nips_2019")
+    TrackingMetricData.set_nelem(cfg.num_thresholds)
+    gt, pred = to_tracks(scenes, True), to_tracks(scenes, False)
+    metrics = TrackingMetrics(cfg)
+    for class_name in cfg.class_names:  # as TrackingEval.evaluate, step 2
+        md = TrackingEvaluation(gt, pred, class_name, center_distance, cfg.dist_th_tp, cfg.min_recall,
+                                cfg.num_thresholds, cfg.metric_worst, verbose=False).accumulate()
+        if np.all(np.isnan(md.mota)):
+            best = None
+        else:
+            best = np.nanargmax(md.mota)
+        if best is not None:
+            for name in MOT_METRIC_MAP.values():
+                if name:
+                    metrics.add_label_metric(name, class_name, md.get_metric(name)[best])
+        for name in AVG_METRIC_MAP.keys():
+            values = np.array(md.get_metric(AVG_METRIC_MAP[name]))
+            if np.all(np.isnan(values)):
+                value = np.nan
+            else:
+                values[np.isnan(values)] = cfg.metric_worst[name]
+                value = float(np.nanmean(values))
+            metrics.add_label_metric(name, class_name, value)
+    out = {m: metrics.compute_metric(m) for m in ["amota", "amotp", "mota", "motp", "ids", "frag", "tp", "fp", "fn"]}
+    out["classes"] = {c: {"amota": metrics.label_metrics["amota"][c], "mota": metrics.label_metrics["mota"][c],
+                          "ids": metrics.label_metrics["ids"][c]} for c in cfg.class_names
+                      if not np.isnan(metrics.label_metrics["amota"][c])}
+    return out
+
+
+def main():
+    rng = np.random.default_rng(7)
+    scenes = make_case(rng)
+    expected = evaluate(scenes)
+    json.dump({"scenes": scenes, "devkit": expected}, open(sys.argv[1], "w"), separators=(",", ":"))
+    print(json.dumps(expected, indent=1))
+
+
+if __name__ == "__main__":
+    main()

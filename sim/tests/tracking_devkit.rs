@@ -1,0 +1,86 @@
+//! The tracking metrics against the nuScenes devkit: a random case (three scenes, four classes,
+//! misses, unannotated frames, ghosts, new ids for old objects) and the figures the devkit's
+//! tracking evaluation gives for it, made by `examples/python/devkit_tracking_case.py`.
+
+use v2x_protocol::Class;
+use v2x_sim::dataset::GtObject;
+use v2x_sim::tracking_eval::{TrackBox, TrackingEval};
+
+fn xy(v: &serde_json::Value) -> [f64; 2] {
+    [v[0].as_f64().unwrap(), v[1].as_f64().unwrap()]
+}
+
+fn class(v: &serde_json::Value) -> Class {
+    v.as_str().unwrap().parse().unwrap()
+}
+
+#[test]
+fn the_metrics_equal_the_devkits() {
+    let text = include_str!("data/tracking_devkit_case.json");
+    let case: serde_json::Value = serde_json::from_str(text).unwrap();
+    let mut eval = TrackingEval::new();
+    for (s, frames) in case["scenes"].as_array().unwrap().iter().enumerate() {
+        for f in frames.as_array().unwrap() {
+            let gt: Vec<GtObject> = f["gt"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|o| {
+                    let [x, y] = xy(&o["xy"]);
+                    GtObject {
+                        id: o["id"].as_u64().unwrap() as u32,
+                        class: class(&o["class"]),
+                        center: [x, y, 0.0],
+                        size: [1.0; 3],
+                        yaw: 0.0,
+                        velocity: None,
+                    }
+                })
+                .collect();
+            let boxes: Vec<TrackBox> = f["boxes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|b| TrackBox {
+                    track: b["track"].as_str().unwrap().into(),
+                    class: class(&b["class"]),
+                    center: xy(&b["xy"]),
+                    score: b["score"].as_f64().unwrap(),
+                })
+                .collect();
+            eval.add_frame(s, f["t_us"].as_u64().unwrap(), &gt, &boxes);
+        }
+    }
+    let m = eval.summary();
+    let want = &case["devkit"];
+    let close = |got: f64, key: &str| {
+        let w = want[key].as_f64().unwrap();
+        assert!(
+            (got - w).abs() < 1e-9,
+            "{key}: {got} here, {w} in the devkit"
+        );
+    };
+    close(m.amota, "amota");
+    close(m.amotp, "amotp");
+    close(m.mota, "mota");
+    close(m.motp, "motp");
+    close(m.ids as f64, "ids");
+    close(m.frag as f64, "frag");
+    close(m.tp as f64, "tp");
+    close(m.fp as f64, "fp");
+    close(m.fn_ as f64, "fn");
+    let classes = want["classes"].as_object().unwrap();
+    assert_eq!(m.classes.len(), classes.len());
+    for (name, w) in classes {
+        let got = &m.classes[name];
+        assert!(
+            (got.amota - w["amota"].as_f64().unwrap()).abs() < 1e-9,
+            "{name}"
+        );
+        assert!(
+            (got.mota - w["mota"].as_f64().unwrap()).abs() < 1e-9,
+            "{name}"
+        );
+        assert_eq!(got.ids as f64, w["ids"].as_f64().unwrap(), "{name}");
+    }
+}
