@@ -258,30 +258,7 @@ pub fn cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
 
 /// The cost of a pair, or `None` when the gate rejects it (classes differ or CS = 0).
 pub fn pair_cost(p: &CsbaParams, a: &Detection, b: &Detection) -> Option<f64> {
-    if a.class != b.class {
-        return None;
-    }
-    let d_m = mahalanobis(a, b);
-    let lambda = lambda_max(p.gate, a, b);
-    let mut cs = centre_score(d_m, lambda);
-    if cs <= 0.0 {
-        return None;
-    }
-    if p.centre == Centre::Gaussian {
-        cs = (-d_m * d_m / 2.0).exp();
-    }
-    let ds = match p.dimension {
-        Dimension::Paper => dimension_score(a, b),
-        Dimension::LogRatio => dimension_score_log(a, b),
-        Dimension::Axes => dimension_score_axes(a, b),
-    };
-    let os = orientation_score(p.orientation, a, b);
-    let c = match p.combine {
-        Combine::Sum => cost(p.weights, ds, cs, os),
-        Combine::LogProduct => log_cost(p.weights, ds, cs, os),
-    };
-    // Validated inputs always give a finite cost; anything else is not a usable pair.
-    c.is_finite().then_some(c)
+    prepared_cost(p, a, &Prepared::of(a), b, &Prepared::of(b))
 }
 
 /// **[ours]** C = -(w_ds ln DS + w_cs ln CS + w_os ln OS) / (w_ds + w_cs + w_os).
@@ -289,6 +266,120 @@ pub fn log_cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
     let [w_ds, w_cs, w_os] = weights;
     let ln = |s: f64| s.max(1e-300).ln();
     -(w_ds * ln(ds) + w_cs * ln(cs) + w_os * ln(os)) / (w_ds + w_cs + w_os)
+}
+
+/// What every pair of a detection needs, computed once per detection: [`pair_cost`] over
+/// prepared detections gives the same bits without recomputing them per pair.
+#[derive(Copy, Clone, Debug)]
+struct Prepared {
+    /// The centre variances when the covariance is diagonal (`pos_cov` absent).
+    var: Option<[f64; 3]>,
+    /// [`position_std`].
+    pos_std: f64,
+    /// [`volume_with_std`].
+    volume: (f64, f64),
+}
+
+impl Prepared {
+    fn of(d: &Detection) -> Self {
+        Prepared {
+            var: d.pos_cov.is_none().then(|| d.std.pos.map(|s| s.powi(2))),
+            pos_std: position_std(d),
+            volume: volume_with_std(d),
+        }
+    }
+}
+
+/// A score, held as its value or as its logarithm (a Gaussian score's exponent), so that the
+/// log-product cost never takes the logarithm of an exponential.
+#[derive(Copy, Clone, Debug)]
+enum Score {
+    Value(f64),
+    Ln(f64),
+}
+
+impl Score {
+    fn value(self) -> f64 {
+        match self {
+            Score::Value(v) => v,
+            Score::Ln(l) => l.exp(),
+        }
+    }
+
+    /// ln of the score, floored at ln(1e-300) as [`log_cost`] floors the score.
+    fn ln(self) -> f64 {
+        match self {
+            Score::Value(v) => v.max(1e-300).ln(),
+            Score::Ln(l) => l.max(LN_FLOOR),
+        }
+    }
+}
+
+/// ln(1e-300).
+const LN_FLOOR: f64 = -690.7755278982137;
+
+/// [`pair_cost`] with each side's [`Prepared`] quantities.
+fn prepared_cost(
+    p: &CsbaParams,
+    a: &Detection,
+    pa: &Prepared,
+    b: &Detection,
+    pb: &Prepared,
+) -> Option<f64> {
+    if a.class != b.class {
+        return None;
+    }
+    let d_m = match (pa.var, pb.var) {
+        (Some(va), Some(vb)) => (0..3)
+            .map(|k| (a.center[k] - b.center[k]).powi(2) / (va[k] + vb[k]))
+            .sum::<f64>()
+            .sqrt(),
+        _ => mahalanobis(a, b),
+    };
+    let lambda = match p.gate {
+        Gate::Paper { factor } => factor * pa.pos_std.max(pb.pos_std),
+        Gate::Mahalanobis { lambda } => lambda,
+    };
+    let cs = centre_score(d_m, lambda);
+    if cs <= 0.0 {
+        return None;
+    }
+    // CS, DS, OS as in centre_score, dimension_score*, orientation_score
+    let cs = match p.centre {
+        Centre::Linear => Score::Value(cs),
+        Centre::Gaussian => Score::Ln(-d_m * d_m / 2.0),
+    };
+    let ((va, sva), (vb, svb)) = (pa.volume, pb.volume);
+    let ds = match p.dimension {
+        Dimension::Paper => {
+            let r = va / vb;
+            let sigma_r = r * ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
+            let z_r = (r - 1.0) / sigma_r;
+            let z_inv = (1.0 / r - 1.0) / sigma_r;
+            Score::Ln(-(z_r * z_r).min(z_inv * z_inv) / 2.0)
+        }
+        Dimension::LogRatio => {
+            let z = (va / vb).ln() / ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
+            Score::Ln(-z * z / 2.0)
+        }
+        Dimension::Axes => Score::Value(dimension_score_axes(a, b)),
+    };
+    let os = match p.orientation {
+        Orientation::Paper => Score::Value(orientation_score(p.orientation, a, b)),
+        Orientation::Wrapped => {
+            let d = yaw_difference(a.class, a.yaw, b.yaw);
+            Score::Ln(-d * d / (2.0 * (a.std.yaw.powi(2) + b.std.yaw.powi(2))))
+        }
+    };
+    let c = match p.combine {
+        Combine::Sum => cost(p.weights, ds.value(), cs.value(), os.value()),
+        Combine::LogProduct => {
+            let [w_ds, w_cs, w_os] = p.weights;
+            -(w_ds * ds.ln() + w_cs * cs.ln() + w_os * os.ln()) / (w_ds + w_cs + w_os)
+        }
+    };
+    // Validated inputs always give a finite cost; anything else is not a usable pair.
+    c.is_finite().then_some(c)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -324,43 +415,138 @@ pub fn bounds_applied() -> (u64, u64) {
     (CAPPED_ROWS.load(Relaxed), GREEDY_COMPONENTS.load(Relaxed))
 }
 
-/// All eligible pairs (at most [`MAX_CANDIDATES`] per detection of `a`, the cheapest).
-/// Candidates are found by a sorted sweep along x with a bound that no eligible pair can exceed
-/// (|dx| <= lambda_max sqrt(Sa_xx + Sb_xx)), then scored exactly.
-pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<Edge> {
-    let mut edges = Vec::new();
-    // b sorted by (class, x)
-    let mut order: Vec<usize> = (0..b.len()).collect();
-    order.sort_by(|&i, &j| {
-        (b[i].class, b[i].center[0])
-            .partial_cmp(&(b[j].class, b[j].center[0]))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    let keys: Vec<(Class, f64)> = order
-        .iter()
-        .map(|&i| (b[i].class, b[i].center[0]))
-        .collect();
-    let max_var_x_b = b
-        .iter()
-        .map(|d| d.position_covariance()[0][0])
-        .fold(0.0, f64::max);
-    let max_std_b = b.iter().map(position_std).fold(0.0, f64::max);
-    for (ia, da) in a.iter().enumerate() {
-        let lambda_bound = match p.gate {
-            Gate::Paper { factor } => factor * position_std(da).max(max_std_b),
-            Gate::Mahalanobis { lambda } => lambda,
-        };
-        let radius = lambda_bound * (da.position_covariance()[0][0] + max_var_x_b).sqrt();
-        let lo = da.center[0] - radius;
-        let hi = da.center[0] + radius;
-        let start = keys.partition_point(|&(c, x)| c < da.class || (c == da.class && x < lo));
-        let row_start = edges.len();
-        for (k, &(c, x)) in keys.iter().enumerate().skip(start) {
-            if c != da.class || x > hi {
-                break;
+/// Detections bucketed on a square grid over their bounding box (x, y), cells at least a given
+/// width: a point's own and neighbouring cells hold everything within that width of it.
+struct Grid {
+    origin: [f64; 2],
+    cell: f64,
+    n: [usize; 2],
+    /// Cell k's detections: `items[start[k]..start[k + 1]]`.
+    start: Vec<usize>,
+    items: Vec<usize>,
+}
+
+impl Grid {
+    /// The grid of `dets` with cells at least `min_cell` wide, widened if need be so that
+    /// there are at most about four cells per detection (far-flung input stays small).
+    fn of(dets: &[Detection], min_cell: f64) -> Option<Grid> {
+        if dets.is_empty() || !(min_cell.is_finite() && min_cell > 0.0) {
+            return None;
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for d in dets {
+            for k in 0..2 {
+                lo[k] = lo[k].min(d.center[k]);
+                hi[k] = hi[k].max(d.center[k]);
             }
-            let ib = order[k];
-            if let Some(cost) = pair_cost(p, da, &b[ib]) {
+        }
+        let budget = (4 * dets.len() + 64) as f64;
+        let mut cell = min_cell;
+        let cells = |cell: f64| ((hi[0] - lo[0]) / cell + 1.0) * ((hi[1] - lo[1]) / cell + 1.0);
+        if cells(cell) > budget {
+            cell *= (cells(cell) / budget).sqrt();
+        }
+        while cells(cell) > budget {
+            cell *= 1.5;
+        }
+        let n = [0, 1].map(|k| ((hi[k] - lo[k]) / cell) as usize + 1);
+        let mut grid = Grid {
+            origin: lo,
+            cell,
+            n,
+            start: vec![0; n[0] * n[1] + 1],
+            items: vec![0; dets.len()],
+        };
+        let keys: Vec<usize> = dets.iter().map(|d| grid.key(d.center)).collect();
+        for &k in &keys {
+            grid.start[k + 1] += 1;
+        }
+        for k in 0..n[0] * n[1] {
+            grid.start[k + 1] += grid.start[k];
+        }
+        let mut fill = grid.start.clone();
+        for (i, &k) in keys.iter().enumerate() {
+            grid.items[fill[k]] = i;
+            fill[k] += 1;
+        }
+        Some(grid)
+    }
+
+    /// The cell column and row of a point, clamped to the grid.
+    fn index(&self, p: [f64; 3]) -> [usize; 2] {
+        [0, 1].map(|k| (((p[k] - self.origin[k]) / self.cell).max(0.0) as usize).min(self.n[k] - 1))
+    }
+
+    fn key(&self, p: [f64; 3]) -> usize {
+        let [i, j] = self.index(p);
+        i * self.n[1] + j
+    }
+
+    /// Every detection in the point's cell and the eight around it.
+    fn near(&self, p: [f64; 3]) -> impl Iterator<Item = usize> + '_ {
+        let [i, j] = self.index(p);
+        let rows = i.saturating_sub(1)..=(i + 1).min(self.n[0] - 1);
+        rows.flat_map(move |i| {
+            let lo = i * self.n[1] + j.saturating_sub(1);
+            let hi = i * self.n[1] + (j + 1).min(self.n[1] - 1);
+            self.items[self.start[lo]..self.start[hi + 1]]
+                .iter()
+                .copied()
+        })
+    }
+}
+
+/// All eligible pairs (at most [`MAX_CANDIDATES`] per detection of `a`, the cheapest).
+/// No eligible pair can exceed |dx| <= lambda_max sqrt(Sa_xx + Sb_xx), nor the same in y: `b` is
+/// bucketed on a grid of cells at least that wide, each `a` looks at its own and the eight
+/// neighbouring cells, and only pairs of its class within both bounds are scored exactly. At a
+/// steady density the work per detection is constant however large the scene.
+pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<Edge> {
+    let mut edges = Vec::with_capacity(2 * a.len());
+    if a.is_empty() || b.is_empty() {
+        return edges;
+    }
+    let max_var_b = |k: usize| {
+        b.iter()
+            .map(|d| d.position_covariance()[k][k])
+            .fold(0.0, f64::max)
+    };
+    let (max_var_x_b, max_var_y_b) = (max_var_b(0), max_var_b(1));
+    let prep_a: Vec<Prepared> = a.iter().map(Prepared::of).collect();
+    let prep_b: Vec<Prepared> = b.iter().map(Prepared::of).collect();
+    let max_std_b = prep_b.iter().map(|q| q.pos_std).fold(0.0, f64::max);
+    // Per a: the largest |dx| and |dy| an eligible partner can have.
+    let radii: Vec<[f64; 2]> = a
+        .iter()
+        .zip(&prep_a)
+        .map(|(da, pa)| {
+            let lambda_bound = match p.gate {
+                Gate::Paper { factor } => factor * pa.pos_std.max(max_std_b),
+                Gate::Mahalanobis { lambda } => lambda,
+            };
+            let c = da.position_covariance();
+            [
+                lambda_bound * (c[0][0] + max_var_x_b).sqrt(),
+                lambda_bound * (c[1][1] + max_var_y_b).sqrt(),
+            ]
+        })
+        .collect();
+    let cell = radii.iter().map(|r| r[0].max(r[1])).fold(0.0, f64::max);
+    let Some(grid) = Grid::of(b, cell) else {
+        return edges;
+    };
+    for (ia, da) in a.iter().enumerate() {
+        let [rx, ry] = radii[ia];
+        let row_start = edges.len();
+        for ib in grid.near(da.center) {
+            let db = &b[ib];
+            if db.class != da.class
+                || (db.center[0] - da.center[0]).abs() > rx
+                || (db.center[1] - da.center[1]).abs() > ry
+            {
+                continue;
+            }
+            if let Some(cost) = prepared_cost(p, da, &prep_a[ia], db, &prep_b[ib]) {
                 edges.push(Edge { a: ia, b: ib, cost });
             }
         }
@@ -378,8 +564,14 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
 
 /// Minimum-cost assignment restricted to the given eligible edges: among the matchings of
 /// largest size, the one of least total cost. Returns the matched (a, b) pairs sorted by a.
+/// Solved exactly over the edges alone (`association/sparse.rs`); a component of more than
+/// [`MAX_EXACT_CELLS`] possible pairs is matched greedily by cost.
 pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
-    // Connected components of the bipartite edge graph (union-find over a's then b's).
+    if edges.is_empty() {
+        return Vec::new();
+    }
+    // Connected components of the bipartite edge graph (union-find over a's then b's), each
+    // with its a's, b's and largest cost.
     let mut parent: Vec<usize> = (0..n_a + n_b).collect();
     fn find(p: &mut [usize], mut x: usize) -> usize {
         while p[x] != x {
@@ -394,31 +586,77 @@ pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
             parent[ra] = rb;
         }
     }
-    // Group edges by component root.
-    let mut comp_of_root: Vec<usize> = vec![usize::MAX; n_a + n_b];
-    let mut comps: Vec<Vec<Edge>> = Vec::new();
+    let mut size = vec![(0usize, 0usize, 0.0f64); n_a + n_b];
+    let mut seen = vec![false; n_a + n_b];
     for e in edges {
         let r = find(&mut parent, e.a);
-        if comp_of_root[r] == usize::MAX {
-            comp_of_root[r] = comps.len();
-            comps.push(Vec::new());
+        size[r].2 = size[r].2.max(e.cost);
+        for (node, is_a) in [(e.a, true), (n_a + e.b, false)] {
+            if !seen[node] {
+                seen[node] = true;
+                if is_a {
+                    size[r].0 += 1;
+                } else {
+                    size[r].1 += 1;
+                }
+            }
         }
-        comps[comp_of_root[r]].push(*e);
     }
+    let too_big = |r: usize| size[r].0.saturating_mul(size[r].1) > MAX_EXACT_CELLS;
     let mut pairs = Vec::new();
-    for comp in comps {
-        if comp.len() == 1 {
-            pairs.push((comp[0].a, comp[0].b));
-            continue;
+    let mut exact: Vec<Edge> = Vec::new();
+    let mut greedy_edges: Vec<Edge> = Vec::new();
+    for e in edges {
+        let r = find(&mut parent, e.a);
+        if too_big(r) {
+            greedy_edges.push(*e);
+        } else {
+            exact.push(*e);
         }
-        solve_component(&comp, &mut pairs);
+    }
+    if !greedy_edges.is_empty() {
+        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        greedy(&greedy_edges, &mut pairs);
+    }
+    // Rows: the smaller side (one path search per row). Leaving a row unmatched costs more
+    // than any set of its component's real edges: (min(rows, cols) + 1) x (largest + 1).
+    let transpose = n_a > n_b;
+    let (n_rows, n_cols) = if transpose { (n_b, n_a) } else { (n_a, n_b) };
+    if transpose {
+        for e in &mut exact {
+            std::mem::swap(&mut e.a, &mut e.b);
+        }
+    }
+    let unmatched: Vec<f64> = (0..n_rows)
+        .map(|r| {
+            let node = if transpose { n_a + r } else { r };
+            let (na, nb, largest) = size[find(&mut parent, node)];
+            (na.min(nb) + 1) as f64 * (largest + 1.0)
+        })
+        .collect();
+    for (r, c) in sparse::solve(n_rows, n_cols, &exact, &unmatched) {
+        pairs.push(if transpose { (c, r) } else { (r, c) });
     }
     pairs.sort_unstable();
     pairs
 }
 
-/// Solves one component densely: rows are its a's, columns its b's, absent edges cost more
-/// than any complete set of present ones (so the matching is as large as possible first).
+/// The dense solve of one component, kept as the reference the sparse solve is tested against:
+/// rows are its a's, columns its b's, absent edges cost more than any complete set of present
+/// ones (so the matching is as large as possible first).
+#[cfg(test)]
+fn assign_dense(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
+    let _ = (n_a, n_b);
+    let mut pairs = Vec::new();
+    if !edges.is_empty() {
+        solve_component(edges, &mut pairs);
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Solves edges densely: rows are their a's, columns their b's.
+#[cfg(test)]
 fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     let mut rows: Vec<usize> = comp.iter().map(|e| e.a).collect();
     let mut cols: Vec<usize> = comp.iter().map(|e| e.b).collect();
@@ -427,11 +665,6 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     cols.sort_unstable();
     cols.dedup();
     let (nr, nc) = (rows.len(), cols.len());
-    if nr.saturating_mul(nc) > MAX_EXACT_CELLS {
-        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        greedy(comp, pairs);
-        return;
-    }
     // (min(nr, nc) + 1) x (largest cost + 1) outweighs any set of present costs.
     let largest = comp.iter().map(|e| e.cost).fold(0.0, f64::max);
     let absent = (nr.min(nc) + 1) as f64 * (largest + 1.0);
@@ -477,5 +710,6 @@ pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize
     assign(a.len(), b.len(), &edges)
 }
 
+mod sparse;
 #[cfg(test)]
 mod tests;

@@ -238,9 +238,11 @@ pub fn csba_variants() -> [(&'static str, CsbaParams); 7] {
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
 /// each next agent's list in agent order (`docs/method.md` §1); every group is re-fused from all its members.
 pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
-    let mut groups: Vec<Vec<&Detection>> = Vec::new();
-    let mut sources: Vec<AgentSet> = Vec::new();
-    let mut fused: Vec<Detection> = Vec::new();
+    // A group's members inline: two to four agents need no allocation per group.
+    let n: usize = agents.iter().map(Vec::len).sum();
+    let mut groups: Vec<smallvec::SmallVec<[&Detection; 4]>> = Vec::with_capacity(n);
+    let mut sources: Vec<AgentSet> = Vec::with_capacity(n);
+    let mut fused: Vec<Detection> = Vec::with_capacity(n);
     for (k, list) in agents.iter().enumerate() {
         let pairs = if fused.is_empty() {
             Vec::new()
@@ -259,7 +261,7 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
-                groups.push(vec![d]);
+                groups.push(smallvec::smallvec![d]);
                 sources.push(AgentSet::single(k));
                 fused.push(d.clone());
             }

@@ -5,14 +5,15 @@
 
 use crate::limits::MAX_WINDOW_AGENTS;
 
-/// A set of agents, as indices into a window's agent list (bit k of byte k / 8: agent k).
+/// A set of agents, as indices into a window's agent list (bit k of byte k / 8: agent k); up to
+/// 64 agents without an allocation.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
-pub struct AgentSet(Vec<u8>);
+pub struct AgentSet(smallvec::SmallVec<[u8; 8]>);
 
 impl AgentSet {
     /// The empty set.
     pub fn new() -> Self {
-        AgentSet(Vec::new())
+        AgentSet(smallvec::SmallVec::new())
     }
 
     /// The set holding only agent `k`.
@@ -71,18 +72,15 @@ impl AgentSet {
     /// The mask as the wire writes it for a list of `n` agents: exactly `ceil(n / 8)` bytes.
     /// The set must lie within the list (`bound() <= n`).
     pub fn to_bytes(&self, n: usize) -> Vec<u8> {
-        let mut b = self.0.clone();
+        let mut b = self.0.to_vec();
         b.resize(n.div_ceil(8), 0);
         b
     }
 
     /// The set a wire mask stands for.
     pub fn from_bytes(bytes: &[u8]) -> Self {
-        let mut b = bytes.to_vec();
-        while b.last() == Some(&0) {
-            b.pop();
-        }
-        AgentSet(b)
+        let len = bytes.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+        AgentSet(smallvec::SmallVec::from_slice(&bytes[..len]))
     }
 }
 

@@ -261,15 +261,82 @@ proptest! {
         }).collect();
         let (a, b) = dets.split_at(dets.len() / 2);
         for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
-            let mut fast: Vec<(usize, usize)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b)).collect();
+            let mut fast: Vec<(usize, usize, u64)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b, e.cost.to_bits())).collect();
             fast.sort();
             let mut slow = Vec::new();
             for (i, da) in a.iter().enumerate() {
                 for (j, db) in b.iter().enumerate() {
-                    if pair_cost(&p, da, db).is_some() { slow.push((i, j)); }
+                    if let Some(c) = pair_cost(&p, da, db) { slow.push((i, j, c.to_bits())); }
                 }
             }
+            // the same pairs at the same costs, to the bit
             prop_assert_eq!(fast, slow);
         }
+        // The log-product cost, taken from the scores' exponents, is the scores' formula.
+        for da in a {
+            for db in b {
+                let Some(c) = pair_cost(&CsbaParams::PLUS, da, db) else { continue };
+                let d_m = mahalanobis(da, db);
+                let by_scores = log_cost(
+                    [0.2, 0.5, 0.3],
+                    dimension_score_log(da, db),
+                    (-d_m * d_m / 2.0).exp(),
+                    orientation_score(Orientation::Wrapped, da, db),
+                );
+                prop_assert!((c - by_scores).abs() < 1e-9 * (1.0 + c), "{} vs {}", c, by_scores);
+            }
+        }
+    }
+}
+
+/// Total cost of a set of pairs under the edges.
+fn total(edges: &[Edge], pairs: &[(usize, usize)]) -> f64 {
+    pairs
+        .iter()
+        .map(|&(a, b)| {
+            edges
+                .iter()
+                .find(|e| e.a == a && e.b == b)
+                .expect("a pair is an edge")
+                .cost
+        })
+        .sum()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// The sparse solve reaches the dense solve's optimum (size, then cost) on random sparse
+    /// and dense instances up to 60 x 60, ties and rectangular shapes included.
+    #[test]
+    fn sparse_solve_equals_the_dense_solve(
+        nr in 1usize..60,
+        nc in 1usize..60,
+        density in 0.01f64..1.0,
+        coarse in any::<bool>(),
+        seed in any::<u64>(),
+    ) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut edges = Vec::new();
+        for a in 0..nr {
+            for b in 0..nc {
+                if rng.gen::<f64>() < density {
+                    // coarse costs make many ties
+                    let c: f64 = if coarse { rng.gen_range(0..4) as f64 } else { rng.gen_range(0.0..5.0) };
+                    edges.push(e(a, b, c));
+                }
+            }
+        }
+        let sparse = assign(nr, nc, &edges);
+        let dense = assign_dense(nr, nc, &edges);
+        prop_assert_eq!(sparse.len(), dense.len());
+        let (ts, td) = (total(&edges, &sparse), total(&edges, &dense));
+        prop_assert!((ts - td).abs() < 1e-9, "sparse {} vs dense {}", ts, td);
+        let mut rows: Vec<_> = sparse.iter().map(|p| p.0).collect();
+        let mut cols: Vec<_> = sparse.iter().map(|p| p.1).collect();
+        rows.dedup(); cols.sort(); cols.dedup();
+        prop_assert_eq!(rows.len(), sparse.len());
+        prop_assert_eq!(cols.len(), sparse.len());
     }
 }
