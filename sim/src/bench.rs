@@ -10,6 +10,7 @@ use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
+use v2x_fuser::region::{self, Region, Tiling};
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
@@ -122,6 +123,63 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
             method: "bound".into(),
             metrics: bound,
         });
+    }
+    rows
+}
+
+/// Regional fusion against one fuser on the same frames (`bench --tile-size`): per setting and
+/// method, the method as one fuser runs it and the union of its regional fusers' outputs, one
+/// region per tile some box lies in ([`v2x_fuser::region`]).
+pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: f64) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for setting in &cfg.settings {
+        let slots = 2 * cfg.methods.len();
+        let accs = (0..gt.frames.len())
+            .into_par_iter()
+            .fold(
+                || vec![Accumulator::new(); slots],
+                |mut accs, i| {
+                    let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+                    let objects = &gt.frames[i].objects;
+                    for (m, method) in cfg.methods.iter().enumerate() {
+                        accs[2 * m].add_frame(objects, &method.fuse(&dets));
+                        let regional: Vec<Detection> = region::tiles_of(&tiling, &dets)
+                            .into_iter()
+                            .flat_map(|tile| {
+                                Region {
+                                    tiling,
+                                    tile,
+                                    halo_m,
+                                }
+                                .fuse(method, &dets)
+                            })
+                            .collect();
+                        accs[2 * m + 1].add_frame(objects, &regional);
+                    }
+                    accs
+                },
+            )
+            .reduce(
+                || vec![Accumulator::new(); slots],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        x.merge(y);
+                    }
+                    a
+                },
+            );
+        for (m, method) in cfg.methods.iter().enumerate() {
+            for (k, name) in [method.name(), format!("{method} regions")]
+                .into_iter()
+                .enumerate()
+            {
+                rows.push(Row {
+                    noise: setting.name.clone(),
+                    method: name,
+                    metrics: accs[2 * m + k].summary(),
+                });
+            }
+        }
     }
     rows
 }

@@ -142,6 +142,14 @@ enum Command {
         /// --noise setting; --methods defaults to csba-wls+ and gt-wls.
         #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
         tracking: bool,
+        /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
+        /// this side (m) that some box lies in, each fusing its tile and a --halo around it and
+        /// keeping the boxes centred in its tile; the two rows should agree.
+        #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile", "tracking"])]
+        tile_size: Option<f64>,
+        /// With --tile-size: how far beyond its tile a regional fuser takes boxes (m).
+        #[arg(long, requires = "tile_size", default_value_t = v2x_fuser::region::DEFAULT_HALO_M)]
+        halo: f64,
         /// Instead of Table 2: two agents captured at different instants (10+10 Hz at offsets
         /// 0, 25, 50 and 100 ms, and a 10+20 Hz pair), each fused with and without motion
         /// compensation. --noise is then one setting (default mild); --methods defaults to
@@ -451,9 +459,46 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             profile,
             align,
             tracking,
+            tile_size,
+            halo,
             asynchronous,
         } => {
             let gt = data.load()?;
+            if let Some(size) = tile_size {
+                let tiling = v2x_fuser::region::Tiling::new(size)
+                    .map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
+                if !(halo.is_finite() && halo >= 0.0) {
+                    bail!("--halo {halo}: expected a finite distance of at least 0 m");
+                }
+                let methods = if methods == "all" {
+                    "csba-wls+,csba-wls".into()
+                } else {
+                    methods
+                };
+                let cfg = BenchConfig {
+                    methods: parse_list(&methods, vec![], |s| s.parse())?,
+                    settings: parse_list(&noise, NoiseSetting::paper(), |s| {
+                        NoiseSetting::parse(s, 2)
+                    })?,
+                    seed,
+                    range,
+                };
+                let start = Instant::now();
+                let rows = bench::run_regions(&gt, &cfg, tiling, halo);
+                match format {
+                    Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+                    Format::Csv => print!("{}", bench::csv(&rows)),
+                    Format::Table => {
+                        println!(
+                            "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s\n",
+                            data.describe(&gt),
+                            start.elapsed().as_secs_f64()
+                        );
+                        print!("{}", bench::table(&rows));
+                    }
+                }
+                return Ok(());
+            }
             if tracking {
                 let methods = if methods == "all" {
                     "csba-wls+,gt-wls".into()
