@@ -68,7 +68,9 @@ pub struct Agent {
     seq: u32,
     publisher: Arc<zenoh::pubsub::Publisher<'static>>,
     outbox: tokio::sync::mpsc::UnboundedSender<link::InFlight>,
-    _token: zenoh::liveliness::LivelinessToken,
+    /// The liveliness token while the agent is there (`None` after [`Agent::leave`]).
+    token: Option<zenoh::liveliness::LivelinessToken>,
+    alive_key: String,
     counters: Arc<AgentCounters>,
 }
 
@@ -107,9 +109,41 @@ impl Agent {
             seq: 0,
             publisher,
             outbox,
-            _token: token,
+            token: Some(token),
+            alive_key: keys::alive(ns, name),
             counters,
         })
+    }
+
+    /// Replaces the simulated link (a scripted change); the values are checked first.
+    pub fn set_link(&mut self, link: Link) -> anyhow::Result<()> {
+        link.validate()
+            .map_err(|e| anyhow!("agent {}: {e}", self.name))?;
+        self.link = link;
+        Ok(())
+    }
+
+    /// Withdraws the liveliness token: the fuser stops waiting for this agent.
+    pub fn leave(&mut self) {
+        self.token = None;
+    }
+
+    /// Declares the liveliness token again after [`Agent::leave`].
+    pub async fn join(&mut self, session: &zenoh::Session) -> anyhow::Result<()> {
+        if self.token.is_none() {
+            let token = session
+                .liveliness()
+                .declare_token(self.alive_key.clone())
+                .await
+                .map_err(|e| {
+                    anyhow!(
+                        "agent {}: cannot declare its liveliness token: {e}",
+                        self.name
+                    )
+                })?;
+            self.token = Some(token);
+        }
+        Ok(())
     }
 
     /// The agent's name.

@@ -19,5 +19,6 @@ pub mod noise;
 pub mod plot;
 pub mod run;
 pub mod scenario;
+pub mod timeline;
 pub mod town;
 pub mod tracking_eval;

@@ -205,6 +205,9 @@ pub struct Scenario {
     pub security: SecuritySpec,
     /// The agents, in fusion order.
     pub agents: Vec<AgentSpec>,
+    /// What happens to which agent when (`[[events]]`, [`crate::timeline`]).
+    #[serde(default)]
+    pub events: Vec<crate::timeline::EventSpec>,
 }
 
 fn default_ns() -> String {
@@ -299,7 +302,7 @@ impl Scenario {
                 return Err(format!("agent {}: phase_ms must be in [0, 60000)", a.name));
             }
         }
-        Ok(())
+        crate::timeline::check(&self.events, &self.agents, self.duration_s)
     }
 
     /// The noise setting of the agents, in order.

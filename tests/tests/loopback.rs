@@ -40,7 +40,8 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
         let lists: Vec<_> = order
             .iter()
             .map(|&idx| {
-                let (detections, origin) = agent_view(&scenario, &gt, &schedule, idx, k, t);
+                let noise = scenario.agents[idx].agent_noise();
+                let (detections, origin) = agent_view(&scenario, &gt, &schedule, idx, k, t, &noise);
                 let f = Frame {
                     agent: "x".into(),
                     kind: Default::default(),

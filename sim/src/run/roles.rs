@@ -4,8 +4,10 @@
 use super::epoch::serve_epoch;
 use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
+use crate::noise::AgentNoise;
 use crate::noise::{detect, place_agents, Capture};
 use crate::scenario::Scenario;
+use crate::timeline::AgentTimeline;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
@@ -14,8 +16,8 @@ use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::{self, NodeConfig, NodeStats};
 use v2x_protocol::{Detection, Frame};
 
-/// The detections agent `idx` of a scenario makes at data time `t_us` (its `draw`-th capture),
-/// and where it stands.
+/// The detections agent `idx` of a scenario makes at data time `t_us` (its `draw`-th capture)
+/// with `noise` (its own, or as the timeline has changed it), and where it stands.
 pub fn agent_view(
     scenario: &Scenario,
     gt: &GroundTruth,
@@ -23,9 +25,9 @@ pub fn agent_view(
     idx: usize,
     draw: usize,
     t_us: u64,
+    noise: &AgentNoise,
 ) -> (Vec<Detection>, [f64; 3]) {
     let spec = &scenario.agents[idx];
-    let noise = spec.agent_noise();
     let objects = gt.objects_at(schedule.scene, t_us);
     let near = gt
         .nearest_frame(schedule.scene, t_us)
@@ -42,7 +44,7 @@ pub fn agent_view(
                 t_us,
             },
             idx,
-            &noise,
+            noise,
             place,
             spec.range_m,
             scenario.seed,
@@ -78,6 +80,8 @@ pub async fn agent_role(
     )
     .await?;
     agent.wait_for_subscriber(Duration::from_secs(30)).await?;
+    let mut timeline = AgentTimeline::new(spec, &scenario.events);
+    let mut state = timeline.at(0);
     for (j, t) in agent_captures(scenario, schedule, idx)
         .into_iter()
         .enumerate()
@@ -91,7 +95,23 @@ pub async fn agent_role(
             _ = tokio::time::sleep(Duration::from_micros(due.saturating_sub(now))) => {}
             _ = stop.wait_for(|s| *s) => break,
         }
-        let (detections, origin) = agent_view(scenario, gt, schedule, idx, j, t);
+        // The scripted events due by this capture, on the scenario's clock.
+        let now_state = timeline.at(t.saturating_sub(schedule.t0_us));
+        if now_state.present != state.present {
+            if now_state.present {
+                agent.join(session).await?;
+            } else {
+                agent.leave();
+            }
+        }
+        if now_state.link != state.link {
+            agent.set_link(now_state.link.clone())?;
+        }
+        state = now_state;
+        if !state.present {
+            continue;
+        }
+        let (detections, origin) = agent_view(scenario, gt, schedule, idx, j, t, &state.noise);
         agent.send(Frame {
             agent: spec.name.clone(),
             kind: spec.kind,

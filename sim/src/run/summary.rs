@@ -6,6 +6,7 @@ use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
 use crate::scenario::Scenario;
+use crate::timeline::AgentTimeline;
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -159,6 +160,7 @@ pub fn summarize(
     // Each agent alone, at its own capture times.
     let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
     for (idx, acc) in agent_acc.iter_mut().enumerate() {
+        let mut timeline = AgentTimeline::new(&scenario.agents[idx], &scenario.events);
         for (j, t) in agent_captures(scenario, schedule, idx)
             .into_iter()
             .enumerate()
@@ -166,8 +168,14 @@ pub fn summarize(
             if t > reached {
                 break;
             }
+            // as the agent saw it: absent while it had left, with the noise of the moment
+            let state = timeline.at(t.saturating_sub(schedule.t0_us));
+            if !state.present {
+                continue;
+            }
             let objects = gt.objects_at(schedule.scene, t);
-            acc.add_frame(&objects, &agent_view(scenario, gt, schedule, idx, j, t).0);
+            let view = agent_view(scenario, gt, schedule, idx, j, t, &state.noise).0;
+            acc.add_frame(&objects, &view);
         }
     }
     let mut bandwidth = BTreeMap::new();
