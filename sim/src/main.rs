@@ -173,9 +173,13 @@ enum Command {
         /// Noise seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Output directory.
+        /// Output directory (with --timeline: the SVG file to write).
         #[arg(long)]
         out: PathBuf,
+        /// Instead of a frame: draw a run's per-second series (`v2x-sim run --timeline
+        /// FILE.json`), one panel per measure, the scripted events marked.
+        #[arg(long)]
+        timeline: Option<PathBuf>,
     },
     #[command(flatten)]
     Run(v2x_sim::run::RunCommand),
@@ -769,7 +773,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             method,
             seed,
             out,
+            timeline,
         } => {
+            if let Some(path) = timeline {
+                let tl = v2x_sim::run::series::Timeline::read(&path)?;
+                std::fs::write(&out, v2x_sim::run::series_plot::svg(&tl))
+                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", out.display()))?;
+                eprintln!("drew {}", out.display());
+                return Ok(());
+            }
             let gt = data.load()?;
             let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;
             eprintln!(

@@ -14,7 +14,7 @@ use serde::Deserialize;
 use v2x_agent::Link;
 
 /// What an event does.
-#[derive(Copy, Clone, Debug, Deserialize, PartialEq, Eq)]
+#[derive(Copy, Clone, Debug, Deserialize, serde::Serialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum Action {
     /// The agent stops sending frames and withdraws its liveliness token.

@@ -2,7 +2,7 @@
 //! windows complete without it, a link change shows in the latency, a clock jump is rejected as
 //! the ingest's clock tolerance says.
 
-use v2x_sim::run::run_local;
+use v2x_sim::run::{run_local, series, Schedule};
 use v2x_sim::scenario::Scenario;
 use v2x_tests::{scenario_toml, within};
 
@@ -31,7 +31,7 @@ jump_ms = 5000.0
     );
     let scenario = Scenario::parse(&toml, "timeline-events", None).unwrap();
     let gt = scenario.dataset.data_args().load().unwrap();
-    let (summary, _) = within(90, "the scripted run", run_local(&scenario, &gt))
+    let (summary, outcome) = within(90, "the scripted run", run_local(&scenario, &gt))
         .await
         .unwrap();
     // a1 sent its first second only: 10 of 40 captures.
@@ -55,4 +55,19 @@ jump_ms = 5000.0
     // From 1 s on, every window waits for a0's frames, 150 ms late.
     let p50 = summary.e2e_latency_ms.p50_ms.unwrap();
     assert!((140.0..400.0).contains(&p50), "end-to-end p50 {p50} ms");
+
+    // The per-second series shows the same, second by second.
+    let schedule = Schedule::of(&gt, scenario.duration_s);
+    let tl = series::timeline(&scenario, &gt, &schedule, &outcome);
+    assert_eq!(tl.seconds.len(), 4);
+    let s = &tl.seconds;
+    assert!(s[0].frames["a1"] >= 9, "{:?}", s[0]);
+    assert_eq!((s[2].frames["a1"], s[3].frames["a1"]), (0, 0));
+    assert!(s[0].e2e_p50_ms.unwrap() < 100.0, "{:?}", s[0]);
+    assert!(s[2].e2e_p50_ms.unwrap() >= 140.0, "{:?}", s[2]);
+    assert!(s[3].incomplete >= 3, "{:?}", s[3]);
+    assert_eq!(tl.events.len(), 3);
+    assert_eq!(tl.events[0].label, "a1 leave");
+    let svg = v2x_sim::run::series_plot::svg(&tl);
+    assert!(svg.contains("a1 leave") && svg.contains("a0 link") && svg.contains("a2 clock_jump"));
 }

@@ -16,6 +16,8 @@ pub mod relay;
 pub mod roles;
 pub mod schedule;
 pub mod secure;
+pub mod series;
+pub mod series_plot;
 pub mod summary;
 
 pub use relay::{counting_relay, free_port};
@@ -61,6 +63,11 @@ pub struct RunArgs {
     /// Record the fused output as a nuScenes results file (ground-truth sample tokens).
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Write the run's per-second series as the fuser saw it (windows, incomplete, latency,
+    /// fused metrics, each agent's frames): CSV if FILE ends in .csv, else JSON (which
+    /// `v2x-sim plot --timeline` draws).
+    #[arg(long)]
+    pub timeline: Option<PathBuf>,
     /// Foxglove output: --mcap FILE and --foxglove [ADDR:]PORT.
     #[command(flatten)]
     pub viz: v2x_fuser::viz::VizArgs,
@@ -289,6 +296,11 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
                 r.samples.len(),
                 path.display()
             );
+        }
+        if let Some(path) = &args.timeline {
+            let tl = series::timeline(&scenario, &gt, &schedule, &outcome);
+            tl.write(path)?;
+            eprintln!("timeline of {} s -> {}", tl.seconds.len(), path.display());
         }
         match args.format {
             RunFormat::Json => println!("{}", serde_json::to_string_pretty(&summary)?),

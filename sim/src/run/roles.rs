@@ -138,11 +138,24 @@ pub struct FuserOutcome {
     pub fused: BTreeMap<u64, Vec<Detection>>,
     /// With tracking: the tracks each window updated, by the same time (ids: tracking ids).
     pub tracks: BTreeMap<u64, Vec<Detection>>,
+    /// Each window's agents, completeness and end-to-end latency, by the same time.
+    pub windows: BTreeMap<u64, WindowRecord>,
     /// The data time the run reached before the fuser stopped (us): scheduled frames up to it
     /// are scored.
     pub reached_us: u64,
     /// The wall-clock time of the data's first scheduled frame (us).
     pub epoch_us: u64,
+}
+
+/// What the fuser role saw of one window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WindowRecord {
+    /// The agents whose frames it fused.
+    pub agents: Vec<String>,
+    /// Closed with every live agent's frame.
+    pub complete: bool,
+    /// Capture (the window's reference time) to publish, on this host's clock (ms).
+    pub e2e_ms: f64,
 }
 
 /// Runs the fuser role until `stop` resolves.
@@ -173,6 +186,7 @@ pub async fn fuser_role(
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
     let mut fused = BTreeMap::new();
     let mut tracks = BTreeMap::new();
+    let mut windows = BTreeMap::new();
     let speed = scenario.speed;
     let stats = node::run(
         session,
@@ -183,6 +197,14 @@ pub async fn fuser_role(
             if let Some(tracked) = &f.tracks {
                 tracks.insert(t, tracked.clone());
             }
+            windows.insert(
+                t,
+                WindowRecord {
+                    agents: f.provenance.agents.clone(),
+                    complete: f.provenance.complete,
+                    e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
+                },
+            );
         },
         stop,
     )
@@ -196,6 +218,7 @@ pub async fn fuser_role(
         stats,
         fused,
         tracks,
+        windows,
         reached_us,
         epoch_us,
     })

@@ -377,6 +377,7 @@ mod tests {
             stats: Default::default(),
             fused: BTreeMap::new(),
             tracks: BTreeMap::new(),
+            windows: BTreeMap::new(),
             reached_us: 0,
             epoch_us: 0,
         };
@@ -426,6 +427,7 @@ mod tests {
             stats: Default::default(),
             fused: BTreeMap::new(),
             tracks: BTreeMap::new(),
+            windows: BTreeMap::new(),
             reached_us: 0,
             epoch_us: 0,
         };
