@@ -178,5 +178,25 @@ pub fn tiles_of(tiling: &Tiling, agents: &[Vec<Detection>]) -> Vec<Tile> {
     tiles
 }
 
+/// What the regional fusers of every tile [`tiles_of`] names publish together for one window.
+pub fn fuse_regions(
+    tiling: Tiling,
+    halo_m: f64,
+    method: &Method,
+    agents: &[Vec<Detection>],
+) -> Vec<Detection> {
+    tiles_of(&tiling, agents)
+        .into_iter()
+        .flat_map(|tile| {
+            Region {
+                tiling,
+                tile,
+                halo_m,
+            }
+            .fuse(method, agents)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests;

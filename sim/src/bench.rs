@@ -10,7 +10,7 @@ use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
-use v2x_fuser::region::{self, Region, Tiling};
+use v2x_fuser::region::{self, Tiling};
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
@@ -143,17 +143,7 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
                     let objects = &gt.frames[i].objects;
                     for (m, method) in cfg.methods.iter().enumerate() {
                         accs[2 * m].add_frame(objects, &method.fuse(&dets));
-                        let regional: Vec<Detection> = region::tiles_of(&tiling, &dets)
-                            .into_iter()
-                            .flat_map(|tile| {
-                                Region {
-                                    tiling,
-                                    tile,
-                                    halo_m,
-                                }
-                                .fuse(method, &dets)
-                            })
-                            .collect();
+                        let regional = region::fuse_regions(tiling, halo_m, method, &dets);
                         accs[2 * m + 1].add_frame(objects, &regional);
                     }
                     accs

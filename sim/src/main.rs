@@ -251,6 +251,28 @@ fn evaluate_tracking(
     Ok(eval.summary())
 }
 
+/// A bench configuration over the paper's noise settings (or those named), with `methods`, or
+/// `default_methods` when it is `all`.
+fn paper_settings(
+    methods: &str,
+    default_methods: &str,
+    noise: &str,
+    seed: u64,
+    range: Option<f64>,
+) -> anyhow::Result<BenchConfig> {
+    let methods = if methods == "all" {
+        default_methods
+    } else {
+        methods
+    };
+    Ok(BenchConfig {
+        methods: parse_list(methods, vec![], |s| s.parse())?,
+        settings: parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?,
+        seed,
+        range,
+    })
+}
+
 fn faults_help() -> String {
     let mut s = String::from("Fault keys (--faults KEY=VALUE,...; default in brackets):\n");
     for (k, what) in v2x_sim::faults::FAULT_KEYS {
@@ -474,19 +496,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 if !(halo.is_finite() && halo >= 0.0) {
                     bail!("--halo {halo}: expected a finite distance of at least 0 m");
                 }
-                let methods = if methods == "all" {
-                    "csba-wls+,csba-wls".into()
-                } else {
-                    methods
-                };
-                let cfg = BenchConfig {
-                    methods: parse_list(&methods, vec![], |s| s.parse())?,
-                    settings: parse_list(&noise, NoiseSetting::paper(), |s| {
-                        NoiseSetting::parse(s, 2)
-                    })?,
-                    seed,
-                    range,
-                };
+                let cfg = paper_settings(&methods, "csba-wls+,csba-wls", &noise, seed, range)?;
                 let start = Instant::now();
                 let rows = bench::run_regions(&gt, &cfg, tiling, halo);
                 match format {
@@ -504,19 +514,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 return Ok(());
             }
             if tracking {
-                let methods = if methods == "all" {
-                    "csba-wls+,gt-wls".into()
-                } else {
-                    methods
-                };
-                let cfg = BenchConfig {
-                    methods: parse_list(&methods, vec![], |s| s.parse())?,
-                    settings: parse_list(&noise, NoiseSetting::paper(), |s| {
-                        NoiseSetting::parse(s, 2)
-                    })?,
-                    seed,
-                    range,
-                };
+                let cfg = paper_settings(&methods, "csba-wls+,gt-wls", &noise, seed, range)?;
                 let start = Instant::now();
                 let rows = bench::run_tracking(&gt, &cfg, Default::default());
                 match format {

@@ -88,24 +88,13 @@ fn an_agent_sends_each_box_to_its_tile() {
     assert_eq!(by_tile[&Tile { x: -1, y: 0 }].len(), 1);
 }
 
-/// Fuses every tile's region and returns their outputs together.
 fn regional(
     method: &Method,
     agents: &[Vec<Detection>],
     tiling: Tiling,
     halo_m: f64,
 ) -> Vec<Detection> {
-    tiles_of(&tiling, agents)
-        .into_iter()
-        .flat_map(|tile| {
-            Region {
-                tiling,
-                tile,
-                halo_m,
-            }
-            .fuse(method, agents)
-        })
-        .collect()
+    fuse_regions(tiling, halo_m, method, agents)
 }
 
 fn sorted_centres(dets: &[Detection]) -> Vec<[u64; 3]> {

@@ -131,6 +131,7 @@ pub async fn agent_role(
 }
 
 /// What the fuser role collected.
+#[derive(Default)]
 pub struct FuserOutcome {
     /// The node's statistics.
     pub stats: NodeStats,

@@ -207,14 +207,7 @@ mod tests {
         let schedule = Schedule::of(&gt, 3.0);
         let mut scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
         scenario.events.clear();
-        let mut outcome = FuserOutcome {
-            stats: Default::default(),
-            fused: BTreeMap::new(),
-            tracks: BTreeMap::new(),
-            windows: BTreeMap::new(),
-            reached_us: 0,
-            epoch_us: 0,
-        };
+        let mut outcome = FuserOutcome::default();
         // 30 frames: the exact ground truth fused; the second second's windows lack "rsu",
         // close incomplete and take 100 ms longer.
         for (k, &gi) in schedule.frames.iter().enumerate() {

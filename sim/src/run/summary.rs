@@ -373,14 +373,7 @@ mod tests {
     fn run_with(fused: impl Fn(usize) -> bool, reached_frames: usize) -> Summary {
         let scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
         let (gt, schedule) = town();
-        let mut outcome = FuserOutcome {
-            stats: Default::default(),
-            fused: BTreeMap::new(),
-            tracks: BTreeMap::new(),
-            windows: BTreeMap::new(),
-            reached_us: 0,
-            epoch_us: 0,
-        };
+        let mut outcome = FuserOutcome::default();
         for (k, &gi) in schedule.frames.iter().enumerate() {
             let f = &gt.frames[gi];
             if fused(k) {
@@ -423,14 +416,7 @@ mod tests {
         let mut scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
         scenario.fuser.track = true;
         let (gt, schedule) = town();
-        let mut outcome = FuserOutcome {
-            stats: Default::default(),
-            fused: BTreeMap::new(),
-            tracks: BTreeMap::new(),
-            windows: BTreeMap::new(),
-            reached_us: 0,
-            epoch_us: 0,
-        };
+        let mut outcome = FuserOutcome::default();
         for (k, &gi) in schedule.frames.iter().enumerate() {
             let f = &gt.frames[gi];
             let boxes: Vec<_> = f.objects.iter().map(|o| o.as_detection()).collect();
