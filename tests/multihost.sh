@@ -2,7 +2,8 @@
 # Multi-host test: three network namespaces (vehicle, infrastructure, roadside) joined by veth
 # links, each running `v2x-sim run SCENARIO --role ...` with explicit endpoints, twice: plain
 # peers, then mutual TLS through a router with access control (certificates from
-# `v2x-sim certs`). The roadside fuser records the fused output, which is scored with `v2x-sim eval`.
+# `v2x-sim certs`). The roadside fuser records the fused output, which is scored with `v2x-sim eval`;
+# every host reports its own bytes from Zenoh's statistics; the plain run scripts a link change.
 # Needs root and iproute2; run from the repository root after `cargo build --release`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,18 +37,36 @@ run_case() {
     echo "  case: $name"
     ip netns exec "$F" timeout 60 "$BIN/v2x-sim" run "$scenario" $roadside_roles --format json --record "$tmp/$name-fused.json" > "$tmp/$name-summary.json" 2> "$tmp/$name-fuser.log" &
     local fpid=$!
-    ip netns exec "$V" timeout 60 "$BIN/v2x-sim" run "$scenario" --role veh 2> "$tmp/$name-veh.log" &
+    ip netns exec "$V" timeout 60 "$BIN/v2x-sim" run "$scenario" --role veh --format json > "$tmp/$name-veh.json" 2> "$tmp/$name-veh.log" &
     local vpid=$!
-    ip netns exec "$R" timeout 60 "$BIN/v2x-sim" run "$scenario" --role rsu 2> "$tmp/$name-rsu.log" &
+    ip netns exec "$R" timeout 60 "$BIN/v2x-sim" run "$scenario" --role rsu --format json > "$tmp/$name-rsu.json" 2> "$tmp/$name-rsu.log" &
     local rpid=$!
     local status=0
     wait "$vpid" || { echo "vehicle role failed:"; cat "$tmp/$name-veh.log"; status=1; }
     wait "$rpid" || { echo "infrastructure role failed:"; cat "$tmp/$name-rsu.log"; status=1; }
     wait "$fpid" || { echo "roadside roles failed:"; cat "$tmp/$name-fuser.log"; status=1; }
     [ "$status" = 0 ] || exit 1
-    python3 - "$tmp/$name-summary.json" <<'PY'
+    python3 - "$tmp/$name-summary.json" "$tmp/$name-veh.json" "$tmp/$name-rsu.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
+# Every host reports its own bytes from Zenoh's statistics: each agent what it sent, the
+# fuser what it received (per agent where each has a transport of its own: plain peers).
+for path, a in ((sys.argv[2], "veh"), (sys.argv[3], "rsu")):
+    b = json.load(open(path))["bandwidth"][a]
+    assert b["wire_bytes_per_frame"] > b["payload_bytes_per_frame"] > 0, b
+    assert b["zenoh_payload_bytes_per_frame"] == b["payload_bytes_per_frame"], b
+    r = s["bandwidth"][a]
+    assert r["received_payload_bytes_per_frame"] > 0, r
+    if s["security"]["mode"] == "plain":
+        assert r["received_wire_bytes_per_frame"] > r["received_payload_bytes_per_frame"], r
+    got = r["received_wire_bytes_per_frame"]
+    print("    %s sent %.0f B/frame on the wire (payload %.0f, Zenoh overhead %.1f B/message); fuser received %s"
+          % (a, b["wire_bytes_per_frame"], b["payload_bytes_per_frame"], b["overhead_bytes_per_message"],
+             "%.0f B/frame" % got if got else "%.0f B/frame of payload (one transport via the router)" % r["received_payload_bytes_per_frame"]))
+assert s["fuser_traffic"]["rx"]["bytes"] > 0, s["fuser_traffic"]
+if s["security"]["mode"] == "plain":
+    # the vehicle's link went from 10 to 60 ms at 2.5 s: half the windows wait for it
+    assert s["e2e_latency_ms"]["p95_ms"] >= 55.0, s["e2e_latency_ms"]
 assert s["frames_scheduled"] == 50, s["frames_scheduled"]
 assert s["windows"] >= 45 and s["windows_incomplete"] <= 2, (s["windows"], s["windows_incomplete"])
 assert s["fused"]["precision"] == 1.0 and s["fused"]["recall"] == 1.0, s["fused"]
@@ -90,6 +109,13 @@ name = "rsu"
 kind = "infrastructure"
 noise = "large"
 zenoh = { mode = "peer", connect = ["tcp/10.213.2.1:7447"], no_multicast_scouting = true }
+
+# A scripted event, applied by the vehicle's own host on the scenario clock.
+[[events]]
+at_s = 2.5
+target = "veh"
+action = "link"
+latency_ms = 60.0
 TOML
 run_case plain "$tmp/plain.toml" "--role fuser"
 

@@ -103,6 +103,24 @@ pub async fn open_session(args: &ZenohArgs) -> Result<zenoh::Session, SessionErr
         .map_err(|e| SessionError(format!("cannot open a Zenoh session: {e}")))
 }
 
+/// Opens a Zenoh session whose transport statistics count puts per key expression in `keys`
+/// (read them with [`crate::traffic::traffic`]).
+#[cfg(feature = "session")]
+pub async fn open_counted_session(
+    args: &ZenohArgs,
+    keys: &[String],
+) -> Result<zenoh::Session, SessionError> {
+    let mut config = config(args)?;
+    for (key, value) in crate::traffic::stats_pairs(keys) {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| SessionError(format!("Zenoh option {key} = {value}: {e}")))?;
+    }
+    zenoh::open(config)
+        .await
+        .map_err(|e| SessionError(format!("cannot open a Zenoh session: {e}")))
+}
+
 /// Resolves on SIGINT (Ctrl-C) or SIGTERM (systemd, `docker stop`, `timeout`).
 #[cfg(feature = "session")]
 pub async fn shutdown_signal() {

@@ -5,7 +5,8 @@
 //! Actions: `leave` (the agent stops sending and withdraws its liveliness token), `join` (it
 //! comes back), `link` (new latency, jitter and/or drop rate), `loss_burst` (every frame lost
 //! for `duration_s`), `clock_jump` (its clock moves by `jump_ms`), `noise` (a new noise profile,
-//! with `faults` if given).
+//! with `faults` if given); and for the target `fuser`, `restart` (the fuser node stops, down
+//! for `duration_s`, default 0, and starts afresh: its windows, tracks and clock estimates lost).
 
 use crate::faults::Faults;
 use crate::noise::AgentNoise;
@@ -29,7 +30,12 @@ pub enum Action {
     ClockJump,
     /// A new noise profile (and `faults`).
     Noise,
+    /// The fuser restarts (target `fuser`), down for `duration_s` (default 0).
+    Restart,
 }
+
+/// The target name of events that concern the fuser.
+pub const FUSER: &str = "fuser";
 
 /// One `[[events]]` entry as written.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -37,7 +43,7 @@ pub enum Action {
 pub struct EventSpec {
     /// When, in seconds from the start of the run (data time).
     pub at_s: f64,
-    /// The agent's name.
+    /// The agent's name, or `fuser`.
     pub target: String,
     /// What happens.
     pub action: Action,
@@ -50,7 +56,7 @@ pub struct EventSpec {
     /// `link`: the new drop rate.
     #[serde(default)]
     pub drop_rate: Option<f64>,
-    /// `loss_burst`: how long (s).
+    /// `loss_burst`: how long (s); `restart`: how long the fuser is down (s).
     #[serde(default)]
     pub duration_s: Option<f64>,
     /// `clock_jump`: by how much (ms, either sign).
@@ -100,6 +106,24 @@ pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Res
                 "at_s must be within the run, 0 to {duration_s} s"
             )));
         }
+        if e.target == FUSER || e.action == Action::Restart {
+            if e.target != FUSER {
+                return Err(at("restart applies to the target fuser".into()));
+            }
+            if e.action != Action::Restart {
+                return Err(at(format!(
+                    "the fuser can only restart, not {:?}",
+                    e.action
+                )));
+            }
+            if let Some(f) = e.fields().into_iter().find(|f| *f != "duration_s") {
+                return Err(at(format!("{f} does not apply to Restart")));
+            }
+            if e.duration_s.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
+                return Err(at("restart: duration_s must be 0 or more".into()));
+            }
+            continue;
+        }
         let Some(a) = agents.iter().position(|a| a.name == e.target) else {
             let names: Vec<&str> = agents.iter().map(|a| a.name.as_str()).collect();
             return Err(at(format!(
@@ -113,6 +137,7 @@ pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Res
             Action::LossBurst => &["duration_s"],
             Action::ClockJump => &["jump_ms"],
             Action::Noise => &["noise", "faults"],
+            Action::Restart => &["duration_s"],
         };
         if let Some(f) = e.fields().into_iter().find(|f| !allowed.contains(f)) {
             return Err(at(format!("{f} does not apply to {:?}", e.action)));
@@ -138,6 +163,7 @@ pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Res
                 Some(d) if d.is_finite() && d > 0.0 => {}
                 _ => return Err(at("loss_burst needs duration_s > 0".into())),
             },
+            Action::Restart => {}
             Action::ClockJump => match e.jump_ms {
                 Some(j) if j.is_finite() => {}
                 _ => return Err(at("clock_jump needs a finite jump_ms".into())),
@@ -156,6 +182,22 @@ pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Res
         }
     }
     Ok(())
+}
+
+/// The fuser's restarts: (when, how long down), in microseconds from the run's start, in order.
+pub fn fuser_restarts(events: &[EventSpec]) -> Vec<(u64, u64)> {
+    let mut r: Vec<(u64, u64)> = events
+        .iter()
+        .filter(|e| e.target == FUSER && e.action == Action::Restart)
+        .map(|e| {
+            (
+                (e.at_s * 1e6).round() as u64,
+                (e.duration_s.unwrap_or(0.0) * 1e6).round() as u64,
+            )
+        })
+        .collect();
+    r.sort();
+    r
 }
 
 /// An agent's state at one time of the run.
@@ -232,6 +274,7 @@ impl AgentTimeline {
                     }
                     self.noise = n;
                 }
+                Action::Restart => {}
             }
             self.next += 1;
         }

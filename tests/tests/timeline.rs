@@ -73,3 +73,55 @@ jump_ms = 5000.0
     let svg = v2x_sim::run::series_plot::svg(&tl);
     assert!(svg.contains("a1 leave") && svg.contains("a0 link") && svg.contains("a2 clock_jump"));
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fuser_restart_loses_its_downtime_and_fuses_again() {
+    let mut toml = scenario_toml("timeline-restart", &["mild"], 2, 3.0, 1.0, "csba-wls+");
+    toml.push_str(
+        r#"
+[[events]]
+at_s = 1.0
+target = "fuser"
+action = "restart"
+duration_s = 0.5
+"#,
+    );
+    let scenario = Scenario::parse(&toml, "timeline-restart", None).unwrap();
+    let gt = scenario.dataset.data_args().load().unwrap();
+    let (summary, outcome) = within(90, "the run with a restart", run_local(&scenario, &gt))
+        .await
+        .unwrap();
+    assert_eq!(outcome.restarts_us.len(), 1);
+    // Down from 1.0 s to 1.5 s: about five windows lost, every other one fused.
+    assert!(
+        (22..=26).contains(&summary.windows),
+        "{} windows",
+        summary.windows
+    );
+    let schedule = Schedule::of(&gt, scenario.duration_s);
+    let down = |t: &u64| {
+        let s = (t - schedule.t0_us) as f64 / 1e6;
+        (1.05..1.45).contains(&s)
+    };
+    assert!(
+        !outcome.fused.keys().any(down),
+        "no window fused while the fuser was down: {:?}",
+        outcome.fused.keys().filter(|t| down(t)).collect::<Vec<_>>()
+    );
+    let after = outcome
+        .fused
+        .keys()
+        .filter(|t| (**t - schedule.t0_us) as f64 / 1e6 >= 1.6)
+        .count();
+    assert!(after >= 13, "{after} windows after the restart");
+    // The counters of both runs of the node add up.
+    assert!(
+        summary.counts["a0"].fused >= 22,
+        "{:?}",
+        summary.counts["a0"]
+    );
+    assert!(summary.e2e_latency_ms.p50_ms.is_some());
+    let tl = series::timeline(&scenario, &gt, &schedule, &outcome);
+    assert_eq!(tl.events[0].label, "fuser restart");
+    assert!(tl.seconds[1].windows <= 6, "{:?}", tl.seconds[1]);
+}

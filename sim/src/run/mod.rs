@@ -1,8 +1,10 @@
 //! `v2x-sim run`: a scenario over Zenoh. With no `--role`, every role runs in this process on
 //! loopback: the fuser listens on a free local port and each agent reaches it through a small
-//! byte-counting TCP relay ([`relay`]), which is how wire bytes are measured. With `--role NAME`
-//! only those roles run, each with the endpoints its scenario entry gives, so one file drives a
-//! multi-machine experiment (one role per host).
+//! byte-counting TCP relay ([`relay`]). With `--role NAME` only those roles run, each with the
+//! endpoints its scenario entry gives, so one file drives a multi-machine experiment (one role
+//! per host). Every role's session counts its own traffic with Zenoh's statistics ([`meter`]):
+//! agent roles report what they sent, the fuser role what it received; the relay adds what Zenoh
+//! does not count (TLS records and the sessions' opening handshakes).
 //!
 //! Agents replay the ground truth's frames on a shared [`schedule`]: frame k is captured at
 //! epoch + k x period / speed on each agent's (possibly offset) clock. The fuser role fixes the
@@ -12,6 +14,7 @@
 //! recording and the summary of what ran.
 
 pub mod epoch;
+pub mod meter;
 pub mod relay;
 pub mod roles;
 pub mod schedule;
@@ -23,7 +26,10 @@ pub mod summary;
 pub use relay::{counting_relay, free_port};
 pub use roles::{agent_captures, agent_role, agent_view, fuser_role, FuserOutcome};
 pub use schedule::Schedule;
-pub use summary::{print_table, recorded, summarize, Bandwidth, Counts, SecurityReport, Summary};
+pub use summary::{
+    agent_bandwidth, print_agent_table, print_table, recorded, summarize, AgentReport, AgentSide,
+    Bandwidth, Counts, SecurityReport, Summary,
+};
 
 use crate::dataset::GroundTruth;
 use crate::scenario::{Scenario, SecurityMode};
@@ -118,9 +124,10 @@ async fn run_local_until(
     let (router_session, fuser_session, certs) = match scenario.security.mode {
         SecurityMode::Plain => {
             let hub = format!("tcp/127.0.0.1:{hub_port}");
+            let args = ZenohArgs::loopback(&[hub], &[]);
             (
                 None,
-                open_session(&ZenohArgs::loopback(&[hub], &[])).await?,
+                meter::open_role_session(&args, scenario, Role::Fuser).await?,
                 None,
             )
         }
@@ -136,7 +143,8 @@ async fn run_local_until(
                 connect: vec![hub],
                 ..Default::default()
             };
-            let fuser = open_session(&secure::with_certs(&connect, &dir, Role::Fuser)?).await?;
+            let args = secure::with_certs(&connect, &dir, Role::Fuser)?;
+            let fuser = meter::open_role_session(&args, scenario, Role::Fuser).await?;
             (Some(router), fuser, Some(dir))
         }
     };
@@ -147,22 +155,17 @@ async fn run_local_until(
         let counter = Arc::new(AtomicU64::new(0));
         let port = counting_relay(hub_port, counter.clone()).await?;
         let opened = std::time::Instant::now();
-        let session = match &certs {
-            None => {
-                open_session(&ZenohArgs::loopback(
-                    &[],
-                    &[format!("tcp/127.0.0.1:{port}")],
-                ))
-                .await?
-            }
+        let args = match &certs {
+            None => ZenohArgs::loopback(&[], &[format!("tcp/127.0.0.1:{port}")]),
             Some(dir) => {
                 let connect = ZenohArgs {
                     connect: vec![format!("tls/127.0.0.1:{port}")],
                     ..Default::default()
                 };
-                open_session(&secure::with_certs(&connect, dir, Role::Agent(&a.name))?).await?
+                secure::with_certs(&connect, dir, Role::Agent(&a.name))?
             }
         };
+        let session = meter::open_role_session(&args, scenario, Role::Agent(&a.name)).await?;
         setup.push(opened.elapsed().as_secs_f64() * 1000.0);
         agent_sessions.push(session);
         wire.push(counter);
@@ -201,13 +204,20 @@ async fn run_local_until(
     let (outcome, results) = tokio::join!(fuser, agents);
     let outcome = outcome?;
     let mut totals = BTreeMap::new();
-    for ((a, r), w) in scenario.agents.iter().zip(results).zip(&wire) {
+    for (((a, r), w), session) in scenario
+        .agents
+        .iter()
+        .zip(results)
+        .zip(&wire)
+        .zip(&agent_sessions)
+    {
         totals.insert(
             a.name.clone(),
-            (
-                r.with_context(|| format!("agent {}", a.name))?,
-                Some(w.load(Ordering::Relaxed)),
-            ),
+            AgentSide {
+                totals: r.with_context(|| format!("agent {}", a.name))?,
+                sent: meter::snapshot(session, &a.name).await,
+                socket_bytes: Some(w.load(Ordering::Relaxed)),
+            },
         );
     }
     for s in agent_sessions {
@@ -263,7 +273,16 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         );
         Some(run_local_until(&scenario, &gt, stop, viz.clone()).await?)
     } else {
-        run_roles(&scenario, &gt, &schedule, &args.roles, stop, viz.clone()).await?
+        run_roles(
+            &scenario,
+            &gt,
+            &schedule,
+            &args.roles,
+            args.format,
+            stop,
+            viz.clone(),
+        )
+        .await?
     };
     if let (Some(v), Some((_, outcome))) = (&viz, &summary_and_outcome) {
         // The ground truth of every scheduled frame, on the capture clock of the run.
@@ -316,6 +335,7 @@ async fn run_roles(
     gt: &GroundTruth,
     schedule: &Schedule,
     roles: &[String],
+    format: RunFormat,
     stop: watch::Receiver<bool>,
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<Option<(Summary, FuserOutcome)>> {
@@ -334,7 +354,8 @@ async fn run_roles(
         if !run_fuser {
             return anyhow::Ok(None);
         }
-        let session = open_session(&secure::role_args(scenario, Role::Fuser)?).await?;
+        let args = secure::role_args(scenario, Role::Fuser)?;
+        let session = meter::open_role_session(&args, scenario, Role::Fuser).await?;
         let epoch = now_us() + 3_000_000;
         let end = schedule.wall_us(
             epoch,
@@ -367,8 +388,9 @@ async fn run_roles(
                 let stop = stop.clone();
                 async move {
                     let opened = std::time::Instant::now();
+                    let args = secure::role_args(scenario, Role::Agent(&a.name))?;
                     let session =
-                        open_session(&secure::role_args(scenario, Role::Agent(&a.name))?).await?;
+                        meter::open_role_session(&args, scenario, Role::Agent(&a.name)).await?;
                     eprintln!(
                         "agent {}: session open in {:.1} ms",
                         a.name,
@@ -378,17 +400,27 @@ async fn run_roles(
                         epoch::query_epoch(&session, &scenario.namespace, Duration::from_secs(60))
                             .await?;
                     let t = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
+                    let sent = meter::snapshot(&session, &a.name).await;
                     let _ = session.close().await;
                     eprintln!(
-                        "agent {}: sent {} frames ({} dropped by the link), {} payload bytes",
-                        a.name, t.frames, t.dropped, t.payload_bytes
+                        "agent {}: sent {} frames ({} dropped by the link), {} payload bytes, {} bytes on the wire",
+                        a.name,
+                        t.frames,
+                        t.dropped,
+                        t.payload_bytes,
+                        sent.as_ref().map_or("?".into(), |tr| tr.total.tx.bytes.to_string())
                     );
-                    anyhow::Ok((a.name.clone(), t))
+                    let side = AgentSide {
+                        totals: t,
+                        sent,
+                        socket_bytes: None,
+                    };
+                    anyhow::Ok((a.name.clone(), side))
                 }
             });
         for r in futures::future::join_all(runs).await {
-            let (name, t) = r?;
-            out.insert(name, (t, None));
+            let (name, side) = r?;
+            out.insert(name, side);
         }
         anyhow::Ok(out)
     };
@@ -402,7 +434,29 @@ async fn run_roles(
         let _ = r.close().await;
     }
     let totals = totals?;
-    Ok(outcome?.map(|o| {
+    let outcome = outcome?;
+    if outcome.is_none() && !totals.is_empty() {
+        // Agents without the fuser: each reports its own side.
+        let report = AgentReport {
+            namespace: scenario.namespace.clone(),
+            bandwidth: totals
+                .iter()
+                .map(|(n, side)| {
+                    let b = agent_bandwidth(scenario, schedule, n, side, None);
+                    (n.clone(), b)
+                })
+                .collect(),
+            sent: totals
+                .iter()
+                .map(|(n, side)| (n.clone(), (side.totals.frames, side.totals.dropped)))
+                .collect(),
+        };
+        match format {
+            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
+            RunFormat::Table => print_agent_table(&report),
+        }
+    }
+    Ok(outcome.map(|o| {
         let s = summarize(
             scenario,
             gt,

@@ -7,13 +7,14 @@ use crate::dataset::GroundTruth;
 use crate::noise::AgentNoise;
 use crate::noise::{detect, place_agents, Capture};
 use crate::scenario::Scenario;
-use crate::timeline::AgentTimeline;
+use crate::timeline::{fuser_restarts, AgentTimeline};
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::{now_us, Agent, AgentTotals};
 use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::{self, NodeConfig, NodeStats};
+use v2x_protocol::traffic::Traffic;
 use v2x_protocol::{Detection, Frame};
 
 /// The detections agent `idx` of a scenario makes at data time `t_us` (its `draw`-th capture)
@@ -146,6 +147,11 @@ pub struct FuserOutcome {
     pub reached_us: u64,
     /// The wall-clock time of the data's first scheduled frame (us).
     pub epoch_us: u64,
+    /// The fuser session's traffic, sampled about once a second (wall clock, us), from Zenoh's
+    /// statistics (empty if the session was opened without them).
+    pub traffic: Vec<(u64, Traffic)>,
+    /// When the fuser restarted (scripted), on the wall clock (us).
+    pub restarts_us: Vec<u64>,
 }
 
 /// What the fuser role saw of one window.
@@ -153,6 +159,8 @@ pub struct FuserOutcome {
 pub struct WindowRecord {
     /// The agents whose frames it fused.
     pub agents: Vec<String>,
+    /// How many fused boxes each of those agents' boxes went into (its objects in the window).
+    pub objects: Vec<u64>,
     /// Closed with every live agent's frame.
     pub complete: bool,
     /// Capture (the window's reference time) to publish, on this host's clock (ms).
@@ -185,32 +193,91 @@ pub async fn fuser_role(
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
+    let (sampling, sampled) = watch::channel(false);
+    let sampler = super::meter::sample_every_second(session.clone(), sampled);
     let mut fused = BTreeMap::new();
     let mut tracks = BTreeMap::new();
     let mut windows = BTreeMap::new();
     let speed = scenario.speed;
-    let stats = node::run(
-        session,
-        cfg,
-        |f| {
-            let t = schedule.data_us(epoch_us, f.frame.capture_us, speed);
-            fused.insert(t, f.frame.detections.clone());
-            if let Some(tracked) = &f.tracks {
-                tracks.insert(t, tracked.clone());
-            }
-            windows.insert(
-                t,
-                WindowRecord {
-                    agents: f.provenance.agents.clone(),
-                    complete: f.provenance.complete,
-                    e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
+    // The node runs until `stop`, restarted afresh (after its downtime) at each scripted restart.
+    let restarts = fuser_restarts(&scenario.events);
+    let mut restarts_us = Vec::new();
+    let mut stats: Option<NodeStats> = None;
+    tokio::pin!(stop);
+    let mut stopped = false;
+    for segment in 0..=restarts.len() {
+        let until = restarts
+            .get(segment)
+            .map(|(at, _)| schedule.wall_us(epoch_us, schedule.t0_us + at, speed));
+        let segment_stop = async {
+            match until {
+                Some(w) => tokio::select! {
+                    _ = &mut stop => stopped = true,
+                    _ = tokio::time::sleep(Duration::from_micros(w.saturating_sub(now_us()))) => {}
                 },
-            );
-        },
-        stop,
-    )
-    .await?;
+                None => {
+                    (&mut stop).await;
+                    stopped = true;
+                }
+            }
+        };
+        let s = node::run(
+            session,
+            cfg.clone(),
+            |f| {
+                let t = schedule.data_us(epoch_us, f.frame.capture_us, speed);
+                fused.insert(t, f.frame.detections.clone());
+                if let Some(tracked) = &f.tracks {
+                    tracks.insert(t, tracked.clone());
+                }
+                let p = &f.provenance;
+                let mut objects = vec![0u64; p.agents.len()];
+                for set in &p.sources {
+                    for i in set.iter() {
+                        if let Some(n) = objects.get_mut(i) {
+                            *n += 1;
+                        }
+                    }
+                }
+                windows.insert(
+                    t,
+                    WindowRecord {
+                        agents: p.agents.clone(),
+                        objects,
+                        complete: p.complete,
+                        e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
+                    },
+                );
+            },
+            segment_stop,
+        )
+        .await?;
+        stats = Some(match stats {
+            None => s,
+            Some(mut all) => {
+                absorb(&mut all, s);
+                all
+            }
+        });
+        if stopped || segment == restarts.len() {
+            break;
+        }
+        restarts_us.push(now_us());
+        tokio::select! {
+            _ = &mut stop => break,
+            _ = tokio::time::sleep(Duration::from_micros(restarts[segment].1)) => {}
+        }
+    }
+    let mut stats = stats.unwrap_or_default();
+    if !restarts_us.is_empty() {
+        // Latency over every run of the node (percentiles do not add up).
+        let e2e: Vec<f64> = windows.values().map(|w: &WindowRecord| w.e2e_ms).collect();
+        stats.e2e_latency_ms = node::Latency::of(&e2e);
+        stats.fusion_latency_ms = node::Latency::of(&stats.fusion_samples);
+    }
     answer.abort();
+    let _ = sampling.send(true);
+    let traffic = sampler.await.unwrap_or_default();
     // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
     // was not going to come.
     let stopped = now_us().saturating_sub((scenario.fuser.max_wait_ms * 1000.0) as u64);
@@ -222,5 +289,42 @@ pub async fn fuser_role(
         windows,
         reached_us,
         epoch_us,
+        traffic,
+        restarts_us,
     })
+}
+
+/// Adds a later run of the node's counters to the earlier runs' (latencies are recomputed by
+/// the caller).
+fn absorb(all: &mut NodeStats, later: NodeStats) {
+    for (name, a) in later.agents {
+        let e = all.agents.entry(name).or_default();
+        e.frames_in += a.frames_in;
+        e.accepted += a.accepted;
+        e.fused += a.fused;
+        e.invalid += a.invalid;
+        e.wrong_agent += a.wrong_agent;
+        e.future += a.future;
+        e.stale += a.stale;
+        e.late += a.late;
+        e.duplicate += a.duplicate;
+        e.replaced += a.replaced;
+        e.payload_bytes += a.payload_bytes;
+        e.objects += a.objects;
+        e.clock_lag_ms = a.clock_lag_ms;
+        e.token = a.token;
+    }
+    for (reason, n) in later.rejected {
+        *all.rejected.entry(reason).or_default() += n;
+    }
+    all.windows += later.windows;
+    all.windows_incomplete += later.windows_incomplete;
+    all.windows_unpublished += later.windows_unpublished;
+    all.windows_dropped += later.windows_dropped;
+    all.fused_objects += later.fused_objects;
+    all.agents_forgotten += later.agents_forgotten;
+    all.fusion_samples.extend(later.fusion_samples);
+    all.live = later.live;
+    all.awaited = later.awaited;
+    all.tracks = later.tracks;
 }

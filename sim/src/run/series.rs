@@ -11,6 +11,7 @@ use crate::scenario::Scenario;
 use crate::timeline::EventSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use v2x_protocol::keys;
 
 /// One second of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -33,6 +34,15 @@ pub struct Second {
     pub mate_m: Option<f64>,
     /// Frames of each agent in the windows fused.
     pub frames: BTreeMap<String, u64>,
+    /// Objects of each agent in the windows fused.
+    #[serde(default)]
+    pub objects: BTreeMap<String, u64>,
+    /// Payload bytes received from each agent (Zenoh's statistics at the fuser).
+    #[serde(default)]
+    pub payload_bytes: BTreeMap<String, u64>,
+    /// Wire bytes received over each agent's own transport (peer mode; absent through a router).
+    #[serde(default)]
+    pub wire_bytes: BTreeMap<String, u64>,
 }
 
 /// A run's series and the events that shaped it.
@@ -99,6 +109,9 @@ pub fn timeline(
             recall: None,
             mate_m: None,
             frames: agents.iter().map(|a| (a.clone(), 0)).collect(),
+            objects: agents.iter().map(|a| (a.clone(), 0)).collect(),
+            payload_bytes: BTreeMap::new(),
+            wire_bytes: BTreeMap::new(),
         })
         .collect();
     let mut e2e: Vec<Vec<f64>> = vec![Vec::new(); rows.len()];
@@ -110,12 +123,36 @@ pub fn timeline(
         };
         row.windows += 1;
         row.incomplete += u64::from(!w.complete);
-        for a in &w.agents {
+        for (i, a) in w.agents.iter().enumerate() {
             *row.frames.entry(a.clone()).or_default() += 1;
+            *row.objects.entry(a.clone()).or_default() += w.objects.get(i).copied().unwrap_or(0);
         }
         e2e[s].push(w.e2e_ms);
         if let Some(dets) = outcome.fused.get(&t) {
             acc[s].add_frame(&gt.objects_at(schedule.scene, t), dets);
+        }
+    }
+    // Bytes between consecutive samples of the fuser's traffic, in the second of their midpoint.
+    for pair in outcome.traffic.windows(2) {
+        let ((w0, before), (w1, after)) = (&pair[0], &pair[1]);
+        let mid = schedule.data_us(outcome.epoch_us, (w0 + w1) / 2, scenario.speed);
+        let Some(row) = rows.get_mut((mid.saturating_sub(schedule.t0_us) / 1_000_000) as usize)
+        else {
+            continue;
+        };
+        for a in &agents {
+            let key = keys::detections(&scenario.namespace, a);
+            let payload = after.key(&key).rx.since(&before.key(&key).rx);
+            *row.payload_bytes.entry(a.clone()).or_default() += payload.put_payload_bytes;
+            if let Some(p) = after.sole_sender(&key) {
+                let was = before
+                    .peers
+                    .iter()
+                    .find(|q| q.zid == p.zid)
+                    .map(|q| q.total.rx)
+                    .unwrap_or_default();
+                *row.wire_bytes.entry(a.clone()).or_default() += p.total.rx.since(&was).bytes;
+            }
         }
     }
     for ((row, mut lat), acc) in rows.iter_mut().zip(e2e).zip(acc) {
@@ -136,12 +173,15 @@ pub fn timeline(
 }
 
 impl Timeline {
-    /// The series as CSV: one row per second, one `frames_AGENT` column per agent.
+    /// The series as CSV: one row per second; per agent, `frames_A`, `objects_A`,
+    /// `payload_bytes_A` and `wire_bytes_A` columns (empty where not measured).
     pub fn csv(&self) -> String {
         let mut s =
             String::from("second,windows,incomplete,e2e_p50_ms,e2e_p95_ms,precision,recall,mate_m");
         for a in &self.agents {
-            s.push_str(&format!(",frames_{a}"));
+            s.push_str(&format!(
+                ",frames_{a},objects_{a},payload_bytes_{a},wire_bytes_{a}"
+            ));
         }
         s.push('\n');
         let f = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.4}"));
@@ -157,8 +197,17 @@ impl Timeline {
                 f(r.recall),
                 f(r.mate_m)
             ));
+            let n = |m: &BTreeMap<String, u64>, a: &String| {
+                m.get(a).map_or(String::new(), u64::to_string)
+            };
             for a in &self.agents {
-                s.push_str(&format!(",{}", r.frames.get(a).copied().unwrap_or(0)));
+                s.push_str(&format!(
+                    ",{},{},{},{}",
+                    r.frames.get(a).copied().unwrap_or(0),
+                    r.objects.get(a).copied().unwrap_or(0),
+                    n(&r.payload_bytes, a),
+                    n(&r.wire_bytes, a)
+                ));
             }
             s.push('\n');
         }
@@ -221,6 +270,7 @@ mod tests {
             outcome.windows.insert(
                 f.timestamp_us,
                 WindowRecord {
+                    objects: vec![3; agents.len()],
                     agents,
                     complete: second != 1,
                     e2e_ms: 10.0 + k as f64 % 10.0 + if second == 1 { 100.0 } else { 0.0 },
@@ -228,6 +278,33 @@ mod tests {
             );
             let boxes = f.objects.iter().map(|o| o.as_detection()).collect();
             outcome.fused.insert(f.timestamp_us, boxes);
+        }
+        // The fuser's traffic sampled at 0, 1 and 2 s: veh over a transport of its own.
+        use v2x_protocol::traffic::{Counters, Flow, Peer, Traffic};
+        outcome.epoch_us = 5_000_000;
+        let rx = |bytes: u64, put_msgs: u64, put_payload_bytes: u64| Flow {
+            rx: Counters {
+                bytes,
+                put_msgs,
+                put_payload_bytes,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let key = keys::detections("default", "veh");
+        for (s, (wire, payload)) in [(0, 0), (1300, 1000), (3200, 2500)].into_iter().enumerate() {
+            let keys: BTreeMap<String, Flow> = [(key.clone(), rx(0, s as u64, payload))].into();
+            let t = Traffic {
+                total: rx(wire, s as u64, payload),
+                keys: keys.clone(),
+                peers: vec![Peer {
+                    zid: "p1".into(),
+                    whatami: "peer".into(),
+                    total: rx(wire, s as u64, payload),
+                    keys,
+                }],
+            };
+            outcome.traffic.push((5_000_000 + s as u64 * 1_000_000, t));
         }
         let tl = timeline(&scenario, &gt, &schedule, &outcome);
         assert_eq!(tl.seconds.len(), 3);
@@ -251,11 +328,19 @@ mod tests {
         let mut lines = csv.lines();
         assert_eq!(
             lines.next(),
-            Some("second,windows,incomplete,e2e_p50_ms,e2e_p95_ms,precision,recall,mate_m,frames_veh,frames_rsu")
+            Some("second,windows,incomplete,e2e_p50_ms,e2e_p95_ms,precision,recall,mate_m,frames_veh,objects_veh,payload_bytes_veh,wire_bytes_veh,frames_rsu,objects_rsu,payload_bytes_rsu,wire_bytes_rsu")
         );
         assert_eq!(
-            lines.nth(1),
-            Some("1,10,10,114.0000,119.0000,1.0000,1.0000,0.0000,10,0")
+            lines.next(),
+            Some("0,10,0,14.0000,19.0000,1.0000,1.0000,0.0000,10,30,1000,1300,10,30,0,")
+        );
+        assert_eq!(
+            lines.next(),
+            Some("1,10,10,114.0000,119.0000,1.0000,1.0000,0.0000,10,30,1500,1900,0,0,0,")
+        );
+        assert_eq!(
+            lines.next(),
+            Some("2,10,0,14.0000,19.0000,1.0000,1.0000,0.0000,10,30,,,10,30,,")
         );
         // JSON round trip, as the plot reads it
         let dir = std::env::temp_dir().join(format!("v2x-series-{}", std::process::id()));

@@ -1,5 +1,5 @@
 //! The run's time series as an SVG (`v2x-sim plot --timeline`): windows fused and incomplete,
-//! end-to-end latency, each agent's frames and the fused mATE per second, one panel each, with
+//! end-to-end latency, each agent's frames and received kB and the fused mATE per second, one panel each, with
 //! the scripted events as dashed lines across all panels.
 
 use super::series::Timeline;
@@ -69,6 +69,23 @@ pub fn svg(tl: &Timeline) -> String {
                     label: a.clone(),
                     colour: COLOURS[k % COLOURS.len()],
                     values: col(&|r| r.frames.get(a).map(|&v| v as f64)),
+                })
+                .collect(),
+        ),
+        (
+            "kB/s received (wire, else payload)",
+            tl.agents
+                .iter()
+                .enumerate()
+                .map(|(k, a)| Series {
+                    label: a.clone(),
+                    colour: COLOURS[k % COLOURS.len()],
+                    values: col(&|r| {
+                        r.wire_bytes
+                            .get(a)
+                            .or(r.payload_bytes.get(a))
+                            .map(|&v| v as f64 / 1000.0)
+                    }),
                 })
                 .collect(),
         ),

@@ -11,13 +11,17 @@ use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use v2x_agent::AgentTotals;
+use v2x_fuser::ingest::AgentStats;
 use v2x_fuser::node::Latency;
+use v2x_protocol::keys;
 use v2x_protocol::nuscenes_json::Results;
+use v2x_protocol::traffic::{Flow, Traffic};
 
-/// Bandwidth of one agent.
+/// Bandwidth of one agent: its own side (what its session sent, when the agent ran in this
+/// process) and the fuser's (what arrived, when the fuser ran here), from Zenoh's statistics.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Bandwidth {
-    /// Frames published.
+    /// Frames published (or, when the agent ran elsewhere, received).
     pub frames: u64,
     /// Mean objects per frame.
     pub objects_per_frame: f64,
@@ -25,11 +29,105 @@ pub struct Bandwidth {
     pub payload_bytes_per_frame: f64,
     /// Mean payload bytes per object.
     pub payload_bytes_per_object: f64,
-    /// Mean bytes on the wire per frame (all of the agent's TCP bytes towards the fuser, Zenoh
-    /// framing and session traffic included), when measured.
+    /// Mean bytes the agent's session wrote to the wire per frame published, as Zenoh counts
+    /// them, over the transports that carried its detections (to the fuser, or to the router):
+    /// framing, declarations, keep-alives and payload (no TCP/IP headers, TLS records or the
+    /// opening handshake); when the agent ran here.
     pub wire_bytes_per_frame: Option<f64>,
-    /// Wire (or, unmeasured, payload) rate in kbit/s over the run.
+    /// Zenoh's count of the payload put on the agent's key, per frame published.
+    pub zenoh_payload_bytes_per_frame: Option<f64>,
+    /// Zenoh's overhead per message: wire bytes beyond the payload, per put.
+    pub overhead_bytes_per_message: Option<f64>,
+    /// At the fuser: payload received on the agent's key per frame received.
+    pub received_payload_bytes_per_frame: Option<f64>,
+    /// At the fuser: wire bytes received per frame over the agent's own transport (peer mode;
+    /// through a router the agents share one transport and this is null).
+    pub received_wire_bytes_per_frame: Option<f64>,
+    /// TCP bytes per frame between the agent and the hub, TLS records and handshakes included
+    /// (one-process runs, which route each agent through a counting relay).
+    pub socket_bytes_per_frame: Option<f64>,
+    /// Wire rate in kbit/s over the run: sent, else received, else payload.
     pub kbit_s: f64,
+}
+
+/// What an agent role measured of its own sending.
+#[derive(Clone, Debug, Default)]
+pub struct AgentSide {
+    /// The agent's counters.
+    pub totals: AgentTotals,
+    /// Its session's traffic at the end, from Zenoh's statistics.
+    pub sent: Option<Traffic>,
+    /// Bytes its TCP connection carried towards the hub (the relay of a one-process run).
+    pub socket_bytes: Option<u64>,
+}
+
+/// The run's length in seconds of wall time.
+fn run_seconds(scenario: &Scenario, schedule: &Schedule) -> f64 {
+    (schedule.frames.len() as f64 * schedule.period_us as f64 / 1e6 / scenario.speed).max(1e-9)
+}
+
+fn per(x: u64, n: u64) -> f64 {
+    if n > 0 {
+        x as f64 / n as f64
+    } else {
+        0.0
+    }
+}
+
+/// One agent's bandwidth from its own side and, if the fuser ran here, the fuser's counters and
+/// the samples of its session's traffic.
+pub fn agent_bandwidth(
+    scenario: &Scenario,
+    schedule: &Schedule,
+    name: &str,
+    side: &AgentSide,
+    fuser: Option<(&AgentStats, &[(u64, Traffic)])>,
+) -> Bandwidth {
+    let t = &side.totals;
+    let st = fuser.map(|(s, _)| s.clone()).unwrap_or_default();
+    let frames = if t.published > 0 {
+        t.published
+    } else {
+        st.frames_in
+    };
+    let payload = if t.payload_bytes > 0 {
+        t.payload_bytes
+    } else {
+        st.payload_bytes
+    };
+    let objects = if t.objects > 0 { t.objects } else { st.objects };
+    let key = keys::detections(&scenario.namespace, name);
+    let sent = side
+        .sent
+        .as_ref()
+        .map(|tr| (tr.sent_with(&key), tr.key(&key).tx));
+    let samples = fuser.map_or(&[][..], |(_, s)| s);
+    // Received payload: the key's counters outlive the agent's transport; received wire: the
+    // agent's own transport, in the last sample that still had it, per put it had carried.
+    let received = samples.last().map(|(_, tr)| tr.key(&key).rx);
+    let received_wire = samples.iter().rev().find_map(|(_, tr)| {
+        let p = tr.sole_sender(&key)?;
+        let puts = p.keys.get(&key)?.rx.put_msgs;
+        Some((p.total.rx.bytes, puts))
+    });
+    let secs = run_seconds(scenario, schedule);
+    let rate = sent
+        .map(|(all, _)| all.bytes as f64)
+        .or(received_wire.map(|(b, puts)| per(b, puts) * st.frames_in as f64))
+        .unwrap_or(payload as f64);
+    Bandwidth {
+        frames,
+        objects_per_frame: per(objects, frames),
+        payload_bytes_per_frame: per(payload, frames),
+        payload_bytes_per_object: per(payload, objects),
+        wire_bytes_per_frame: sent.map(|(all, _)| per(all.bytes, t.published)),
+        zenoh_payload_bytes_per_frame: sent.map(|(_, k)| per(k.put_payload_bytes, t.published)),
+        overhead_bytes_per_message: sent.and_then(|(all, _)| all.overhead_per_put()),
+        received_payload_bytes_per_frame: received.map(|k| per(k.put_payload_bytes, st.frames_in)),
+        received_wire_bytes_per_frame: received_wire.map(|(b, puts)| per(b, puts)),
+        socket_bytes_per_frame: side.socket_bytes.map(|w| per(w, t.published)),
+        kbit_s: rate * 8.0 / 1000.0 / secs,
+    }
 }
 
 /// Frame counts of one agent.
@@ -83,6 +181,8 @@ pub struct Summary {
     pub bandwidth: BTreeMap<String, Bandwidth>,
     /// Frame counts per agent.
     pub counts: BTreeMap<String, Counts>,
+    /// Everything the fuser's session sent and received over the run, from Zenoh's statistics.
+    pub fuser_traffic: Option<Flow>,
     /// Capture to fused publish (ms).
     pub e2e_latency_ms: Latency,
     /// Window close to fused publish (ms).
@@ -107,7 +207,7 @@ pub fn summarize(
     gt: &GroundTruth,
     schedule: &Schedule,
     outcome: &FuserOutcome,
-    totals: &BTreeMap<String, (AgentTotals, Option<u64>)>,
+    totals: &BTreeMap<String, AgentSide>,
     wall_s: f64,
 ) -> Summary {
     // Fused output is scored at its reference time against the ground truth of that instant;
@@ -187,32 +287,17 @@ pub fn summarize(
             .get(&a.name)
             .cloned()
             .unwrap_or_default();
-        let (t, wire) = totals.get(&a.name).copied().unwrap_or_default();
-        let frames = if t.published > 0 {
-            t.published
-        } else {
-            st.frames_in
-        };
-        let payload = if t.payload_bytes > 0 {
-            t.payload_bytes
-        } else {
-            st.payload_bytes
-        };
-        let objects = if t.objects > 0 { t.objects } else { st.objects };
-        let per = |x: u64, n: u64| if n > 0 { x as f64 / n as f64 } else { 0.0 };
-        let secs =
-            (schedule.frames.len() as f64 * schedule.period_us as f64 / 1e6 / scenario.speed)
-                .max(1e-9);
+        let side = totals.get(&a.name).cloned().unwrap_or_default();
+        let t = side.totals;
         bandwidth.insert(
             a.name.clone(),
-            Bandwidth {
-                frames,
-                objects_per_frame: per(objects, frames),
-                payload_bytes_per_frame: per(payload, frames),
-                payload_bytes_per_object: per(payload, objects),
-                wire_bytes_per_frame: wire.map(|w| per(w, frames)),
-                kbit_s: wire.unwrap_or(payload) as f64 * 8.0 / 1000.0 / secs,
-            },
+            agent_bandwidth(
+                scenario,
+                schedule,
+                &a.name,
+                &side,
+                Some((&st, &outcome.traffic[..])),
+            ),
         );
         counts.insert(
             a.name.clone(),
@@ -247,6 +332,7 @@ pub fn summarize(
             .collect(),
         bandwidth,
         counts,
+        fuser_traffic: outcome.traffic.last().map(|(_, tr)| tr.total),
         e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
         fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
         security: SecurityReport {
@@ -278,6 +364,39 @@ pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -
     r
 }
 
+/// A number with `digits` decimals, or `-`.
+fn opt(x: Option<f64>, digits: usize) -> String {
+    x.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
+/// What agent roles without the fuser print: each one's own side.
+#[derive(Clone, Debug, Serialize)]
+pub struct AgentReport {
+    /// Namespace.
+    pub namespace: String,
+    /// Bandwidth per agent that ran here.
+    pub bandwidth: BTreeMap<String, Bandwidth>,
+    /// Frames each produced and its link dropped.
+    pub sent: BTreeMap<String, (u64, u64)>,
+}
+
+/// Prints an agent report as a table.
+pub fn print_agent_table(r: &AgentReport) {
+    println!("| agent | frames | payload B/frame | wire B/frame | Zenoh overhead B/msg | kbit/s | dropped by link |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for (n, b) in &r.bandwidth {
+        println!(
+            "| {n} | {} | {:.0} | {} | {} | {:.1} | {} |",
+            b.frames,
+            b.payload_bytes_per_frame,
+            opt(b.wire_bytes_per_frame, 0),
+            opt(b.overhead_bytes_per_message, 1),
+            b.kbit_s,
+            r.sent.get(n).map_or(0, |s| s.1)
+        );
+    }
+}
+
 /// Prints the summary as tables.
 pub fn print_table(s: &Summary) {
     let setup = s
@@ -307,19 +426,19 @@ pub fn print_table(s: &Summary) {
         );
         println!();
     }
-    println!("| agent | frames | objects/frame | payload B/frame | payload B/object | wire B/frame | kbit/s | late | duplicate | invalid | dropped by link |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("| agent | frames | objects/frame | payload B/frame | payload B/object | wire B/frame sent | Zenoh overhead B/msg | wire B/frame received | kbit/s | late | duplicate | invalid | dropped by link |");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (n, b) in &s.bandwidth {
         let c = &s.counts[n];
-        let wire = b
-            .wire_bytes_per_frame
-            .map_or("-".into(), |w| format!("{w:.0}"));
         println!(
-            "| {n} | {} | {:.1} | {:.0} | {:.1} | {wire} | {:.1} | {} | {} | {} | {} |",
+            "| {n} | {} | {:.1} | {:.0} | {:.1} | {} | {} | {} | {:.1} | {} | {} | {} | {} |",
             b.frames,
             b.objects_per_frame,
             b.payload_bytes_per_frame,
             b.payload_bytes_per_object,
+            opt(b.wire_bytes_per_frame, 0),
+            opt(b.overhead_bytes_per_message, 1),
+            opt(b.received_wire_bytes_per_frame, 0),
             b.kbit_s,
             c.late,
             c.duplicate,

@@ -160,3 +160,31 @@ action = "leave"
     assert!(rsu.at(s_(0.5)).present);
     assert!(!rsu.at(s_(19.0)).present);
 }
+
+#[test]
+fn the_fuser_can_only_restart() {
+    let s = scenario(
+        "[[events]]\nat_s = 9.0\ntarget = \"fuser\"\naction = \"restart\"\nduration_s = 1.5\n[[events]]\nat_s = 4.0\ntarget = \"fuser\"\naction = \"restart\"",
+    )
+    .unwrap();
+    assert_eq!(
+        fuser_restarts(&s.events),
+        vec![(4_000_000, 0), (9_000_000, 1_500_000)]
+    );
+    let err = |text: &str| scenario(text).unwrap_err();
+    let e = err("[[events]]\nat_s = 3.0\ntarget = \"fuser\"\naction = \"leave\"");
+    assert!(
+        e.contains("events[0] (at_s 3, fuser): the fuser can only restart, not Leave"),
+        "{e}"
+    );
+    let e = err("[[events]]\nat_s = 3.0\ntarget = \"veh\"\naction = \"restart\"");
+    assert!(e.contains("restart applies to the target fuser"), "{e}");
+    let e =
+        err("[[events]]\nat_s = 3.0\ntarget = \"fuser\"\naction = \"restart\"\nduration_s = -1.0");
+    assert!(e.contains("duration_s must be 0 or more"), "{e}");
+    let e = err("[[events]]\nat_s = 3.0\ntarget = \"fuser\"\naction = \"restart\"\njump_ms = 1.0");
+    assert!(e.contains("jump_ms does not apply to Restart"), "{e}");
+    // an agent's timeline ignores the fuser's events
+    let mut t = AgentTimeline::new(&s.agents[0], &s.events);
+    assert!(t.at(10_000_000).present);
+}
