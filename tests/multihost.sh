@@ -54,6 +54,7 @@ s = json.load(open(sys.argv[1]))
 for path, a in ((sys.argv[2], "veh"), (sys.argv[3], "rsu")):
     b = json.load(open(path))["bandwidth"][a]
     assert b["wire_bytes_per_frame"] > b["payload_bytes_per_frame"] > 0, b
+    assert b["zenoh_frames"] == b["frames"] == 50, b
     assert b["zenoh_payload_bytes_per_frame"] == b["payload_bytes_per_frame"], b
     r = s["bandwidth"][a]
     assert r["received_payload_bytes_per_frame"] > 0, r

@@ -17,7 +17,9 @@
 //!   captures) is expected in a window anchored a whole number of periods after its last capture,
 //!   so a slow agent is not waited for between its frames. An agent that is expected and missing
 //!   in [`MAX_MISSES`] windows in a row is no longer waited for until it sends again, so a token
-//!   alone, or an agent that stopped sending, costs at most that many incomplete windows.
+//!   alone, or an agent that stopped sending, costs at most that many incomplete windows. A frame
+//!   that then comes too late for its window, but within `max_wait` of its capture (it would have
+//!   made it had the window waited), makes the agent awaited again; a slower one does not.
 //!
 //! Every rejection is counted per agent and in totals by reason.
 
@@ -36,6 +38,9 @@ pub struct IngestConfig {
     pub max_agents: usize,
     /// An agent with no frame and no token for this long is forgotten (us).
     pub forget_after_us: u64,
+    /// How long a window waits for an awaited agent (us): a late frame that arrived within this
+    /// of its capture makes its agent awaited again.
+    pub max_wait_us: u64,
 }
 
 impl Default for IngestConfig {
@@ -44,6 +49,7 @@ impl Default for IngestConfig {
             max_clock_skew_us: Some(1_000_000),
             max_agents: 256,
             forget_after_us: 60_000_000,
+            max_wait_us: 150_000,
         }
     }
 }
@@ -304,7 +310,14 @@ impl Ingest {
                 st.misses = 0;
             }
             Verdict::Superseded => st.stats.replaced += 1,
-            Verdict::Late => st.stats.late += 1,
+            Verdict::Late => {
+                st.stats.late += 1;
+                // late only because the window no longer waited for it: wait again
+                let lag = st.lags.back().copied().unwrap_or(i64::MAX);
+                if st.token && (0..=self.cfg.max_wait_us as i64).contains(&lag) {
+                    st.misses = 0;
+                }
+            }
             Verdict::Duplicate => st.stats.duplicate += 1,
         }
         let reason = match verdict {
@@ -610,6 +623,29 @@ mod tests {
         // it sends: awaited again
         send(&mut i, "silent", NOW + 310_000);
         assert!(i.awaited(NOW + 400_000, H).contains("silent"));
+    }
+
+    #[test]
+    fn a_late_frame_that_waiting_would_have_caught_makes_its_agent_awaited_again() {
+        let mut i = Ingest::new(IngestConfig::default()); // waits 150 ms
+        i.token("a", true, NOW);
+        send(&mut i, "a", NOW);
+        send(&mut i, "a", NOW + 100_000);
+        for k in 2..5 {
+            i.window_closed(NOW + k * 100_000, H, &[]);
+        }
+        assert!(!i.awaited(NOW + 500_000, H).contains("a"));
+        // 400 ms late: waiting would not have caught it
+        let t = NOW + 500_000;
+        i.offer("a", &payload("a", t), t + 400_000).unwrap();
+        i.record("a", Verdict::Late, 1, t);
+        assert!(!i.awaited(NOW + 600_000, H).contains("a"));
+        // 120 ms late: it would have made its window
+        let t = NOW + 600_000;
+        i.offer("a", &payload("a", t), t + 120_000).unwrap();
+        i.record("a", Verdict::Late, 1, t);
+        assert!(i.awaited(NOW + 700_000, H).contains("a"));
+        assert_eq!(i.agent_stats()["a"].late, 2);
     }
 
     #[test]

@@ -268,3 +268,58 @@ async fn each_identity_may_do_only_what_the_policy_allows() {
     let st = within(30, "fuser shutdown", fuser.2).await.unwrap();
     assert_eq!(st.windows, 3);
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_statistics_admin_space_answers_its_own_session_only() {
+    let ns = "sec-stats";
+    let port = free_port().unwrap();
+    let issued = certs(ns, ns, port);
+    let _router = router(&issued).await;
+    // An agent that counts its traffic (admin space on), as `v2x-sim run` opens every role.
+    let key = keys::detections(ns, "a");
+    let args = ZenohArgs {
+        zenoh_config: Some(issued.agents["a"].clone()),
+        ..Default::default()
+    };
+    let counted = v2x_protocol::net::open_counted_session(&args, std::slice::from_ref(&key))
+        .await
+        .unwrap();
+    let fuser = open(&issued.fuser).await;
+    let seen = fuser
+        .declare_subscriber(keys::all_detections(ns))
+        .await
+        .unwrap();
+    let publisher = counted.declare_publisher(&key).await.unwrap();
+    within(10, "the fuser's subscription", async {
+        while !publisher.matching_status().await.unwrap().matching() {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await;
+    publisher.put(vec![7u8; 300]).await.unwrap();
+    within(10, "the put at the fuser", seen.recv_async())
+        .await
+        .unwrap();
+    // Its own statistics, through the router's access control: the put and its payload.
+    let t = v2x_protocol::traffic::traffic(&counted, Duration::from_secs(5))
+        .await
+        .unwrap();
+    assert_eq!(t.key(&key).tx.put_msgs, 1);
+    assert_eq!(t.key(&key).tx.put_payload_bytes, 300);
+    assert!(t.sent_with(&key).bytes > 300);
+    // Nobody else may read its admin space (nor anyone's): the policy denies the query.
+    let observer = open(&issued.observer).await;
+    let replies = observer
+        .get(format!("@/{}/**", counted.zid()))
+        .timeout(Duration::from_secs(2))
+        .await
+        .unwrap();
+    let mut answers = 0;
+    while within(10, "admin replies", replies.recv_async())
+        .await
+        .is_ok()
+    {
+        answers += 1;
+    }
+    assert_eq!(answers, 0, "another session read the agent's admin space");
+}

@@ -25,6 +25,7 @@ async fn zenoh_counts_the_payload_and_its_framing() {
         let c = &summary.counts[name];
         assert_eq!(c.sent, 30, "{name}: {c:?}");
         assert_eq!(b.frames, 30, "{name}");
+        assert_eq!(b.zenoh_frames, Some(30), "{name}");
         // Zenoh counts exactly the payload the agent published, and the fuser received it all.
         assert_eq!(
             b.zenoh_payload_bytes_per_frame,

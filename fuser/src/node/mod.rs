@@ -402,7 +402,10 @@ pub async fn run(
         viz: cfg.viz.clone(),
         ns: ns.clone(),
         clock,
-        ingest: Ingest::new(cfg.ingest.clone()),
+        ingest: Ingest::new(IngestConfig {
+            max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
+            ..cfg.ingest.clone()
+        }),
         windows: Windows::new(
             (cfg.window_ms * 1000.0) as u64,
             (cfg.max_wait_ms * 1000.0) as u64,

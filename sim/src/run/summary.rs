@@ -29,12 +29,15 @@ pub struct Bandwidth {
     pub payload_bytes_per_frame: f64,
     /// Mean payload bytes per object.
     pub payload_bytes_per_object: f64,
-    /// Mean bytes the agent's session wrote to the wire per frame published, as Zenoh counts
+    /// Frames Zenoh put on the wire for the agent (frames published while no fuser subscribed
+    /// never leave the host); when the agent ran here.
+    pub zenoh_frames: Option<u64>,
+    /// Mean bytes the agent's session wrote to the wire per frame Zenoh sent, as Zenoh counts
     /// them, over the transports that carried its detections (to the fuser, or to the router):
     /// framing, declarations, keep-alives and payload (no TCP/IP headers, TLS records or the
-    /// opening handshake); when the agent ran here.
+    /// opening handshake).
     pub wire_bytes_per_frame: Option<f64>,
-    /// Zenoh's count of the payload put on the agent's key, per frame published.
+    /// Zenoh's count of the payload put on the agent's key, per frame Zenoh sent.
     pub zenoh_payload_bytes_per_frame: Option<f64>,
     /// Zenoh's overhead per message: wire bytes beyond the payload, per put.
     pub overhead_bytes_per_message: Option<f64>,
@@ -120,12 +123,16 @@ pub fn agent_bandwidth(
         objects_per_frame: per(objects, frames),
         payload_bytes_per_frame: per(payload, frames),
         payload_bytes_per_object: per(payload, objects),
-        wire_bytes_per_frame: sent.map(|(all, _)| per(all.bytes, t.published)),
-        zenoh_payload_bytes_per_frame: sent.map(|(_, k)| per(k.put_payload_bytes, t.published)),
+        zenoh_frames: sent.map(|(_, k)| k.put_msgs),
+        wire_bytes_per_frame: sent.map(|(all, k)| per(all.bytes, k.put_msgs)),
+        zenoh_payload_bytes_per_frame: sent.map(|(_, k)| per(k.put_payload_bytes, k.put_msgs)),
         overhead_bytes_per_message: sent.and_then(|(all, _)| all.overhead_per_put()),
         received_payload_bytes_per_frame: received.map(|k| per(k.put_payload_bytes, st.frames_in)),
         received_wire_bytes_per_frame: received_wire.map(|(b, puts)| per(b, puts)),
-        socket_bytes_per_frame: side.socket_bytes.map(|w| per(w, t.published)),
+        socket_bytes_per_frame: side
+            .socket_bytes
+            .zip(sent)
+            .map(|(w, (_, k))| per(w, k.put_msgs)),
         kbit_s: rate * 8.0 / 1000.0 / secs,
     }
 }
