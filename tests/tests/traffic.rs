@@ -64,6 +64,14 @@ async fn zenoh_counts_the_payload_and_its_framing() {
             "{name}: relay {socket} B/frame, Zenoh {wire}"
         );
     }
+    // Per key at the fuser: each agent's detections in; the fused output went nowhere, since
+    // nobody subscribed to it in this run (Zenoh sends, and counts, only what a subscriber gets).
+    let fused = &summary.fuser_keys[&v2x_protocol::keys::fused("traffic-stats")];
+    assert_eq!(fused.tx.put_msgs, 0, "{fused:?}");
+    for name in summary.bandwidth.keys() {
+        let k = &summary.fuser_keys[&v2x_protocol::keys::detections("traffic-stats", name)];
+        assert_eq!(k.rx.put_msgs, 30, "{name}: {k:?}");
+    }
     // The fuser sampled its traffic each second; the series adds up to what it received.
     let schedule = Schedule::of(&gt, scenario.duration_s);
     let tl = series::timeline(&scenario, &gt, &schedule, &outcome);

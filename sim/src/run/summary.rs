@@ -190,6 +190,9 @@ pub struct Summary {
     pub counts: BTreeMap<String, Counts>,
     /// Everything the fuser's session sent and received over the run, from Zenoh's statistics.
     pub fuser_traffic: Option<Flow>,
+    /// The fuser's puts per key (each agent's detections received, fused output and tracks
+    /// sent), from Zenoh's statistics.
+    pub fuser_keys: BTreeMap<String, Flow>,
     /// Capture to fused publish (ms).
     pub e2e_latency_ms: Latency,
     /// Window close to fused publish (ms).
@@ -340,6 +343,11 @@ pub fn summarize(
         bandwidth,
         counts,
         fuser_traffic: outcome.traffic.last().map(|(_, tr)| tr.total),
+        fuser_keys: outcome
+            .traffic
+            .last()
+            .map(|(_, tr)| tr.keys.clone())
+            .unwrap_or_default(),
         e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
         fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
         security: SecurityReport {
