@@ -70,8 +70,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub record: Option<PathBuf>,
     /// Write the run's per-second series as the fuser saw it (windows, incomplete, latency,
-    /// fused metrics, each agent's frames): CSV if FILE ends in .csv, else JSON (which
-    /// `v2x-sim plot --timeline` draws).
+    /// fused metrics, each agent's frames, objects and bytes received): CSV if FILE ends in
+    /// .csv, else JSON (which `v2x-sim plot --timeline` draws).
     #[arg(long)]
     pub timeline: Option<PathBuf>,
     /// Foxglove output: --mcap FILE and --foxglove [ADDR:]PORT.
