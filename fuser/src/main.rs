@@ -169,7 +169,8 @@ struct MotionArgs {
     #[arg(long, default_value_t = 2.0)]
     accel_std: f64,
     /// Seconds of motion per second of capture time: set it to the replay speed when agents
-    /// replay recorded data faster than real time and stamp frames with the wall clock.
+    /// replay recorded data faster than real time and stamp frames with the wall clock (motion
+    /// compensation and, with --track, the tracks' prediction and velocities).
     #[arg(long, default_value_t = 1.0)]
     time_scale: f64,
 }
@@ -373,7 +374,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
                 cfg.align = align.then(v2x_fuser::align::AlignParams::default);
-                cfg.track = track.then(v2x_fuser::tracker::TrackerParams::default);
+                cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
+                    time_scale: motion.time_scale,
+                    ..Default::default()
+                });
                 cfg.viz = viz.open().await?;
                 let shown = cfg.viz.clone();
                 let session = v2x_protocol::net::open_session(&zenoh).await?;

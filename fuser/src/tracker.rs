@@ -49,6 +49,9 @@ pub struct TrackerParams {
     pub init_velocity_std: f64,
     /// Std (rad/s) of the yaw's change per second.
     pub yaw_rate_std: f64,
+    /// Seconds of motion per second of window time: the replay speed when agents replay
+    /// recorded data faster than real time on the wall clock (1 live).
+    pub time_scale: f64,
 }
 
 impl Default for TrackerParams {
@@ -62,6 +65,7 @@ impl Default for TrackerParams {
             max_gap_s: 2.0,
             init_velocity_std: 10.0,
             yaw_rate_std: 0.5,
+            time_scale: 1.0,
         }
     }
 }
@@ -147,9 +151,12 @@ impl Tracker {
 
     /// Takes the fused boxes of the window at `t_us` and returns the confirmed tracks it updated.
     pub fn step(&mut self, t_us: u64, boxes: &[Detection]) -> Vec<Tracked> {
+        let scale = self.params.time_scale;
         let dt = match self.last_us {
-            Some(last) if t_us >= last && (t_us - last) as f64 <= self.params.max_gap_s * 1e6 => {
-                (t_us - last) as f64 / 1e6
+            Some(last)
+                if t_us >= last && (t_us - last) as f64 * scale <= self.params.max_gap_s * 1e6 =>
+            {
+                (t_us - last) as f64 / 1e6 * scale
             }
             Some(_) => {
                 self.reset();

@@ -133,6 +133,9 @@ async fn a_secure_run_scores_as_the_plain_one() {
         // TLS records cost bytes on the wire: the relay sees them, Zenoh's counters do not.
         let tls = b.socket_bytes_per_frame.unwrap() - b.wire_bytes_per_frame.unwrap();
         let plain = p.socket_bytes_per_frame.unwrap() - p.wire_bytes_per_frame.unwrap();
-        assert!(tls > plain + 10.0, "{agent}: TLS adds {tls} B/frame, plain {plain}");
+        assert!(
+            tls > plain + 10.0,
+            "{agent}: TLS adds {tls} B/frame, plain {plain}"
+        );
     }
 }

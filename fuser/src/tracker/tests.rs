@@ -190,3 +190,30 @@ fn classes_do_not_mix() {
     assert_eq!(out.len(), 1);
     assert_eq!(out[0].det.class, Class::Truck);
 }
+
+#[test]
+fn a_faster_replay_is_tracked_in_data_time() {
+    // The same motion, (5, 2) m/s, replayed 4x faster: windows 25 ms apart on the wall clock.
+    let params = TrackerParams {
+        time_scale: 4.0,
+        ..Default::default()
+    };
+    let mut tr = Tracker::new(params);
+    let mut out = Vec::new();
+    for k in 0..40u64 {
+        let t = k as f64 * 0.1; // data time
+        out = tr.step(k * HZ10 / 4, &[car(5.0 * t, 2.0 * t, 0.38)]);
+    }
+    let v = out[0].det.velocity.unwrap();
+    assert!(
+        (v.v[0] - 5.0).abs() < 0.05 && (v.v[1] - 2.0).abs() < 0.05,
+        "velocity in m per data second: {v:?}"
+    );
+    // Without the scale the same windows read as 4x the speed.
+    let mut tr = Tracker::new(TrackerParams::default());
+    for k in 0..40u64 {
+        let t = k as f64 * 0.1;
+        out = tr.step(k * HZ10 / 4, &[car(5.0 * t, 2.0 * t, 0.38)]);
+    }
+    assert!((out[0].det.velocity.unwrap().v[0] - 20.0).abs() < 0.2);
+}

@@ -189,7 +189,10 @@ pub async fn fuser_role(
     cfg.track = scenario
         .fuser
         .track
-        .then(v2x_fuser::tracker::TrackerParams::default);
+        .then(|| v2x_fuser::tracker::TrackerParams {
+            time_scale: scenario.speed,
+            ..Default::default()
+        });
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
