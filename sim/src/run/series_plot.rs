@@ -29,6 +29,18 @@ pub fn svg(tl: &Timeline) -> String {
     let col = |f: &dyn Fn(&super::series::Second) -> Option<f64>| -> Vec<Option<f64>> {
         tl.seconds.iter().map(f).collect()
     };
+    // One line per agent, in the agents' colours.
+    let per_agent = |f: &dyn Fn(&super::series::Second, &String) -> Option<f64>| -> Vec<Series> {
+        tl.agents
+            .iter()
+            .enumerate()
+            .map(|(k, a)| Series {
+                label: a.clone(),
+                colour: COLOURS[k % COLOURS.len()],
+                values: col(&|r| f(r, a)),
+            })
+            .collect()
+    };
     let panels: Vec<(&str, Vec<Series>)> = vec![
         (
             "windows / s",
@@ -62,32 +74,16 @@ pub fn svg(tl: &Timeline) -> String {
         ),
         (
             "frames fused / s",
-            tl.agents
-                .iter()
-                .enumerate()
-                .map(|(k, a)| Series {
-                    label: a.clone(),
-                    colour: COLOURS[k % COLOURS.len()],
-                    values: col(&|r| r.frames.get(a).map(|&v| v as f64)),
-                })
-                .collect(),
+            per_agent(&|r, a| r.frames.get(a).map(|&v| v as f64)),
         ),
         (
             "kB/s received (wire, else payload)",
-            tl.agents
-                .iter()
-                .enumerate()
-                .map(|(k, a)| Series {
-                    label: a.clone(),
-                    colour: COLOURS[k % COLOURS.len()],
-                    values: col(&|r| {
-                        r.wire_bytes
-                            .get(a)
-                            .or(r.payload_bytes.get(a))
-                            .map(|&v| v as f64 / 1000.0)
-                    }),
-                })
-                .collect(),
+            per_agent(&|r, a| {
+                r.wire_bytes
+                    .get(a)
+                    .or(r.payload_bytes.get(a))
+                    .map(|&v| v as f64 / 1000.0)
+            }),
         ),
         (
             "fused mATE (m)",
