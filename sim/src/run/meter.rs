@@ -1,7 +1,7 @@
 //! Bandwidth as Zenoh itself counts it, on every host: each role's session is opened with Zenoh's
 //! transport statistics on (counting puts per key of interest: an agent its own detections, the
-//! fuser every agent's detections and its outputs), and the fuser role samples its own once a
-//! second for the timeline.
+//! fuser and the router every agent's detections and the fuser's outputs), and the fuser role
+//! samples its own once a second for the timeline.
 
 use super::secure::Role;
 use crate::scenario::Scenario;
@@ -19,9 +19,8 @@ pub const QUERY_TIMEOUT: Duration = Duration::from_secs(2);
 pub fn role_keys(scenario: &Scenario, role: Role) -> Vec<String> {
     let ns = &scenario.namespace;
     match role {
-        Role::Router => Vec::new(),
         Role::Agent(a) => vec![keys::detections(ns, a)],
-        Role::Fuser => {
+        Role::Fuser | Role::Router => {
             let mut k: Vec<String> = scenario
                 .agents
                 .iter()

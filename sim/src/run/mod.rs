@@ -43,7 +43,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::now_us;
-use v2x_protocol::net::{open_session, shutdown_signal, ZenohArgs};
+use v2x_protocol::net::{shutdown_signal, ZenohArgs};
 use v2x_protocol::nuscenes_json::write_results;
 
 /// Output format of the summary.
@@ -138,7 +138,8 @@ async fn run_local_until(
                 listen: vec![hub.clone()],
                 ..Default::default()
             };
-            let router = open_session(&secure::with_certs(&listen, &dir, Role::Router)?).await?;
+            let args = secure::with_certs(&listen, &dir, Role::Router)?;
+            let router = meter::open_role_session(&args, scenario, Role::Router).await?;
             let connect = ZenohArgs {
                 connect: vec![hub],
                 ..Default::default()
@@ -202,7 +203,13 @@ async fn run_local_until(
         results
     };
     let (outcome, results) = tokio::join!(fuser, agents);
-    let outcome = outcome?;
+    let mut outcome = outcome?;
+    if let Some(r) = &router_session {
+        outcome.router_traffic = meter::snapshot(r, "router")
+            .await
+            .map(|t| vec![(now_us(), t)])
+            .unwrap_or_default();
+    }
     let mut totals = BTreeMap::new();
     for (((a, r), w), session) in scenario
         .agents
@@ -343,7 +350,8 @@ async fn run_roles(
     let run_fuser = roles.iter().any(|r| r == "fuser");
     // The router first (its clients connect to it), until the run ends or is stopped.
     let router = if roles.iter().any(|r| r == "router") {
-        let session = open_session(&secure::role_args(scenario, Role::Router)?).await?;
+        let args = secure::role_args(scenario, Role::Router)?;
+        let session = meter::open_role_session(&args, scenario, Role::Router).await?;
         eprintln!("router: running with access control");
         Some(session)
     } else {
@@ -425,16 +433,29 @@ async fn run_roles(
         anyhow::Ok(out)
     };
     let router_only = router.is_some() && !run_fuser && !roles.iter().any(|r| r != "router");
+    // The router's traffic is sampled while it serves: agents on other hosts leave before the end.
+    let (sampling, sampled) = watch::channel(false);
+    let router_samples = router
+        .as_ref()
+        .map(|r| meter::sample_every_second(r.clone(), sampled));
     let (outcome, totals) = tokio::join!(fuser, agents);
     if router_only {
         // A router alone serves until stopped.
         stopped(stop.clone()).await;
     }
+    let _ = sampling.send(true);
+    let router_traffic = match router_samples {
+        Some(task) => task.await.unwrap_or_default(),
+        None => Vec::new(),
+    };
     if let Some(r) = router {
         let _ = r.close().await;
     }
     let totals = totals?;
-    let outcome = outcome?;
+    let mut outcome = outcome?;
+    if let Some(o) = &mut outcome {
+        o.router_traffic = router_traffic;
+    }
     if outcome.is_none() && !totals.is_empty() {
         // Agents without the fuser: each reports its own side.
         let report = AgentReport {

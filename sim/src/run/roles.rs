@@ -152,6 +152,8 @@ pub struct FuserOutcome {
     pub traffic: Vec<(u64, Traffic)>,
     /// When the fuser restarted (scripted), on the wall clock (us).
     pub restarts_us: Vec<u64>,
+    /// The router's traffic, sampled over the run, when the router ran in this process.
+    pub router_traffic: Vec<(u64, Traffic)>,
 }
 
 /// What the fuser role saw of one window.
@@ -294,6 +296,7 @@ pub async fn fuser_role(
         epoch_us,
         traffic,
         restarts_us,
+        router_traffic: Vec::new(),
     })
 }
 

@@ -43,8 +43,8 @@ pub struct Bandwidth {
     pub overhead_bytes_per_message: Option<f64>,
     /// At the fuser: payload received on the agent's key per frame received.
     pub received_payload_bytes_per_frame: Option<f64>,
-    /// At the fuser: wire bytes received per frame over the agent's own transport (peer mode;
-    /// through a router the agents share one transport and this is null).
+    /// Wire bytes received per frame over the agent's own transport: at the fuser in peer mode;
+    /// through a router, at the router when it ran in the fuser's process (else null).
     pub received_wire_bytes_per_frame: Option<f64>,
     /// TCP bytes per frame between the agent and the hub, TLS records and handshakes included
     /// (one-process runs, which route each agent through a counting relay).
@@ -77,17 +77,27 @@ fn per(x: u64, n: u64) -> f64 {
     }
 }
 
-/// One agent's bandwidth from its own side and, if the fuser ran here, the fuser's counters and
-/// the samples of its session's traffic.
+/// What the hub saw of the agents: the fuser's counters and the samples of its session's
+/// traffic, and the router's traffic when a router ran in this process.
+pub struct HubView<'a> {
+    /// The fuser's counters of the agent.
+    pub stats: &'a AgentStats,
+    /// The fuser session's traffic, sampled over the run.
+    pub samples: &'a [(u64, Traffic)],
+    /// The router's traffic, sampled over the run, if the router ran here.
+    pub router: &'a [(u64, Traffic)],
+}
+
+/// One agent's bandwidth from its own side and, if the fuser ran here, the hub's.
 pub fn agent_bandwidth(
     scenario: &Scenario,
     schedule: &Schedule,
     name: &str,
     side: &AgentSide,
-    fuser: Option<(&AgentStats, &[(u64, Traffic)])>,
+    hub: Option<HubView>,
 ) -> Bandwidth {
     let t = &side.totals;
-    let st = fuser.map(|(s, _)| s.clone()).unwrap_or_default();
+    let st = hub.as_ref().map(|h| h.stats.clone()).unwrap_or_default();
     let frames = if t.published > 0 {
         t.published
     } else {
@@ -104,15 +114,24 @@ pub fn agent_bandwidth(
         .sent
         .as_ref()
         .map(|tr| (tr.sent_with(&key), tr.key(&key).tx));
-    let samples = fuser.map_or(&[][..], |(_, s)| s);
+    let samples = hub.as_ref().map_or(&[][..], |h| h.samples);
     // Received payload: the key's counters outlive the agent's transport; received wire: the
-    // agent's own transport, in the last sample that still had it, per put it had carried.
+    // agent's own transport, in the last sample that still had it, per put it had carried (at
+    // the fuser, or, when agents reach it through a router, at the router).
     let received = samples.last().map(|(_, tr)| tr.key(&key).rx);
-    let received_wire = samples.iter().rev().find_map(|(_, tr)| {
+    let own_transport = |tr: &Traffic| {
         let p = tr.sole_sender(&key)?;
         let puts = p.keys.get(&key)?.rx.put_msgs;
         Some((p.total.rx.bytes, puts))
-    });
+    };
+    let received_wire = samples
+        .iter()
+        .rev()
+        .find_map(|(_, tr)| own_transport(tr))
+        .or_else(|| {
+            let router = hub.as_ref().map_or(&[][..], |h| h.router);
+            router.iter().rev().find_map(|(_, tr)| own_transport(tr))
+        });
     let secs = run_seconds(scenario, schedule);
     let rate = sent
         .map(|(all, _)| all.bytes as f64)
@@ -306,7 +325,11 @@ pub fn summarize(
                 schedule,
                 &a.name,
                 &side,
-                Some((&st, &outcome.traffic[..])),
+                Some(HubView {
+                    stats: &st,
+                    samples: &outcome.traffic,
+                    router: &outcome.router_traffic,
+                }),
             ),
         );
         counts.insert(
