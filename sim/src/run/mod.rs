@@ -416,7 +416,10 @@ async fn run_roles(
                         t.frames,
                         t.dropped,
                         t.payload_bytes,
-                        sent.as_ref().map_or("?".into(), |tr| tr.total.tx.bytes.to_string())
+                        sent.as_ref().map_or("?".into(), |tr| {
+                            let key = v2x_protocol::keys::detections(&scenario.namespace, &a.name);
+                            tr.sent_with(&key).bytes.to_string()
+                        })
                     );
                     let side = AgentSide {
                         totals: t,
