@@ -115,9 +115,17 @@ pub fn svg(tl: &Timeline) -> String {
             .max(1e-9)
             * 1.1;
         let y = |v: f64| y0 + PANEL - PANEL * v / max;
+        // the axis top with as many decimals as its size needs
+        let digits = if max >= 100.0 {
+            0
+        } else if max >= 10.0 {
+            1
+        } else {
+            2
+        };
         let _ = writeln!(
             s,
-            r##"<rect x="{LEFT}" y="{y0}" width="{}" height="{PANEL}" fill="none" stroke="#999"/><text x="{LEFT}" y="{}">{title}</text><text x="{}" y="{}" text-anchor="end">{:.3}</text><text x="{}" y="{}" text-anchor="end">0</text>"##,
+            r##"<rect x="{LEFT}" y="{y0}" width="{}" height="{PANEL}" fill="none" stroke="#999"/><text x="{LEFT}" y="{}">{title}</text><text x="{}" y="{}" text-anchor="end">{:.digits$}</text><text x="{}" y="{}" text-anchor="end">0</text>"##,
             W - LEFT - RIGHT,
             y0 - 4.0,
             LEFT - 4.0,
