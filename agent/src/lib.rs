@@ -1,5 +1,6 @@
 //! A V2X agent on the network: publishes its detections as compact [`Frame`]s on
-//! `v2x/NS/det/AGENT`, declares a liveliness token on `v2x/NS/alive/AGENT` so the fuser knows it
+//! `v2x/NS/det/AGENT` (with regions, [`Agent::with_tiling`]: one part per tile it sees on
+//! `v2x/NS/det/TILE/AGENT`, each naming the capture's tiles in its attachment), declares a liveliness token on `v2x/NS/alive/AGENT` so the fuser knows it
 //! is there, and simulates its radio link (fixed latency, jitter, drop rate) and its sensor clock
 //! (an offset added to capture times). [`replay`] sends a sequence of frames at the data's own
 //! clock, sped up or slowed down by a factor.
@@ -11,6 +12,7 @@ use serde::Serialize;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
+use v2x_protocol::tiles::{self, Tile, Tiling};
 use v2x_protocol::{keys, wire, AgentKind, Frame};
 
 mod link;
@@ -23,8 +25,10 @@ pub struct AgentCounters {
     pub frames: AtomicU64,
     /// Frames the link dropped.
     pub dropped: AtomicU64,
-    /// Frames published.
+    /// Frames published (with regions: captures whose every part was published).
     pub published: AtomicU64,
+    /// Messages published: one per frame, or with regions one per part.
+    pub parts: AtomicU64,
     /// Payload bytes published.
     pub payload_bytes: AtomicU64,
     /// Objects published.
@@ -38,8 +42,10 @@ pub struct AgentTotals {
     pub frames: u64,
     /// Frames the link dropped.
     pub dropped: u64,
-    /// Frames published.
+    /// Frames published (with regions: captures whose every part was published).
     pub published: u64,
+    /// Messages published: one per frame, or with regions one per part.
+    pub parts: u64,
     /// Payload bytes published.
     pub payload_bytes: u64,
     /// Objects published.
@@ -53,6 +59,7 @@ impl AgentCounters {
             frames: self.frames.load(Ordering::Relaxed),
             dropped: self.dropped.load(Ordering::Relaxed),
             published: self.published.load(Ordering::Relaxed),
+            parts: self.parts.load(Ordering::Relaxed),
             payload_bytes: self.payload_bytes.load(Ordering::Relaxed),
             objects: self.objects.load(Ordering::Relaxed),
         }
@@ -66,6 +73,11 @@ pub struct Agent {
     link: Link,
     rng: ChaCha8Rng,
     seq: u32,
+    /// Messages handed to the link, to keep parts in order.
+    order: u64,
+    tiling: Option<Tiling>,
+    session: zenoh::Session,
+    ns: String,
     publisher: Arc<zenoh::pubsub::Publisher<'static>>,
     outbox: tokio::sync::mpsc::UnboundedSender<link::InFlight>,
     /// The liveliness token while the agent is there (`None` after [`Agent::leave`]).
@@ -100,19 +112,33 @@ impl Agent {
             .map_err(|e| anyhow!("agent {name}: cannot declare its liveliness token: {e}"))?;
         let publisher = Arc::new(publisher);
         let counters = Arc::new(AgentCounters::default());
-        let outbox = link::spawn(publisher.clone(), counters.clone(), name.to_string());
+        let outbox = link::spawn(
+            link::Outlet::new(publisher.clone(), session.clone(), ns, name),
+            counters.clone(),
+        );
         Ok(Agent {
             name: name.to_string(),
             kind,
             link,
             rng: ChaCha8Rng::seed_from_u64(seed),
             seq: 0,
+            order: 0,
+            tiling: None,
+            session: session.clone(),
+            ns: ns.to_string(),
             publisher,
             outbox,
             token: Some(token),
             alive_key: keys::alive(ns, name),
             counters,
         })
+    }
+
+    /// Publishes per tile of `tiling` from now on: each capture as one part per tile its boxes
+    /// lie in (a capture without boxes as one empty part in the tile of its origin).
+    pub fn with_tiling(mut self, tiling: Tiling) -> Self {
+        self.tiling = Some(tiling);
+        self
     }
 
     /// Replaces the simulated link (a scripted change); the values are checked first.
@@ -179,6 +205,39 @@ impl Agent {
         })?
     }
 
+    /// Waits until a subscriber (a regional fuser) matches the agent's detections in `tile`, or
+    /// the timeout.
+    pub async fn wait_for_subscriber_in(
+        &self,
+        tile: Tile,
+        timeout: Duration,
+    ) -> anyhow::Result<()> {
+        let key = keys::detections_in(&self.ns, tile, &self.name);
+        let publisher = self
+            .session
+            .declare_publisher(key.clone())
+            .await
+            .map_err(|e| anyhow!("agent {}: cannot declare {key}: {e}", self.name))?;
+        let wait = async {
+            loop {
+                let status = publisher
+                    .matching_status()
+                    .await
+                    .map_err(|e| anyhow!("matching status: {e}"))?;
+                if status.matching() {
+                    return anyhow::Ok(());
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        };
+        tokio::time::timeout(timeout, wait).await.with_context(|| {
+            format!(
+                "agent {}: no fuser subscribed to {key} within {timeout:?}",
+                self.name
+            )
+        })?
+    }
+
     /// Stamps, encodes and sends a frame through the simulated link: it may be dropped, is
     /// delayed by latency + jitter, and its capture time is shifted by the clock offset.
     /// Returns the payload size, or `None` if the link dropped the frame.
@@ -189,8 +248,7 @@ impl Agent {
         self.seq = self.seq.wrapping_add(1);
         let offset_us = (self.link.clock_offset_ms * 1000.0).round() as i64;
         frame.capture_us = frame.capture_us.saturating_add_signed(offset_us);
-        let payload = wire::encode(&frame)
-            .with_context(|| format!("agent {}: frame {} does not encode", self.name, frame.seq))?;
+        let parts = self.parts(&frame)?;
         self.counters.frames.fetch_add(1, Ordering::Relaxed);
         if self.link.drop_rate > 0.0 && self.rng.gen::<f64>() < self.link.drop_rate {
             self.counters.dropped.fetch_add(1, Ordering::Relaxed);
@@ -202,14 +260,67 @@ impl Agent {
             } else {
                 0.0
             };
-        let len = payload.len();
-        let _ = self.outbox.send(link::InFlight {
-            due: tokio::time::Instant::now() + Duration::from_secs_f64(delay_ms / 1000.0),
-            order: self.seq as u64,
-            objects: frame.detections.len() as u64,
-            payload,
-        });
+        let due = tokio::time::Instant::now() + Duration::from_secs_f64(delay_ms / 1000.0);
+        let (count, mut len) = (parts.len(), 0);
+        for (i, (payload, objects, tile)) in parts.into_iter().enumerate() {
+            len += payload.len();
+            self.order += 1;
+            let _ = self.outbox.send(link::InFlight {
+                due,
+                order: self.order,
+                objects,
+                payload,
+                tile,
+                last_part: i + 1 == count,
+            });
+        }
         Ok(Some(len))
+    }
+
+    /// The encoded messages of one capture: the whole frame, or with regions one part per tile,
+    /// each with its object count and its tile and attachment.
+    #[allow(clippy::type_complexity)]
+    fn parts(
+        &self,
+        frame: &Frame,
+    ) -> anyhow::Result<Vec<(Vec<u8>, u64, Option<(Tile, Arc<Vec<u8>>)>)>> {
+        let encode = |f: &Frame| {
+            wire::encode(f)
+                .with_context(|| format!("agent {}: frame {} does not encode", self.name, f.seq))
+        };
+        let Some(tiling) = self.tiling else {
+            return Ok(vec![(encode(frame)?, frame.detections.len() as u64, None)]);
+        };
+        let mut by_tile: std::collections::BTreeMap<Tile, Vec<_>> = Default::default();
+        for d in &frame.detections {
+            by_tile
+                .entry(tiling.tile_of(d.center))
+                .or_default()
+                .push(d.clone());
+        }
+        if by_tile.is_empty() {
+            by_tile.insert(tiling.tile_of(frame.origin), Vec::new());
+        }
+        let list: Vec<Tile> = by_tile.keys().copied().collect();
+        let attachment = Arc::new(tiles::encode_tiles(&list).map_err(|e| {
+            anyhow!(
+                "agent {}: frame {} spans too many tiles: {e}",
+                self.name,
+                frame.seq
+            )
+        })?);
+        by_tile
+            .into_iter()
+            .map(|(tile, detections)| {
+                let part = Frame {
+                    detections,
+                    ..frame.clone()
+                }
+                .with_centroid_origin();
+                let n = part.detections.len() as u64;
+                Ok((encode(&part)?, n, Some((tile, attachment.clone()))))
+            })
+            .collect()
     }
 }
 

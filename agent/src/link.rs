@@ -10,6 +10,70 @@ use std::collections::BinaryHeap;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use tokio::sync::mpsc;
+use v2x_protocol::keys;
+use v2x_protocol::tiles::Tile;
+
+/// Most per-tile publishers an agent keeps declared; beyond, the least recently used goes.
+const MAX_TILE_PUBLISHERS: usize = 64;
+
+/// Where an agent's frames go: its own key, and with regions one key per tile.
+pub(crate) struct Outlet {
+    pub publisher: Arc<zenoh::pubsub::Publisher<'static>>,
+    pub session: zenoh::Session,
+    pub ns: String,
+    pub name: String,
+    tiles: Vec<(Tile, zenoh::pubsub::Publisher<'static>)>,
+}
+
+impl Outlet {
+    /// An outlet publishing on `publisher` (and, with regions, on tile keys of `session`).
+    pub fn new(
+        publisher: Arc<zenoh::pubsub::Publisher<'static>>,
+        session: zenoh::Session,
+        ns: &str,
+        name: &str,
+    ) -> Self {
+        Outlet {
+            publisher,
+            session,
+            ns: ns.to_string(),
+            name: name.to_string(),
+            tiles: Vec::new(),
+        }
+    }
+
+    /// Publishes one frame or part.
+    async fn put(&mut self, f: InFlight) -> zenoh::Result<()> {
+        let Some((tile, attachment)) = f.tile else {
+            return self.publisher.put(f.payload).await;
+        };
+        let i = match self.tiles.iter().position(|(t, _)| *t == tile) {
+            Some(i) => i,
+            None => {
+                if self.tiles.len() >= MAX_TILE_PUBLISHERS {
+                    self.tiles.remove(0);
+                }
+                let p = self
+                    .session
+                    .declare_publisher(keys::detections_in(&self.ns, tile, &self.name))
+                    .encoding(v2x_protocol::net::frame_encoding())
+                    .congestion_control(zenoh::qos::CongestionControl::Block)
+                    .await?;
+                self.tiles.push((tile, p));
+                self.tiles.len() - 1
+            }
+        };
+        // Most recently used last.
+        let entry = self.tiles.remove(i);
+        let put = entry
+            .1
+            .put(f.payload)
+            .attachment(attachment.as_slice().to_vec())
+            .await;
+        self.tiles.push(entry);
+        put
+    }
+}
 
 /// The simulated link and sensor clock of an agent.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -57,6 +121,11 @@ pub(crate) struct InFlight {
     pub objects: u64,
     /// The encoded frame.
     pub payload: Vec<u8>,
+    /// With regions: the tile of this part and the attachment listing the capture's tiles
+    /// (`None`: the agent's own key, no attachment).
+    pub tile: Option<(Tile, Arc<Vec<u8>>)>,
+    /// Whether this is the last part of its capture.
+    pub last_part: bool,
 }
 
 impl PartialEq for InFlight {
@@ -83,10 +152,10 @@ impl Ord for InFlight {
 /// Starts the outbox task of an agent; frames sent into the returned channel are published
 /// when due. When the channel closes, the frames still in flight are published at their time.
 pub(crate) fn spawn(
-    publisher: Arc<zenoh::pubsub::Publisher<'static>>,
+    mut outlet: Outlet,
     counters: Arc<AgentCounters>,
-    name: String,
 ) -> mpsc::UnboundedSender<InFlight> {
+    let name = outlet.name.clone();
     let (tx, mut rx) = mpsc::unbounded_channel::<InFlight>();
     tokio::spawn(async move {
         let mut heap: BinaryHeap<InFlight> = BinaryHeap::new();
@@ -100,12 +169,15 @@ pub(crate) fn spawn(
                 },
                 _ = tokio::time::sleep_until(next.unwrap_or_else(tokio::time::Instant::now)), if next.is_some() => {
                     let Some(f) = heap.pop() else { continue };
-                    let len = f.payload.len() as u64;
-                    match publisher.put(f.payload).await {
+                    let (len, objects, last) = (f.payload.len() as u64, f.objects, f.last_part);
+                    match outlet.put(f).await {
                         Ok(()) => {
-                            counters.published.fetch_add(1, Ordering::Relaxed);
+                            if last {
+                                counters.published.fetch_add(1, Ordering::Relaxed);
+                            }
+                            counters.parts.fetch_add(1, Ordering::Relaxed);
                             counters.payload_bytes.fetch_add(len, Ordering::Relaxed);
-                            counters.objects.fetch_add(f.objects, Ordering::Relaxed);
+                            counters.objects.fetch_add(objects, Ordering::Relaxed);
                         }
                         Err(e) => tracing::warn!("agent {name}: publish failed: {e}"),
                     }

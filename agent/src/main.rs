@@ -8,6 +8,7 @@ use std::time::Duration;
 use v2x_agent::{now_us, replay, Agent, Link, ReplayClock};
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd, TokenTable};
+use v2x_protocol::tiles::Tiling;
 use v2x_protocol::{AgentKind, Frame, Uncertainty};
 
 #[derive(Parser)]
@@ -68,6 +69,11 @@ struct Cli {
     /// Seed of the link simulation.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Publish for regional fusers: each frame as one part per tile of this side (m) its boxes
+    /// lie in, on v2x/NS/det/TILE/AGENT (the fusers' `--tile-size`). Default: one frame on
+    /// v2x/NS/det/AGENT for a single fuser.
+    #[arg(long)]
+    tile_size: Option<f64>,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -217,9 +223,19 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     };
     let session = open_session(&cli.zenoh).await?;
     let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
-    agent
-        .wait_for_subscriber(Duration::from_secs_f64(cli.wait_s))
-        .await?;
+    let wait = Duration::from_secs_f64(cli.wait_s);
+    match cli.tile_size {
+        None => agent.wait_for_subscriber(wait).await?,
+        Some(size) => {
+            let tiling = Tiling::new(size).map_err(|e| anyhow!("--tile-size: {e}"))?;
+            // Wait for the fuser of the tile the first frame's boxes are centred on.
+            let home = frames.first().map_or([0.0; 3], |f| f.origin);
+            agent = agent.with_tiling(tiling);
+            agent
+                .wait_for_subscriber_in(tiling.tile_of(home), wait)
+                .await?;
+        }
+    }
     let n = frames.len();
     let report = replay(
         &mut agent,

@@ -69,6 +69,10 @@ pub enum Rejection {
     Future(u64),
     /// Stamped this many us behind the fuser's clock, beyond the tolerance.
     Stale(u64),
+    /// With regions: the part's attachment does not hold a valid tile list.
+    BadTiles(String),
+    /// With regions: the part does not fit its capture ([`crate::parts`]).
+    Part(crate::parts::PartError),
 }
 
 impl Rejection {
@@ -81,6 +85,9 @@ impl Rejection {
             Rejection::WrongAgent(_) => "wrong_agent",
             Rejection::Future(_) => "future",
             Rejection::Stale(_) => "stale",
+            Rejection::BadTiles(_) => "bad_tiles",
+            Rejection::Part(crate::parts::PartError::Late) => "late_part",
+            Rejection::Part(_) => "bad_part",
         }
     }
 }
@@ -97,6 +104,8 @@ impl std::fmt::Display for Rejection {
                 "stamped {:.1} s ahead of the fuser's clock",
                 *us as f64 / 1e6
             ),
+            Rejection::BadTiles(e) => write!(f, "bad tile list: {e}"),
+            Rejection::Part(e) => write!(f, "{e}"),
             Rejection::Stale(us) => write!(
                 f,
                 "stamped {:.1} s behind the fuser's clock",
@@ -215,6 +224,11 @@ impl Ingest {
     /// The limits.
     pub fn config(&self) -> &IngestConfig {
         &self.cfg
+    }
+
+    /// Counts a rejection made outside [`Ingest::offer`] (a part that does not fit its capture).
+    pub fn refuse(&mut self, r: Rejection) -> Rejection {
+        self.reject(r)
     }
 
     fn reject(&mut self, r: Rejection) -> Rejection {

@@ -4,7 +4,8 @@
 //! registration of agents with a wrong pose), [`geometry`] and
 //! [`baselines`] (the comparison methods), [`method`] (the `Fuser` API: a [`Method`] value fuses
 //! one time step), [`window`] (time alignment of frames) and [`ingest`] (admission of frames:
-//! validation, clock tolerance, bounded agent table), [`region`] (tiles and regional fusers),
+//! validation, clock tolerance, bounded agent table), [`region`] (tiles and regional fusers) and
+//! [`parts`] (reassembly of a capture sent per tile),
 //! [`tracker`] (tracks over windows). [`offline`] fuses nuScenes results files,
 //! and `node` (feature `node`, on by default) is the thin Zenoh shell the `v2x-fuser` binary
 //! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
@@ -22,6 +23,7 @@ pub mod motion;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod offline;
+pub mod parts;
 pub mod ratelog;
 pub mod region;
 pub mod tracker;

@@ -111,6 +111,8 @@ enum Command {
         limits: IngestArgs,
         #[command(flatten)]
         motion: MotionArgs,
+        #[command(flatten)]
+        region: RegionArgs,
         /// Register every agent to the first roadside unit (else the first agent) by the boxes
         /// both see (a rigid shift and turn per agent, solved over its last 10 windows) before
         /// association: for agents whose pose is wrong.
@@ -147,6 +149,9 @@ enum Command {
         /// Scenario namespace.
         #[arg(long, default_value = "default")]
         ns: String,
+        /// Ask the regional fuser of this tile (COLUMN_ROW) instead of the single fuser.
+        #[arg(long)]
+        tile: Option<v2x_protocol::tiles::Tile>,
         /// How long to wait for an answer (s).
         #[arg(long, default_value_t = 5.0)]
         timeout_s: f64,
@@ -191,6 +196,41 @@ impl MotionArgs {
                 time_scale: self.time_scale,
             }),
         )
+    }
+}
+
+/// The region a fuser node serves.
+#[derive(clap::Args)]
+struct RegionArgs {
+    /// Serve one tile as a regional fuser (COLUMN_ROW, e.g. 0_0 or -1_2): subscribe to
+    /// v2x/NS/det/TILE/* for it and its halo, publish on v2x/NS/fused/TILE the fused boxes whose
+    /// centre lies in it. Agents must publish per tile (`v2x-agent --tile-size`, same size).
+    #[arg(long)]
+    tile: Option<v2x_protocol::tiles::Tile>,
+    /// Side of the map's square tiles (m), as the agents use.
+    #[arg(long, default_value_t = v2x_fuser::region::DEFAULT_TILE_M, requires = "tile")]
+    tile_size: f64,
+    /// How far beyond its tile a regional fuser takes boxes (m): at least the association's
+    /// reach, so groups across the border are fused as one fuser would.
+    #[arg(long, default_value_t = v2x_fuser::region::DEFAULT_HALO_M, requires = "tile")]
+    halo: f64,
+}
+
+impl RegionArgs {
+    fn region(&self) -> anyhow::Result<Option<v2x_fuser::region::Region>> {
+        let Some(tile) = self.tile else {
+            return Ok(None);
+        };
+        let tiling = v2x_protocol::tiles::Tiling::new(self.tile_size)
+            .map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
+        if !(self.halo >= 0.0 && self.halo.is_finite()) {
+            anyhow::bail!("--halo must be >= 0 m");
+        }
+        Ok(Some(v2x_fuser::region::Region {
+            tiling,
+            tile,
+            halo_m: self.halo,
+        }))
     }
 }
 
@@ -351,6 +391,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             max_wait_ms,
             limits,
             motion,
+            region,
             align,
             track,
             record,
@@ -373,6 +414,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 cfg.max_wait_ms = max_wait_ms;
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
+                cfg.region = region.region()?;
                 cfg.align = align.then(v2x_fuser::align::AlignParams::default);
                 cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
                     time_scale: motion.time_scale,
@@ -462,6 +504,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Stats {
             ns,
+            tile,
             timeout_s,
             zenoh,
         } => {
@@ -471,9 +514,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .context("starting the async runtime")?;
             rt.block_on(async move {
                 let session = v2x_protocol::net::open_session(&zenoh).await?;
-                let v =
-                    node::query_stats(&session, &ns, std::time::Duration::from_secs_f64(timeout_s))
-                        .await?;
+                let key = v2x_protocol::keys::FuserKeys::of(&ns, tile).stats;
+                let v = node::query_stats_at(
+                    &session,
+                    &key,
+                    std::time::Duration::from_secs_f64(timeout_s),
+                )
+                .await?;
                 println!("{}", serde_json::to_string_pretty(&v)?);
                 Ok(())
             })

@@ -3,11 +3,13 @@
 //!
 //! Subjects are identified by the common name of their TLS client certificate. Everything not
 //! allowed is denied:
-//! - agent X may put only its detections (`v2x/NS/det/X`), declare only its own liveliness token
+//! - agent X may put only its detections (`v2x/NS/det/X`, or `v2x/NS/det/TILE/X` in any tile
+//!   with regions), declare only its own liveliness token
 //!   (`v2x/NS/alive/X`), see the fuser's subscription to its detections (so it knows a fuser is
 //!   there), and ask the simulator's shared start (`v2x/NS/sim/epoch`);
 //! - the fuser alone reads detections and tokens, and alone publishes fused output and tracks, declares its
-//!   liveliness and answers the statistics and the shared start;
+//!   liveliness and answers the statistics and the shared start; regional fusers hold the same
+//!   certificate name and rights, on their tiles' keys (`fused/TILE`, `fuser/TILE/stats`, ...);
 //! - an observer may only subscribe to fused output and tracks, query the statistics and watch the fuser's
 //!   liveliness.
 //!
@@ -50,6 +52,7 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
     let mut rules = Vec::new();
     let mut subjects = Vec::new();
     let mut policies = Vec::new();
+    let (det, tiled) = (keys::all_detections(ns), keys::all_tiled_detections(ns));
     let epoch_key = sim_epoch(ns);
     let epoch = [epoch_key.as_str()];
     for a in agents {
@@ -58,7 +61,10 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &format!("{id}-in"),
             "ingress",
             &["put"],
-            &[keys::detections(ns, a).as_str()],
+            &[
+                keys::detections(ns, a).as_str(),
+                format!("{}/{ns}/det/*/{a}", keys::ROOT).as_str(),
+            ],
         ));
         rules.push(rule(
             &format!("{id}-token"),
@@ -66,13 +72,13 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &["liveliness_token"],
             &[keys::alive(ns, a).as_str()],
         ));
-        // The fuser subscribes to every agent's detections at once (`det/*`): an agent sees
-        // that declaration, and so knows a fuser is there.
+        // The fuser subscribes to every agent's detections at once (`det/*`, or `det/TILE/*`
+        // for a regional fuser): an agent sees that declaration, and so knows a fuser is there.
         rules.push(rule(
             &format!("{id}-matching"),
             "egress",
             &["declare_subscriber"],
-            &[keys::all_detections(ns).as_str()],
+            &[det.as_str(), tiled.as_str()],
         ));
         rules.push(rule(
             &format!("{id}-epoch-in"),
@@ -96,21 +102,24 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             ],
         }));
     }
-    let (det, alive) = (keys::all_detections(ns), keys::all_alive(ns));
-    let (fused, tracks, stats, fuser_alive) = (
-        keys::fused(ns),
-        keys::tracks(ns),
-        keys::fuser_stats(ns),
-        keys::fuser_alive(ns),
+    let alive = keys::all_alive(ns);
+    let (one, any) = (
+        keys::FuserKeys::of(ns, None),
+        keys::FuserKeys::any_region(ns),
     );
+    let (fused, tracks, stats, fuser_alive) = (
+        [one.fused.as_str(), any.fused.as_str()],
+        [one.tracks.as_str(), any.tracks.as_str()],
+        [one.stats.as_str(), any.stats.as_str()],
+        [one.alive.as_str(), any.alive.as_str()],
+    );
+    let dets = [det.as_str(), tiled.as_str()];
+    let output = [fused, tracks].concat();
+    let asked = [&stats[..], &[epoch_key.as_str()]].concat();
+    let watched = [stats, fuser_alive].concat();
     let fuser_rules = [
-        rule(
-            "fuser-subscribe",
-            "ingress",
-            &["declare_subscriber"],
-            &[det.as_str()],
-        ),
-        rule("fuser-detections", "egress", &["put"], &[det.as_str()]),
+        rule("fuser-subscribe", "ingress", &["declare_subscriber"], &dets),
+        rule("fuser-detections", "egress", &["put"], &dets),
         rule(
             "fuser-tokens-subscribe",
             "ingress",
@@ -123,62 +132,42 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &["liveliness_token", "reply"],
             &[alive.as_str()],
         ),
-        rule(
-            "fuser-publish",
-            "ingress",
-            &["put"],
-            &[fused.as_str(), tracks.as_str()],
-        ),
+        rule("fuser-publish", "ingress", &["put"], &output),
         // Observers' subscriptions reach the fuser, which then sends its output.
-        rule(
-            "fuser-readers",
-            "egress",
-            &["declare_subscriber"],
-            &[fused.as_str(), tracks.as_str()],
-        ),
+        rule("fuser-readers", "egress", &["declare_subscriber"], &output),
         rule(
             "fuser-alive",
             "ingress",
             &["liveliness_token"],
-            &[fuser_alive.as_str()],
+            &fuser_alive,
         ),
         rule(
             "fuser-answer",
             "ingress",
             &["declare_queryable", "reply"],
-            &[stats.as_str(), &epoch_key],
+            &asked,
         ),
-        rule(
-            "fuser-questions",
-            "egress",
-            &["query"],
-            &[stats.as_str(), &epoch_key],
-        ),
+        rule("fuser-questions", "egress", &["query"], &asked),
     ];
     let observer_rules = [
         rule(
             "observer-subscribe",
             "ingress",
             &["declare_subscriber"],
-            &[fused.as_str(), tracks.as_str()],
+            &output,
         ),
-        rule(
-            "observer-fused",
-            "egress",
-            &["put"],
-            &[fused.as_str(), tracks.as_str()],
-        ),
+        rule("observer-fused", "egress", &["put"], &output),
         rule(
             "observer-ask",
             "ingress",
             &["query", "declare_liveliness_subscriber", "liveliness_query"],
-            &[stats.as_str(), fuser_alive.as_str()],
+            &watched,
         ),
         rule(
             "observer-answers",
             "egress",
             &["reply", "liveliness_token", "declare_queryable"],
-            &[stats.as_str(), fuser_alive.as_str()],
+            &watched,
         ),
     ];
     for (who, rs) in [(FUSER, &fuser_rules[..]), (OBSERVER, &observer_rules[..])] {
@@ -238,7 +227,7 @@ mod tests {
         assert_eq!(acl["default_permission"], "deny");
         assert_eq!(
             allowed(&acl, "agent-veh", "ingress", "put"),
-            vec!["v2x/ns/det/veh"]
+            vec!["v2x/ns/det/veh", "v2x/ns/det/*/veh"]
         );
         assert_eq!(
             allowed(&acl, "agent-veh", "ingress", "liveliness_token"),
@@ -251,16 +240,26 @@ mod tests {
         assert!(allowed(&acl, "agent-rsu", "ingress", "declare_queryable").is_empty());
         assert_eq!(
             allowed(&acl, "fuser", "ingress", "put"),
-            vec!["v2x/ns/fused", "v2x/ns/tracks"]
+            vec![
+                "v2x/ns/fused",
+                "v2x/ns/fused/*",
+                "v2x/ns/tracks",
+                "v2x/ns/tracks/*"
+            ]
         );
         assert_eq!(
             allowed(&acl, "fuser", "egress", "put"),
-            vec!["v2x/ns/det/*"]
+            vec!["v2x/ns/det/*", "v2x/ns/det/*/*"]
         );
         assert!(allowed(&acl, "observer", "ingress", "put").is_empty());
         assert_eq!(
             allowed(&acl, "observer", "egress", "put"),
-            vec!["v2x/ns/fused", "v2x/ns/tracks"]
+            vec![
+                "v2x/ns/fused",
+                "v2x/ns/fused/*",
+                "v2x/ns/tracks",
+                "v2x/ns/tracks/*"
+            ]
         );
         assert!(reserved("fuser") && !reserved("veh"));
         let subjects = acl["subjects"].as_array().unwrap();

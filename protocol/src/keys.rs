@@ -4,6 +4,12 @@
 //! `det/AGENT` (detections), `fused` (fused frames), `tracks` (tracked boxes, each box's id its
 //! track), `alive/AGENT` (liveliness) and
 //! `fuser/stats` (the fuser's statistics queryable).
+//!
+//! With regions (a tile grid, [`crate::tiles`]), an agent publishes each part of a capture on
+//! `det/TILE/AGENT`, and the regional fuser of a tile publishes on `fused/TILE` and
+//! `tracks/TILE`, holds `fuser/TILE/alive` and answers `fuser/TILE/stats` ([`FuserKeys`]).
+
+use crate::tiles::Tile;
 
 /// Root of every key.
 pub const ROOT: &str = "v2x";
@@ -64,6 +70,82 @@ pub fn fuser_alive(ns: &str) -> String {
     format!("{ROOT}/{ns}/fuser/alive")
 }
 
+/// Detections of one agent in one tile: `v2x/NS/det/TILE/AGENT`.
+pub fn detections_in(ns: &str, tile: Tile, agent: &str) -> String {
+    format!("{ROOT}/{ns}/det/{tile}/{agent}")
+}
+
+/// Detections of every agent in one tile: `v2x/NS/det/TILE/*`.
+pub fn tile_detections(ns: &str, tile: Tile) -> String {
+    format!("{ROOT}/{ns}/det/{tile}/*")
+}
+
+/// Detections of every agent in every tile: `v2x/NS/det/*/*`.
+pub fn all_tiled_detections(ns: &str) -> String {
+    format!("{ROOT}/{ns}/det/*/*")
+}
+
+/// The tile and agent name of a `v2x/NS/det/TILE/AGENT` key, if the key is one.
+pub fn tile_agent_of_detections(ns: &str, key: &str) -> Option<(Tile, String)> {
+    let rest = key.strip_prefix(&format!("{ROOT}/{ns}/det/"))?;
+    let (tile, agent) = rest.split_once('/')?;
+    let agent = suffix_after(agent, "")?;
+    Some((tile.parse().ok()?, agent))
+}
+
+/// The keys a fuser publishes and answers on: the whole namespace's, or one region's.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FuserKeys {
+    /// Fused frames: `v2x/NS/fused` or `v2x/NS/fused/TILE`.
+    pub fused: String,
+    /// Tracks: `v2x/NS/tracks` or `v2x/NS/tracks/TILE`.
+    pub tracks: String,
+    /// Statistics: `v2x/NS/fuser/stats` or `v2x/NS/fuser/TILE/stats`.
+    pub stats: String,
+    /// Liveliness: `v2x/NS/fuser/alive` or `v2x/NS/fuser/TILE/alive`.
+    pub alive: String,
+}
+
+impl FuserKeys {
+    /// The keys of the fuser of tile `tile`, or of the single fuser when `None`.
+    pub fn of(ns: &str, tile: Option<Tile>) -> Self {
+        match tile {
+            None => FuserKeys {
+                fused: fused(ns),
+                tracks: tracks(ns),
+                stats: fuser_stats(ns),
+                alive: fuser_alive(ns),
+            },
+            Some(t) => FuserKeys {
+                fused: format!("{ROOT}/{ns}/fused/{t}"),
+                tracks: format!("{ROOT}/{ns}/tracks/{t}"),
+                stats: format!("{ROOT}/{ns}/fuser/{t}/stats"),
+                alive: format!("{ROOT}/{ns}/fuser/{t}/alive"),
+            },
+        }
+    }
+
+    /// The keys of any regional fuser (`fused/*` and so on).
+    pub fn any_region(ns: &str) -> Self {
+        FuserKeys {
+            fused: format!("{ROOT}/{ns}/fused/*"),
+            tracks: format!("{ROOT}/{ns}/tracks/*"),
+            stats: format!("{ROOT}/{ns}/fuser/*/stats"),
+            alive: format!("{ROOT}/{ns}/fuser/*/alive"),
+        }
+    }
+
+    /// The keys of every fuser at once, single and regional (`fused/**` and so on).
+    pub fn every(ns: &str) -> Self {
+        FuserKeys {
+            fused: format!("{ROOT}/{ns}/fused/**"),
+            tracks: format!("{ROOT}/{ns}/tracks/**"),
+            stats: format!("{ROOT}/{ns}/fuser/**/stats"),
+            alive: format!("{ROOT}/{ns}/fuser/**/alive"),
+        }
+    }
+}
+
 /// The agent name of a `v2x/NS/det/AGENT` key, if the key is one.
 pub fn agent_of_detections(ns: &str, key: &str) -> Option<String> {
     suffix_after(key, &format!("{ROOT}/{ns}/det/"))
@@ -103,5 +185,31 @@ mod tests {
         assert!(validate_chunk("agent", "a/b").is_err());
         assert!(validate_chunk("agent", "").is_err());
         assert!(validate_chunk("agent", "a*").is_err());
+    }
+
+    #[test]
+    fn tiled_keys_build_and_parse() {
+        let t = Tile { x: -1, y: 2 };
+        assert_eq!(detections_in("s", t, "veh"), "v2x/s/det/-1_2/veh");
+        assert_eq!(tile_detections("s", t), "v2x/s/det/-1_2/*");
+        assert_eq!(
+            tile_agent_of_detections("s", "v2x/s/det/-1_2/veh"),
+            Some((t, "veh".to_string()))
+        );
+        for bad in [
+            "v2x/s/det/veh",
+            "v2x/s/det/+1_2/veh",
+            "v2x/s/det/-1_2/",
+            "v2x/s/det/-1_2/a/b",
+            "v2x/t/det/-1_2/veh",
+        ] {
+            assert_eq!(tile_agent_of_detections("s", bad), None, "{bad}");
+        }
+        assert_eq!(agent_of_detections("s", "v2x/s/det/-1_2/veh"), None);
+        let r = FuserKeys::of("s", Some(t));
+        assert_eq!(r.fused, "v2x/s/fused/-1_2");
+        assert_eq!(r.stats, "v2x/s/fuser/-1_2/stats");
+        assert_eq!(r.alive, "v2x/s/fuser/-1_2/alive");
+        assert_eq!(FuserKeys::of("s", None).fused, fused("s"));
     }
 }

@@ -13,6 +13,7 @@ pub mod limits;
 pub mod net;
 pub mod nuscenes_json;
 mod provenance;
+pub mod tiles;
 pub mod traffic;
 mod types;
 pub mod wire;

@@ -7,6 +7,11 @@
 //! the worker fuses, fits the result to the wire's domain, and publishes it on `v2x/NS/fused`.
 //! The loop also answers `v2x/NS/fuser/stats` with [`NodeStats`] as JSON, logs rejections at a
 //! bounded rate ([`RateLog`]), and forgets idle agents.
+//!
+//! A regional fuser ([`NodeConfig::region`]) subscribes instead to `v2x/NS/det/TILE/*` for its
+//! tile and every tile reaching into its halo, puts each capture's parts back together
+//! ([`Parts`]), keeps the boxes within its tile and halo, and publishes only the fused boxes
+//! whose centre lies in its own tile, on its region's keys ([`keys::FuserKeys`]).
 
 mod stats;
 mod worker;
@@ -17,7 +22,9 @@ pub use worker::fuse_window;
 
 use crate::ingest::{Ingest, IngestConfig, Rejection};
 use crate::motion::MotionParams;
+use crate::parts::{Assembled, Parts};
 use crate::ratelog::RateLog;
+use crate::region::Region;
 use crate::window::{Closed, Windows};
 use crate::Method;
 use anyhow::anyhow;
@@ -56,6 +63,9 @@ pub struct NodeConfig {
     pub track: Option<crate::tracker::TrackerParams>,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
+    /// The region this fuser serves (`None`: the single fuser of the namespace, on
+    /// `v2x/NS/det/*`).
+    pub region: Option<Region>,
 }
 
 impl NodeConfig {
@@ -74,6 +84,7 @@ impl NodeConfig {
             align: None,
             track: None,
             viz: None,
+            region: None,
         }
     }
 }
@@ -132,6 +143,32 @@ struct State {
     queued: usize,
     last_prune_us: u64,
     viz: Option<Arc<crate::viz::Viz>>,
+    region: Option<Region>,
+    parts: Parts,
+}
+
+/// Most captures a regional fuser puts together at once, per agent it may track.
+const PENDING_PER_AGENT: usize = 4;
+/// Samples a regional fuser's subscriptions may queue for its loop; beyond, they are dropped
+/// and counted.
+const INBOX: usize = 8192;
+
+/// Where the detections come in: one subscription, or one per tile of a region.
+enum Inbox {
+    Whole(zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>),
+    Tiles {
+        rx: mpsc::Receiver<zenoh::sample::Sample>,
+        _subs: Vec<zenoh::pubsub::Subscriber<()>>,
+    },
+}
+
+impl Inbox {
+    async fn recv(&mut self) -> Option<zenoh::sample::Sample> {
+        match self {
+            Inbox::Whole(s) => s.recv_async().await.ok(),
+            Inbox::Tiles { rx, .. } => rx.recv().await,
+        }
+    }
 }
 
 impl State {
@@ -166,33 +203,90 @@ impl State {
         }
     }
 
-    fn on_payload(&mut self, key: &str, payload: &[u8]) {
-        let Some(agent) = keys::agent_of_detections(&self.ns, key) else {
+    fn on_sample(&mut self, s: &zenoh::sample::Sample) {
+        let key = s.key_expr().as_str();
+        let payload = s.payload().to_bytes();
+        if self.region.is_none() {
+            if let Some(agent) = keys::agent_of_detections(&self.ns, key) {
+                let now = self.clock.now_us();
+                let result = self.ingest.offer(&agent, &payload, now);
+                self.drop_evicted();
+                match result {
+                    Ok(frame) => self.admit(&agent, frame, now),
+                    Err(r) => self.warn(&r, key),
+                }
+            }
+            return;
+        }
+        let Some((tile, agent)) = keys::tile_agent_of_detections(&self.ns, key) else {
             return;
         };
+        let listed = match s.attachment() {
+            Some(a) => v2x_protocol::tiles::decode_tiles(&a.to_bytes()),
+            None => Err("no tile list attached".to_string()),
+        };
+        let listed = match listed {
+            Ok(l) => l,
+            Err(e) => {
+                let r = self.ingest.refuse(Rejection::BadTiles(e));
+                return self.warn(&r, key);
+            }
+        };
         let now = self.clock.now_us();
-        let result = self.ingest.offer(&agent, payload, now);
+        let result = self.ingest.offer(&agent, &payload, now);
+        self.drop_evicted();
+        let frame = match result {
+            Ok(f) => f,
+            Err(r) => return self.warn(&r, key),
+        };
+        match self.parts.offer(tile, &listed, frame, now) {
+            Ok(done) => self.admit_parts(done, now),
+            Err(e) => {
+                let r = self.ingest.refuse(Rejection::Part(e));
+                self.warn(&r, key);
+            }
+        }
+    }
+
+    fn drop_evicted(&mut self) {
         for gone in self.ingest.take_evicted() {
             self.windows.forget_agent(&gone);
+            self.parts.forget_agent(&gone);
         }
-        match result {
-            Ok(frame) => {
-                let (n, t) = (frame.detections.len(), frame.capture_us);
-                if let Some(v) = &self.viz {
-                    let topic = format!("/agents/{agent}");
-                    v.boxes(
-                        &topic,
-                        &agent,
-                        t,
-                        &frame.detections,
-                        crate::viz::agent_colour(&agent),
-                    );
-                }
-                let verdict = self.windows.insert(frame, now);
-                self.ingest.record(&agent, verdict, n, t);
+    }
+
+    /// Admits reassembled captures (regional fuser).
+    fn admit_parts(&mut self, done: Vec<Assembled>, now: u64) {
+        for a in done {
+            if !a.complete {
+                self.stats.captures_incomplete += 1;
             }
-            Err(r) => self.warn(&r, key),
+            let agent = a.frame.agent.clone();
+            self.admit(&agent, a.frame, now);
         }
+    }
+
+    /// Puts an admitted frame into its window (a regional fuser first keeps the boxes within
+    /// its tile and halo).
+    fn admit(&mut self, agent: &str, mut frame: Frame, now: u64) {
+        if let Some(r) = &self.region {
+            frame
+                .detections
+                .retain(|d| r.tiling.within(r.tile, d.center, r.halo_m));
+        }
+        let (n, t) = (frame.detections.len(), frame.capture_us);
+        if let Some(v) = &self.viz {
+            let topic = format!("/agents/{agent}");
+            v.boxes(
+                &topic,
+                agent,
+                t,
+                &frame.detections,
+                crate::viz::agent_colour(agent),
+            );
+        }
+        let verdict = self.windows.insert(frame, now);
+        self.ingest.record(agent, verdict, n, t);
     }
 
     fn on_token(&mut self, agent: &str, live: bool) {
@@ -200,11 +294,10 @@ impl State {
         if live {
             // A new token is a restart: its sequence numbers start again.
             self.windows.reset_agent(agent);
+            self.parts.forget_agent(agent);
         }
         let tracked = self.ingest.token(agent, live, now);
-        for gone in self.ingest.take_evicted() {
-            self.windows.forget_agent(&gone);
-        }
+        self.drop_evicted();
         if tracked {
             tracing::info!("agent {agent} {}", if live { "is live" } else { "left" });
         } else {
@@ -225,6 +318,7 @@ impl State {
             self.last_prune_us = now;
             for agent in self.ingest.prune(now) {
                 self.windows.forget_agent(&agent);
+                self.parts.forget_agent(&agent);
             }
         }
         for line in self.log.tick(now) {
@@ -351,10 +445,39 @@ pub async fn run(
     }
     let ns = cfg.ns.clone();
     let z = |e: zenoh::Error| anyhow!("{e}");
-    let det = session
-        .declare_subscriber(keys::all_detections(&ns))
-        .await
-        .map_err(z)?;
+    let fk = keys::FuserKeys::of(&ns, cfg.region.map(|r| r.tile));
+    let overflow = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let (mut det, subscribed) = match &cfg.region {
+        None => (
+            Inbox::Whole(
+                session
+                    .declare_subscriber(keys::all_detections(&ns))
+                    .await
+                    .map_err(z)?,
+            ),
+            Vec::new(),
+        ),
+        Some(r) => {
+            let tiles = r.tiling.with_halo(r.tile, r.halo_m);
+            let (tx, rx) = mpsc::channel(INBOX);
+            let mut subs = Vec::new();
+            for t in &tiles {
+                let (tx, overflow) = (tx.clone(), overflow.clone());
+                subs.push(
+                    session
+                        .declare_subscriber(keys::tile_detections(&ns, *t))
+                        .callback(move |s| {
+                            if tx.try_send(s).is_err() {
+                                overflow.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            }
+                        })
+                        .await
+                        .map_err(z)?,
+                );
+            }
+            (Inbox::Tiles { rx, _subs: subs }, tiles)
+        }
+    };
     let alive = session
         .liveliness()
         .declare_subscriber(keys::all_alive(&ns))
@@ -362,17 +485,17 @@ pub async fn run(
         .await
         .map_err(z)?;
     let queryable = session
-        .declare_queryable(keys::fuser_stats(&ns))
+        .declare_queryable(fk.stats.clone())
         .await
         .map_err(z)?;
     let publisher = session
-        .declare_publisher(keys::fused(&ns))
+        .declare_publisher(fk.fused.clone())
         .encoding(v2x_protocol::net::frame_encoding())
         .await
         .map_err(z)?;
     let _token = session
         .liveliness()
-        .declare_token(keys::fuser_alive(&ns))
+        .declare_token(fk.alive.clone())
         .await
         .map_err(z)?;
     let clock = Clock::start();
@@ -381,7 +504,7 @@ pub async fn run(
     let tracks = match cfg.track {
         Some(_) => Some(
             session
-                .declare_publisher(keys::tracks(&ns))
+                .declare_publisher(fk.tracks.clone())
                 .encoding(v2x_protocol::net::frame_encoding())
                 .await
                 .map_err(z)?,
@@ -393,6 +516,7 @@ pub async fn run(
         motion: cfg.motion,
         align: cfg.align,
         track: cfg.track,
+        region: cfg.region,
     };
     let worker = tokio::spawn(worker::run(
         fusion, publisher, tracks, clock, job_rx, done_tx,
@@ -414,6 +538,7 @@ pub async fn run(
         stats: NodeStats {
             ns: ns.clone(),
             method: cfg.method.name(),
+            region: cfg.region.map(|r| r.tile.to_string()),
             ..Default::default()
         },
         e2e: Default::default(),
@@ -421,26 +546,42 @@ pub async fn run(
         fusion: Vec::new(),
         queued: 0,
         last_prune_us: now,
+        region: cfg.region,
+        parts: Parts::new(
+            &subscribed,
+            (cfg.max_wait_ms * 1000.0) as u64,
+            cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
+        ),
     };
-    tracing::info!(
-        "fuser on v2x/{ns}: method {}, window {} ms",
-        st.stats.method,
-        cfg.window_ms
-    );
+    match &cfg.region {
+        None => tracing::info!(
+            "fuser on v2x/{ns}: method {}, window {} ms",
+            st.stats.method,
+            cfg.window_ms
+        ),
+        Some(r) => tracing::info!(
+            "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {}, window {} ms",
+            r.tile,
+            r.tiling.size_m(),
+            r.halo_m,
+            st.stats.method,
+            cfg.window_ms
+        ),
+    }
     tokio::pin!(shutdown);
     loop {
         // Wake for the next deadline, and at least once a second for housekeeping.
-        let wait = st
-            .windows
-            .next_deadline()
-            .map_or(Duration::from_secs(1), |d| {
-                Duration::from_micros(d.saturating_sub(st.clock.now_us()))
-                    .min(Duration::from_secs(1))
-            });
+        let next = match (st.windows.next_deadline(), st.parts.next_deadline()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        let wait = next.map_or(Duration::from_secs(1), |d| {
+            Duration::from_micros(d.saturating_sub(st.clock.now_us())).min(Duration::from_secs(1))
+        });
         tokio::select! {
-            s = det.recv_async() => match s {
-                Ok(s) => st.on_payload(s.key_expr().as_str(), &s.payload().to_bytes()),
-                Err(_) => break,
+            s = det.recv() => match s {
+                Some(s) => st.on_sample(&s),
+                None => break,
             },
             s = alive.recv_async() => match s {
                 Ok(s) => if let Some(agent) = keys::agent_of_alive(&ns, s.key_expr().as_str()) {
@@ -452,7 +593,7 @@ pub async fn run(
                 match serde_json::to_vec(&st.snapshot()) {
                     Ok(body) => {
                         if let Err(e) = q
-                            .reply(keys::fuser_stats(&ns), body)
+                            .reply(fk.stats.clone(), body)
                             .encoding(Encoding::APPLICATION_JSON)
                             .await
                         {
@@ -469,11 +610,17 @@ pub async fn run(
             _ = &mut shutdown => break,
         }
         let now = st.clock.now_us();
+        let expired = st.parts.expire(now);
+        st.admit_parts(expired, now);
+        st.stats.inbox_overflow = overflow.load(std::sync::atomic::Ordering::Relaxed);
         let ready = st.close_ready(now);
         st.enqueue(ready, &job_tx);
         st.housekeeping();
     }
-    // Stop: flush every open window through the worker, then let it finish.
+    // Stop: flush every waiting capture and open window through the worker, then let it
+    // finish.
+    let expired = st.parts.expire(u64::MAX);
+    st.admit_parts(expired, st.clock.now_us());
     st.stats.open_windows_at_stop = st.windows.open_windows();
     let now = st.clock.now_us();
     for closed in st.close_ready(u64::MAX) {
@@ -509,8 +656,17 @@ pub async fn query_stats(
     ns: &str,
     timeout: Duration,
 ) -> anyhow::Result<serde_json::Value> {
+    query_stats_at(session, &keys::fuser_stats(ns), timeout).await
+}
+
+/// Asks the fuser answering on `key` (a [`keys::FuserKeys::stats`]) for its statistics.
+pub async fn query_stats_at(
+    session: &zenoh::Session,
+    key: &str,
+    timeout: Duration,
+) -> anyhow::Result<serde_json::Value> {
     let replies = session
-        .get(keys::fuser_stats(ns))
+        .get(key)
         .timeout(timeout)
         .await
         .map_err(|e| anyhow!("{e}"))?;
@@ -519,8 +675,5 @@ pub async fn query_stats(
             return Ok(serde_json::from_slice(&sample.payload().to_bytes())?);
         }
     }
-    anyhow::bail!(
-        "no fuser answered on {} within {timeout:?}",
-        keys::fuser_stats(ns)
-    )
+    anyhow::bail!("no fuser answered on {key} within {timeout:?}")
 }

@@ -108,6 +108,12 @@ pub struct NodeStats {
     pub ns: String,
     /// Method name.
     pub method: String,
+    /// The tile of a regional fuser (`COLUMN_ROW`); `None` for the single fuser.
+    pub region: Option<String>,
+    /// Regional fuser: captures fused without every part (a part missing after the wait).
+    pub captures_incomplete: u64,
+    /// Regional fuser: detections dropped because its subscriptions' queue was full.
+    pub inbox_overflow: u64,
     /// Agents holding a liveliness token now.
     pub live: Vec<String>,
     /// Agents windows wait for now: holding a token and sending frames.

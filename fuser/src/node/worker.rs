@@ -74,6 +74,21 @@ pub fn fuse_window(
     }
 }
 
+/// Keeps the fused boxes a region owns (centre in its tile), with their sources.
+fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
+    let dets = std::mem::take(&mut fused.frame.detections);
+    let sources = std::mem::take(&mut fused.provenance.sources);
+    let has_sources = sources.len() == dets.len();
+    let mut sources = sources.into_iter();
+    for d in dets {
+        let s = if has_sources { sources.next() } else { None };
+        if region.owns(&d) {
+            fused.frame.detections.push(d);
+            fused.provenance.sources.extend(s);
+        }
+    }
+}
+
 /// How the worker fuses: the method and the optional steps around it.
 #[derive(Copy, Clone, Debug)]
 pub(super) struct Fusion {
@@ -81,6 +96,7 @@ pub(super) struct Fusion {
     pub motion: Option<MotionParams>,
     pub align: Option<AlignParams>,
     pub track: Option<TrackerParams>,
+    pub region: Option<crate::region::Region>,
 }
 
 /// What the worker carries from window to window.
@@ -156,6 +172,9 @@ pub(super) async fn run(
                 closed,
                 this_seq,
             );
+            if let Some(r) = &fusion.region {
+                keep_owned(r, &mut fused);
+            }
             let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
             let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
             let tracked = state.tracker.as_mut().map(|t| {

@@ -1,0 +1,155 @@
+//! The map's tile grid, shared by agents and regional fusers: square tiles of one side in the
+//! map frame ([`Tiling`]), their names in key expressions ([`Tile`]), and the list of tiles one
+//! capture covers, sent with each of its parts as a Zenoh attachment ([`encode_tiles`],
+//! [`decode_tiles`]) so that a regional fuser knows when it holds every part it will get.
+//!
+//! Tiles are half-open squares, [x0, x0 + size) x [y0, y0 + size), so every point lies in exactly
+//! one tile.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// Most tiles one capture may cover (an agent sees a few hundred metres; a tile is at least 1 m,
+/// but a part per tile beyond this many would flood the network).
+pub const MAX_TILES_PER_CAPTURE: usize = 64;
+
+/// One tile of the grid: column `x`, row `y` (tile (0, 0) starts at the map origin).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Tile {
+    /// Column: floor(x / size).
+    pub x: i32,
+    /// Row: floor(y / size).
+    pub y: i32,
+}
+
+impl fmt::Display for Tile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}_{}", self.x, self.y)
+    }
+}
+
+impl FromStr for Tile {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("tile '{s}': expected COLUMN_ROW, e.g. 0_0 or -1_2");
+        let (x, y) = s.split_once('_').ok_or_else(bad)?;
+        let t = Tile {
+            x: x.parse().map_err(|_| bad())?,
+            y: y.parse().map_err(|_| bad())?,
+        };
+        // One spelling per tile (no '+', no leading zeros), so names compare as keys do.
+        if t.to_string() != s {
+            return Err(bad());
+        }
+        Ok(t)
+    }
+}
+
+/// The grid: square tiles of one side, aligned on the map origin.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Tiling {
+    size_m: f64,
+}
+
+impl Tiling {
+    /// A grid of `size_m` tiles (positive and finite, at least 1 m).
+    pub fn new(size_m: f64) -> Result<Self, String> {
+        if !(size_m.is_finite() && size_m >= 1.0) {
+            return Err(format!(
+                "tile size {size_m} m: expected a finite size of at least 1 m"
+            ));
+        }
+        Ok(Tiling { size_m })
+    }
+
+    /// The tile side (m).
+    pub fn size_m(&self) -> f64 {
+        self.size_m
+    }
+
+    /// The tile a point lies in (far points saturate at the grid's outermost tiles).
+    pub fn tile_of(&self, p: [f64; 3]) -> Tile {
+        let cell = |v: f64| {
+            (v / self.size_m)
+                .floor()
+                .clamp(i32::MIN as f64, i32::MAX as f64) as i32
+        };
+        Tile {
+            x: cell(p[0]),
+            y: cell(p[1]),
+        }
+    }
+
+    /// The tile's lower corner and upper corner (exclusive).
+    pub fn bounds(&self, t: Tile) -> ([f64; 2], [f64; 2]) {
+        let lo = [t.x as f64 * self.size_m, t.y as f64 * self.size_m];
+        (lo, [lo[0] + self.size_m, lo[1] + self.size_m])
+    }
+
+    /// Whether a point lies in the tile grown by `halo_m` on every side.
+    pub fn within(&self, t: Tile, p: [f64; 3], halo_m: f64) -> bool {
+        let (lo, hi) = self.bounds(t);
+        (0..2).all(|k| p[k] >= lo[k] - halo_m && p[k] < hi[k] + halo_m)
+    }
+
+    /// The tiles a region of tile `t` with a `halo_m` halo needs boxes from: `t` and every tile
+    /// that reaches into its halo.
+    pub fn with_halo(&self, t: Tile, halo_m: f64) -> Vec<Tile> {
+        let k = (halo_m / self.size_m).ceil().max(0.0) as i32;
+        let mut out = Vec::new();
+        for dx in -k..=k {
+            for dy in -k..=k {
+                out.push(Tile {
+                    x: t.x.saturating_add(dx),
+                    y: t.y.saturating_add(dy),
+                });
+            }
+        }
+        out.dedup();
+        out
+    }
+}
+
+/// The attachment of a capture's parts: its tiles, sorted, without repeats, separated by spaces
+/// (`0_0 1_0`).
+pub fn encode_tiles(tiles: &[Tile]) -> Result<Vec<u8>, String> {
+    check_tiles(tiles)?;
+    Ok(tiles
+        .iter()
+        .map(Tile::to_string)
+        .collect::<Vec<_>>()
+        .join(" ")
+        .into_bytes())
+}
+
+/// Reads a part's attachment back: at least one and at most [`MAX_TILES_PER_CAPTURE`] tiles,
+/// sorted and without repeats (what [`encode_tiles`] writes).
+pub fn decode_tiles(bytes: &[u8]) -> Result<Vec<Tile>, String> {
+    if bytes.len() > MAX_TILES_PER_CAPTURE * 24 {
+        return Err(format!("tile list of {} bytes is too long", bytes.len()));
+    }
+    let text = std::str::from_utf8(bytes).map_err(|_| "tile list is not UTF-8".to_string())?;
+    let tiles = text
+        .split(' ')
+        .map(str::parse)
+        .collect::<Result<Vec<Tile>, _>>()?;
+    check_tiles(&tiles)?;
+    Ok(tiles)
+}
+
+fn check_tiles(tiles: &[Tile]) -> Result<(), String> {
+    if tiles.is_empty() || tiles.len() > MAX_TILES_PER_CAPTURE {
+        return Err(format!(
+            "a capture covers 1 to {MAX_TILES_PER_CAPTURE} tiles (got {})",
+            tiles.len()
+        ));
+    }
+    if tiles.windows(2).any(|w| w[0] >= w[1]) {
+        return Err("tile list is not sorted without repeats".into());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;
