@@ -323,3 +323,102 @@ async fn the_statistics_admin_space_answers_its_own_session_only() {
     }
     assert_eq!(answers, 0, "another session read the agent's admin space");
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_regional_fuser_is_held_to_the_same_policy() {
+    use v2x_protocol::keys::FuserKeys;
+    use v2x_protocol::tiles::{encode_tiles, Tile, Tiling};
+    let ns = "sec-region";
+    let port = free_port().unwrap();
+    let issued = certs(ns, ns, port);
+    let _router = router(&issued).await;
+    let tile = Tile { x: 0, y: 0 };
+    let tiling = Tiling::new(200.0).unwrap();
+    let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+    cfg.max_wait_ms = 300.0;
+    cfg.region = Some(v2x_fuser::region::Region {
+        tiling,
+        tile,
+        halo_m: 30.0,
+    });
+    let mut fuser = spawn_fuser_with(open(&issued.fuser).await, cfg);
+    let keys_of = FuserKeys::of(ns, Some(tile));
+    let observer = open(&issued.observer).await;
+    let fused_seen = observer
+        .declare_subscriber(keys_of.fused.clone())
+        .await
+        .unwrap();
+    // Agent a's certificate tries to publish as b in the tile, and as the regional fuser, once
+    // the fuser's subscription has reached it (so only the policy can stop the forgery).
+    let mallory = open(&issued.agents["a"]).await;
+    let mut a = Agent::start(&mallory, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap()
+        .with_tiling(tiling);
+    a.wait_for_subscriber_in(tile, Duration::from_secs(10))
+        .await
+        .unwrap();
+    let mut forged = frame(now_us());
+    forged.agent = "b".into();
+    forged.seq = 0;
+    mallory
+        .put(
+            keys::detections_in(ns, tile, "b"),
+            wire::encode(&forged).unwrap(),
+        )
+        .attachment(encode_tiles(&[tile]).unwrap())
+        .await
+        .unwrap();
+    let mut fake = frame(42);
+    fake.agent = "fuser".into();
+    mallory
+        .put(keys_of.fused.clone(), wire::encode(&fake).unwrap())
+        .await
+        .unwrap();
+    let sb = open(&issued.agents["b"]).await;
+    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
+        .await
+        .unwrap()
+        .with_tiling(tiling);
+    b.wait_for_subscriber_in(tile, Duration::from_secs(10))
+        .await
+        .unwrap();
+    let mut last = 0;
+    let mut expected = Vec::new();
+    for _ in 0..3 {
+        let t = next_t(&mut last);
+        a.send(frame(t)).unwrap();
+        b.send(Frame {
+            detections: vec![det(10.2, 1), det(29.9, 2)],
+            ..frame(t)
+        })
+        .unwrap();
+        let f = next_fused(&mut fuser.1).await;
+        assert_eq!(f.provenance.agents, vec!["a", "b"]);
+        assert_eq!(f.frame.detections.len(), 2);
+        expected.push(t);
+    }
+    let mut seen = Vec::new();
+    while seen.len() < 3 {
+        let s = within(
+            10,
+            "regional output at the observer",
+            fused_seen.recv_async(),
+        )
+        .await
+        .unwrap();
+        seen.push(wire::decode(&s.payload().to_bytes()).unwrap().capture_us);
+    }
+    assert_eq!(seen, expected, "no forged fused frame reached the observer");
+    let stats = node::query_stats_at(&observer, &keys_of.stats, Duration::from_secs(5))
+        .await
+        .unwrap();
+    assert_eq!(stats["region"], "0_0");
+    assert_eq!(
+        stats["agents"]["b"]["frames_in"], 3,
+        "the forged part as b reached nobody"
+    );
+    fuser.0.send(()).unwrap();
+    let st = within(30, "fuser shutdown", fuser.2).await.unwrap();
+    assert_eq!(st.windows, 3);
+}
