@@ -3,6 +3,9 @@
 //! close to publish) and end-to-end latency percentiles, for the first and second half of the run
 //! (a growing backlog shows as the second half being slower), open windows at the end, the
 //! process's CPU use and its resident memory at the start and end.
+//!
+//! `--regions K` spreads the same total load over 1, 2, ... K regional fusers behind a router
+//! ([`run_regions`]); `--max-load` finds the largest load one fuser holds ([`run_max_load`]).
 
 use crate::noise::mix;
 use crate::run::free_port;
@@ -13,8 +16,10 @@ use serde::Serialize;
 use std::time::{Duration, Instant};
 use v2x_agent::{now_us, Agent, Link};
 use v2x_fuser::node::{self, Latency, NodeConfig};
+use v2x_fuser::region::Region;
 use v2x_fuser::Method;
 use v2x_protocol::net::{open_session, ZenohArgs};
+use v2x_protocol::tiles::{Tile, Tiling};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, NoiseProfile};
 
 /// What to run.
@@ -38,6 +43,16 @@ pub struct LoadArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Scale-out instead: the same total load (agents x objects x rate) on 1, 2 and 4 (up to K)
+    /// regional fusers behind a Zenoh router, the agents spread over four sites along an
+    /// 800 m x 200 m strip and publishing per tile; reports fusion p99 and boxes fused per second
+    /// for each configuration.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4))]
+    pub regions: Option<u32>,
+    /// Instead: the largest load one fuser holds, doubling the agents from --agents (at
+    /// --objects and --hz) until fusion p99 reaches 50 ms or windows are lost.
+    #[arg(long, conflicts_with = "regions")]
+    pub max_load: bool,
 }
 
 /// The load report.
@@ -123,41 +138,253 @@ fn scene(objects: usize, t: f64, seed: u64) -> Vec<(Class, [f64; 3], [f64; 3], f
         .collect()
 }
 
+/// Where the agents of a run sit and who fuses them.
+struct Layout {
+    /// The fusers (one, or one per region).
+    fusers: Vec<NodeConfig>,
+    /// With regions: the tile grid the agents publish on (through a router).
+    tiling: Option<Tiling>,
+    /// Site centres; agent i sees the scene around site i mod the number of sites.
+    sites: Vec<[f64; 2]>,
+}
+
+/// What one run measured.
+struct Driven {
+    stats: Vec<node::NodeStats>,
+    frames: usize,
+    wall_s: f64,
+    cpu_percent: f64,
+    rss_start_mib: f64,
+    rss_end_mib: f64,
+}
+
 /// Runs the load test.
 pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
-    let port = free_port()?;
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let fuser_session =
-        open_session(&ZenohArgs::loopback(std::slice::from_ref(&endpoint), &[])).await?;
     let ns = "load";
     let mut cfg = NodeConfig::new(ns, args.method);
     cfg.window_ms = 1000.0 / args.hz;
     cfg.max_wait_ms = 100.0;
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let fuser = tokio::spawn(async move {
-        let r = node::run(&fuser_session, cfg, |_| {}, async {
-            let _ = stop_rx.await;
-        })
-        .await;
-        let _ = fuser_session.close().await;
-        r
-    });
+    let layout = Layout {
+        fusers: vec![cfg],
+        tiling: None,
+        sites: vec![[0.0, 0.0]],
+    };
+    let d = drive(args, ns, layout).await?;
+    let stats = &d.stats[0];
+    Ok(LoadReport {
+        agents: args.agents,
+        objects: args.objects,
+        hz: args.hz,
+        frames_per_agent: d.frames,
+        windows: stats.windows,
+        windows_incomplete: stats.windows_incomplete,
+        fusion_latency_ms: stats.fusion_latency_ms.clone(),
+        fusion_latency_first_half_ms: Latency::of(
+            &stats.fusion_samples[..stats.fusion_samples.len() / 2],
+        ),
+        fusion_latency_second_half_ms: Latency::of(
+            &stats.fusion_samples[stats.fusion_samples.len() / 2..],
+        ),
+        e2e_latency_ms: stats.e2e_latency_ms.clone(),
+        open_windows_at_end: stats.open_windows_at_stop,
+        cpu_percent: d.cpu_percent,
+        rss_start_mib: d.rss_start_mib,
+        rss_end_mib: d.rss_end_mib,
+    })
+}
+
+/// Side of one block of the scale-out strip (m): four blocks along x make the city.
+pub const BLOCK_M: f64 = 200.0;
+
+/// One configuration of the scale-out benchmark.
+#[derive(Clone, Debug, Serialize)]
+pub struct RegionRow {
+    /// Regional fusers.
+    pub fusers: usize,
+    /// Their tile side (m).
+    pub tile_m: f64,
+    /// Boxes the agents sent per second (agents x objects x rate).
+    pub input_boxes_per_s: f64,
+    /// Fused boxes published per second, over every fuser.
+    pub fused_boxes_per_s: f64,
+    /// Windows fused, over every fuser.
+    pub windows: u64,
+    /// Of those, closed with an awaited agent missing.
+    pub windows_incomplete: u64,
+    /// Captures fused without every part.
+    pub captures_incomplete: u64,
+    /// Windows dropped or still open at the end, over every fuser.
+    pub windows_lost: u64,
+    /// Fusion latency over every fuser's windows.
+    pub fusion_latency_ms: Latency,
+    /// The worst fuser's end-to-end p99 (ms).
+    pub e2e_p99_ms: Option<f64>,
+    /// CPU of the whole process, in percent of one core.
+    pub cpu_percent: f64,
+}
+
+/// The tiles of a configuration of `k` fusers over the 4-block strip: blocks of 4/k each.
+fn strip_tiles(k: usize) -> anyhow::Result<(Tiling, Vec<Tile>)> {
+    if !(k.is_power_of_two() && k <= 4) {
+        anyhow::bail!("--regions: the strip splits into 1, 2 or 4 regions (got {k})");
+    }
+    let tiling = Tiling::new(4.0 * BLOCK_M / k as f64).map_err(anyhow::Error::msg)?;
+    Ok((tiling, (0..k as i32).map(|x| Tile { x, y: 0 }).collect()))
+}
+
+/// Runs the scale-out benchmark: 1, 2, ... up to `args.regions` regional fusers (1, 2, 4).
+pub async fn run_regions(args: &LoadArgs) -> anyhow::Result<Vec<RegionRow>> {
+    let most = args.regions.unwrap_or(4) as usize;
+    let mut rows = Vec::new();
+    let mut k = 1;
+    while k <= most {
+        let (tiling, tiles) = strip_tiles(k)?;
+        let ns = format!("load-regions-{k}");
+        let fusers = tiles
+            .iter()
+            .map(|&tile| {
+                let mut cfg = NodeConfig::new(&ns, args.method);
+                cfg.window_ms = 1000.0 / args.hz;
+                cfg.max_wait_ms = 100.0;
+                cfg.region = Some(Region {
+                    tiling,
+                    tile,
+                    halo_m: v2x_fuser::region::DEFAULT_HALO_M,
+                });
+                cfg
+            })
+            .collect();
+        let sites = (0..4)
+            .map(|b| [(b as f64 + 0.5) * BLOCK_M, 0.5 * BLOCK_M])
+            .collect();
+        let layout = Layout {
+            fusers,
+            tiling: Some(tiling),
+            sites,
+        };
+        let d = drive(args, &ns, layout).await?;
+        let samples: Vec<f64> = d
+            .stats
+            .iter()
+            .flat_map(|s| s.fusion_samples.iter().copied())
+            .collect();
+        let sum = |f: fn(&node::NodeStats) -> u64| d.stats.iter().map(f).sum::<u64>();
+        rows.push(RegionRow {
+            fusers: k,
+            tile_m: tiling.size_m(),
+            input_boxes_per_s: (args.agents * args.objects) as f64 * args.hz,
+            fused_boxes_per_s: sum(|s| s.fused_objects) as f64 / d.wall_s,
+            windows: sum(|s| s.windows),
+            windows_incomplete: sum(|s| s.windows_incomplete),
+            captures_incomplete: sum(|s| s.captures_incomplete),
+            windows_lost: sum(|s| s.windows_dropped + s.open_windows_at_stop as u64),
+            fusion_latency_ms: Latency::of(&samples),
+            e2e_p99_ms: d
+                .stats
+                .iter()
+                .filter_map(|s| s.e2e_latency_ms.p99_ms)
+                .max_by(f64::total_cmp),
+            cpu_percent: d.cpu_percent,
+        });
+        k *= 2;
+    }
+    Ok(rows)
+}
+
+/// The p99 (ms) below which one fuser is said to hold a load.
+pub const HOLD_P99_MS: f64 = 50.0;
+
+/// Runs single-fuser loads with agents doubling from `args.agents` until one is not held (fusion
+/// p99 at least [`HOLD_P99_MS`], or fewer than 95 % of the windows fused); returns every load run
+/// and whether it held.
+pub async fn run_max_load(args: &LoadArgs) -> anyhow::Result<Vec<(LoadReport, bool)>> {
+    let mut out = Vec::new();
+    let mut agents = args.agents.max(1);
+    loop {
+        let a = LoadArgs {
+            agents,
+            ..args.clone()
+        };
+        let r = run(&a).await?;
+        let held = r.fusion_latency_ms.p99_ms.is_some_and(|p| p < HOLD_P99_MS)
+            && r.windows as f64 >= 0.95 * r.frames_per_agent as f64;
+        out.push((r, held));
+        if !held || agents >= v2x_protocol::limits::MAX_WINDOW_AGENTS {
+            return Ok(out);
+        }
+        agents = (agents * 2).min(v2x_protocol::limits::MAX_WINDOW_AGENTS);
+    }
+}
+
+/// Drives one run: starts the fusers (and, with regions, a router), the agents, sends the
+/// frames, and stops everything.
+async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driven> {
+    let port = free_port()?;
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    // Single fuser: it listens and the agents connect to it (peer mode). Regions: a router
+    // listens and every fuser and agent is its client.
+    let (router, fuser_args, agent_args) = match layout.tiling {
+        None => (
+            None,
+            ZenohArgs::loopback(std::slice::from_ref(&endpoint), &[]),
+            ZenohArgs::loopback(&[], std::slice::from_ref(&endpoint)),
+        ),
+        Some(_) => {
+            let router = open_session(&ZenohArgs {
+                mode: Some("router".into()),
+                listen: vec![endpoint.clone()],
+                no_multicast_scouting: true,
+                ..Default::default()
+            })
+            .await?;
+            let client = ZenohArgs {
+                mode: Some("client".into()),
+                connect: vec![endpoint.clone()],
+                ..Default::default()
+            };
+            (Some(router), client.clone(), client)
+        }
+    };
+    let mut fusers = Vec::new();
+    for cfg in layout.fusers {
+        let session = open_session(&fuser_args).await?;
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let task = tokio::spawn(async move {
+            let r = node::run(&session, cfg, |_| {}, async {
+                let _ = stop_rx.await;
+            })
+            .await;
+            let _ = session.close().await;
+            r
+        });
+        fusers.push((stop_tx, task));
+    }
     let mut sessions = Vec::new();
     let mut agents = Vec::new();
     for i in 0..args.agents {
-        let s = open_session(&ZenohArgs::loopback(&[], std::slice::from_ref(&endpoint))).await?;
+        let s = open_session(&agent_args).await?;
         let kind = if i % 4 == 1 {
             AgentKind::Infrastructure
         } else {
             AgentKind::Vehicle
         };
-        agents.push(
-            Agent::start(&s, ns, &format!("a{i:02}"), kind, Link::default(), i as u64).await?,
-        );
+        let mut agent =
+            Agent::start(&s, ns, &format!("a{i:02}"), kind, Link::default(), i as u64).await?;
+        let site = layout.sites[i % layout.sites.len()];
+        match layout.tiling {
+            None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
+            Some(t) => {
+                agent = agent.with_tiling(t);
+                agent
+                    .wait_for_subscriber_in(
+                        t.tile_of([site[0], site[1], 0.0]),
+                        Duration::from_secs(30),
+                    )
+                    .await?;
+            }
+        }
+        agents.push(agent);
         sessions.push(s);
-    }
-    for a in &agents {
-        a.wait_for_subscriber(Duration::from_secs(30)).await?;
     }
     // Let liveliness settle so that windows close on completion.
     tokio::time::sleep(Duration::from_millis(500)).await;
@@ -171,9 +398,18 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
     for k in 0..frames {
         tokio::time::sleep_until(start + period * k as u32).await;
         let t = k as f64 / args.hz;
-        let truth = scene(args.objects, t, 11);
+        // With several sites, each site's objects come back every 6 s, so that they stay near it.
+        let (t_scene, sites) = match layout.sites.len() {
+            1 => (t, 1),
+            n => (t % 6.0, n),
+        };
+        let truths: Vec<_> = (0..sites)
+            .map(|b| scene(args.objects, t_scene, 11 + b as u64))
+            .collect();
         let capture = now_us();
         for (i, agent) in agents.iter_mut().enumerate() {
+            let site = layout.sites[i % sites];
+            let truth = &truths[i % sites];
             let mut rng = ChaCha8Rng::seed_from_u64(mix(5, i as u64, k as u64));
             let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
             let detections = truth
@@ -181,7 +417,9 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
                 .enumerate()
                 .map(|(j, (class, c, s, yaw))| Detection {
                     class: *class,
-                    center: std::array::from_fn(|d| c[d] + noise.pos[d] * g()),
+                    center: std::array::from_fn(|d| {
+                        c[d] + site.get(d).copied().unwrap_or(0.0) + noise.pos[d] * g()
+                    }),
                     size: std::array::from_fn(|d| (s[d] + noise.size[d] * g()).max(0.05)),
                     yaw: wrap_angle(yaw + noise.yaw * g()),
                     score: 0.9,
@@ -204,29 +442,26 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
     tokio::time::sleep(Duration::from_millis(300)).await;
     let wall = wall0.elapsed().as_secs_f64();
     let cpu = cpu_seconds() - cpu0;
-    let _ = stop_tx.send(());
-    let stats = fuser.await??;
+    let (stops, tasks): (Vec<_>, Vec<_>) = fusers.into_iter().unzip();
+    for stop in stops {
+        let _ = stop.send(());
+    }
+    let mut stats = Vec::new();
+    for task in tasks {
+        stats.push(task.await??);
+    }
     let rss_end = rss_mib();
     drop(agents);
     for s in sessions {
         let _ = s.close().await;
     }
-    Ok(LoadReport {
-        agents: args.agents,
-        objects: args.objects,
-        hz: args.hz,
-        frames_per_agent: frames,
-        windows: stats.windows,
-        windows_incomplete: stats.windows_incomplete,
-        fusion_latency_ms: stats.fusion_latency_ms.clone(),
-        fusion_latency_first_half_ms: Latency::of(
-            &stats.fusion_samples[..stats.fusion_samples.len() / 2],
-        ),
-        fusion_latency_second_half_ms: Latency::of(
-            &stats.fusion_samples[stats.fusion_samples.len() / 2..],
-        ),
-        e2e_latency_ms: stats.e2e_latency_ms.clone(),
-        open_windows_at_end: stats.open_windows_at_stop,
+    if let Some(r) = router {
+        let _ = r.close().await;
+    }
+    Ok(Driven {
+        stats,
+        frames,
+        wall_s: wall,
         cpu_percent: 100.0 * cpu / wall,
         rss_start_mib: rss_start,
         rss_end_mib: rss_end,

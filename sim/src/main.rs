@@ -683,6 +683,65 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .enable_all()
                 .build()
                 .context("starting the async runtime")?;
+            if args.regions.is_some() {
+                let rows = rt.block_on(v2x_sim::load::run_regions(&args))?;
+                if args.json {
+                    println!("{}", serde_json::to_string_pretty(&rows)?);
+                } else {
+                    println!("{} agents x {} objects at {} Hz over four sites of {} m, {} s per configuration", args.agents, args.objects, args.hz, v2x_sim::load::BLOCK_M, args.seconds);
+                    println!("| fusers | tile (m) | boxes in/s | boxes fused/s | windows (incomplete) | captures incomplete | windows lost | fusion p50 / p99 (ms) | e2e p99 (ms), worst fuser | CPU % |\n|---|---|---|---|---|---|---|---|---|---|");
+                    for r in &rows {
+                        println!(
+                            "| {} | {} | {:.0} | {:.0} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.1} | {:.0} |",
+                            r.fusers,
+                            r.tile_m,
+                            r.input_boxes_per_s,
+                            r.fused_boxes_per_s,
+                            r.windows,
+                            r.windows_incomplete,
+                            r.captures_incomplete,
+                            r.windows_lost,
+                            r.fusion_latency_ms.p50_ms.unwrap_or(f64::NAN),
+                            r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN),
+                            r.e2e_p99_ms.unwrap_or(f64::NAN),
+                            r.cpu_percent
+                        );
+                    }
+                }
+                return Ok(());
+            }
+            if args.max_load {
+                let runs = rt.block_on(v2x_sim::load::run_max_load(&args))?;
+                if args.json {
+                    let v: Vec<_> = runs
+                        .iter()
+                        .map(|(r, held)| serde_json::json!({"held": held, "report": r}))
+                        .collect();
+                    println!("{}", serde_json::to_string_pretty(&v)?);
+                } else {
+                    println!("| agents | objects | boxes/s | windows | fusion p99 (ms) | held (p99 < {} ms) |\n|---|---|---|---|---|---|", v2x_sim::load::HOLD_P99_MS);
+                    for (r, held) in &runs {
+                        println!(
+                            "| {} | {} | {:.0} | {} of {} | {:.3} | {} |",
+                            r.agents,
+                            r.objects,
+                            (r.agents * r.objects) as f64 * r.hz,
+                            r.windows,
+                            r.frames_per_agent,
+                            r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN),
+                            if *held { "yes" } else { "no" }
+                        );
+                    }
+                    match runs.iter().rev().find(|(_, held)| *held) {
+                        Some((r, _)) => println!(
+                            "largest load held: {} agents x {} objects at {} Hz",
+                            r.agents, r.objects, r.hz
+                        ),
+                        None => println!("no load held: lower --agents"),
+                    }
+                }
+                return Ok(());
+            }
             let r = rt.block_on(v2x_sim::load::run(&args))?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&r)?);

@@ -5,11 +5,14 @@
 use crate::cli::DataArgs;
 use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
+use crate::timeline::fuser_restarts;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use v2x_agent::Link;
+use v2x_fuser::region::Region;
 use v2x_fuser::Method;
 use v2x_protocol::net::ZenohArgs;
+use v2x_protocol::tiles::{Tile, Tiling};
 use v2x_protocol::{keys, AgentKind};
 
 /// The embedded default scenario (`scenarios/default.toml`).
@@ -132,6 +135,123 @@ pub struct SecuritySpec {
     pub router: ZenohArgs,
 }
 
+/// A Zenoh router of a city deployment.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RouterSpec {
+    /// Name (the role is `router-NAME`).
+    pub name: String,
+    /// Its Zenoh options with `--role router-NAME` (listen, and connect to the routers it
+    /// meshes with); a one-process run listens on a free local port and meshes every router
+    /// with the first.
+    #[serde(default)]
+    pub zenoh: ZenohArgs,
+}
+
+/// The regional fuser of one tile.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RegionFuserSpec {
+    /// Its tile, `COLUMN_ROW` (the role is `fuser-COLUMN_ROW`).
+    pub tile: String,
+    /// The router it is a client of.
+    pub router: String,
+    /// Its Zenoh options with `--role fuser-TILE` (a client of its router).
+    #[serde(default)]
+    pub zenoh: ZenohArgs,
+}
+
+/// A city: regional fusers, one per tile, as clients of meshed Zenoh routers; agents publish
+/// per tile, each a client of the router of the tile it starts in.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RegionsSpec {
+    /// Tile side (m).
+    #[serde(default = "default_tile")]
+    pub tile_m: f64,
+    /// How far beyond its tile a regional fuser takes boxes (m).
+    #[serde(default = "default_halo")]
+    pub halo_m: f64,
+    /// The routers (`[[regions.routers]]`), meshed.
+    pub routers: Vec<RouterSpec>,
+    /// The regional fusers (`[[regions.fusers]]`); tiles without one are not fused.
+    pub fusers: Vec<RegionFuserSpec>,
+}
+
+fn default_tile() -> f64 {
+    v2x_fuser::region::DEFAULT_TILE_M
+}
+fn default_halo() -> f64 {
+    v2x_fuser::region::DEFAULT_HALO_M
+}
+
+impl RegionsSpec {
+    /// The tile grid.
+    pub fn tiling(&self) -> Tiling {
+        Tiling::new(self.tile_m).expect("checked when the scenario loaded")
+    }
+
+    /// Each regional fuser's region, in order.
+    pub fn regions(&self) -> Vec<Region> {
+        self.fusers
+            .iter()
+            .map(|f| Region {
+                tiling: self.tiling(),
+                tile: f.tile.parse().expect("checked when the scenario loaded"),
+                halo_m: self.halo_m,
+            })
+            .collect()
+    }
+
+    /// The index of a router by name.
+    pub fn router(&self, name: &str) -> Option<usize> {
+        self.routers.iter().position(|r| r.name == name)
+    }
+
+    fn check(&self, security: SecurityMode) -> Result<(), String> {
+        Tiling::new(self.tile_m).map_err(|e| format!("regions.tile_m: {e}"))?;
+        if !(self.halo_m >= 0.0 && self.halo_m.is_finite()) {
+            return Err(format!("regions.halo_m must be >= 0 (got {})", self.halo_m));
+        }
+        if security != SecurityMode::Plain {
+            return Err(
+                "regions: a city runs plain for now (mutual TLS needs a certificate per router)"
+                    .into(),
+            );
+        }
+        if self.routers.is_empty() || self.fusers.is_empty() {
+            return Err(
+                "regions: a city needs at least one [[regions.routers]] and one [[regions.fusers]]"
+                    .into(),
+            );
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for r in &self.routers {
+            keys::validate_chunk("regions.routers: name", &r.name)?;
+            if !names.insert(&r.name) {
+                return Err(format!(
+                    "regions.routers: the name '{}' is used twice",
+                    r.name
+                ));
+            }
+        }
+        let mut tiles = std::collections::BTreeSet::new();
+        for f in &self.fusers {
+            let t: Tile = f.tile.parse().map_err(|e| format!("regions.fusers: {e}"))?;
+            if !tiles.insert(t) {
+                return Err(format!("regions.fusers: tile {t} has two fusers"));
+            }
+            if self.router(&f.router).is_none() {
+                return Err(format!(
+                    "regions.fusers: tile {t}: no router named '{}'",
+                    f.router
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// One agent role.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -208,6 +328,9 @@ pub struct Scenario {
     /// What happens to which agent when (`[[events]]`, [`crate::timeline`]).
     #[serde(default)]
     pub events: Vec<crate::timeline::EventSpec>,
+    /// A city of regional fusers over meshed routers instead of one fuser (`[regions]`).
+    #[serde(default)]
+    pub regions: Option<RegionsSpec>,
 }
 
 fn default_ns() -> String {
@@ -302,6 +425,37 @@ impl Scenario {
                 return Err(format!("agent {}: phase_ms must be in [0, 60000)", a.name));
             }
         }
+        if let Some(r) = &self.regions {
+            r.check(self.security.mode)?;
+            if self.fuser.track || self.fuser.align {
+                return Err("regions: fuser.track and fuser.align need one fuser".into());
+            }
+            if !fuser_restarts(&self.events).is_empty() {
+                return Err("regions: scripted fuser restarts need one fuser".into());
+            }
+            // The regions' windows are joined by reference time: agents capture in step.
+            let first = &self.agents[0];
+            if let Some(a) = self
+                .agents
+                .iter()
+                .find(|a| a.hz != first.hz || a.phase_ms != first.phase_ms)
+            {
+                return Err(format!(
+                    "regions: agent {} captures out of step with {} (a city's agents share hz and phase_ms)",
+                    a.name, first.name
+                ));
+            }
+            if let Some(a) = self
+                .agents
+                .iter()
+                .find(|a| a.name.starts_with("router-") || a.name.starts_with("fuser-"))
+            {
+                return Err(format!(
+                    "agents: the name '{}' is a city role's (router-NAME, fuser-TILE)",
+                    a.name
+                ));
+            }
+        }
         crate::timeline::check(&self.events, &self.agents, self.duration_s)
     }
 
@@ -364,6 +518,40 @@ mod tests {
             bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\nfaults = \"flip=3\"")
                 .contains("agent a: faults: invalid faults 'flip=3': flip must be a probability")
         );
+    }
+
+    #[test]
+    fn city_errors_name_the_field() {
+        let city = |extra: &str, regions: &str| {
+            format!(
+                "[[agents]]\nname = \"v\"\nnoise = \"mild\"\n{extra}\n[regions]\n{regions}\n\
+                 [[regions.routers]]\nname = \"r0\"\n\
+                 [[regions.fusers]]\ntile = \"0_0\"\nrouter = \"r0\"\n"
+            )
+        };
+        let s = Scenario::parse(&city("", "tile_m = 50.0"), "c.toml", None).unwrap();
+        let r = s.regions.as_ref().unwrap();
+        assert_eq!(r.halo_m, v2x_fuser::region::DEFAULT_HALO_M);
+        assert_eq!(r.regions()[0].tile, Tile { x: 0, y: 0 });
+        assert_eq!(r.tiling().size_m(), 50.0);
+        let bad = |t: String| Scenario::parse(&t, "c.toml", None).unwrap_err().to_string();
+        assert!(bad(city("", "tile_m = 0.1")).contains("regions.tile_m"));
+        assert!(bad(city("", "halo_m = -1.0")).contains("regions.halo_m"));
+        assert!(bad(city(
+            "[[agents]]\nname = \"w\"\nnoise = \"mild\"\nhz = 5.0",
+            ""
+        ))
+        .contains("agent w captures out of step with v"));
+        assert!(bad(city("[security]\nmode = \"mtls\"", "")).contains("plain"));
+        assert!(bad(city("[fuser]\ntrack = true", "")).contains("one fuser"));
+        let t = city("", "").replace("router = \"r0\"", "router = \"r9\"");
+        assert!(bad(t).contains("tile 0_0: no router named 'r9'"));
+        let t = city("", "").replace("tile = \"0_0\"", "tile = \"00_0\"");
+        assert!(bad(t).contains("COLUMN_ROW"));
+        let t = city("", "") + "[[regions.fusers]]\ntile = \"0_0\"\nrouter = \"r0\"\n";
+        assert!(bad(t).contains("tile 0_0 has two fusers"));
+        let t = city("", "").replace("name = \"v\"", "name = \"fuser-0_0\"");
+        assert!(bad(t).contains("city role"));
     }
 
     #[test]

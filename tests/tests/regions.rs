@@ -86,6 +86,7 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
     for (tile, port) in tiles.iter().zip([pa, pb]) {
         let mut cfg = NodeConfig::new(NS, method);
         cfg.motion = None;
+        cfg.max_wait_ms = 300.0;
         cfg.region = Some(Region {
             tiling,
             tile: *tile,
@@ -124,8 +125,23 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
     for t in tiles {
         live(&sv, t, &["rsu", "veh"]).await;
     }
+    // A warm-up capture: an agent's first frame in a region may come after its window closed
+    // (a regional fuser awaits an agent once it has heard from it).
+    let mut last = now_us();
+    for a in [&mut veh, &mut rsu] {
+        a.send(Frame {
+            agent: String::new(),
+            kind: AgentKind::Vehicle,
+            seq: 0,
+            capture_us: last,
+            origin: [0.0; 3],
+            detections: scene(0, 0.0),
+        })
+        .unwrap();
+    }
+    let warm_up = last;
+    tokio::time::sleep(Duration::from_millis(100)).await;
     let steps = 20;
-    let mut last = 0;
     let mut sent = Vec::new();
     for k in 0..steps {
         last = now_us().max(last + 100_000);
@@ -151,6 +167,9 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
         let s = within(20, "fuser stops", task).await.unwrap();
         while let Ok(f) = rx.try_recv() {
             let f: Fused = f;
+            if f.frame.capture_us == warm_up {
+                continue;
+            }
             assert!(f.provenance.complete, "window at {}", f.frame.capture_us);
             by_time
                 .entry(f.frame.capture_us)
@@ -163,9 +182,17 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
         assert_eq!(s.region.as_deref(), Some(t.to_string().as_str()));
         assert_eq!(s.captures_incomplete, 0);
         assert_eq!(s.inbox_overflow, 0);
-        assert!(s.rejected.is_empty(), "{:?}", s.rejected);
+        // At most the warm-up's second frame came after its window.
+        let late = s.rejected.get("late").copied().unwrap_or(0);
+        assert!(
+            late <= 1 && s.rejected.len() <= late as usize,
+            "{:?} {:#?}",
+            s.rejected,
+            s.agents
+        );
         // Every capture reached both fusers (both tiles are in each one's halo).
-        assert_eq!(s.agents["veh"].accepted, steps as u64);
+        assert!(s.agents["veh"].accepted >= steps as u64);
+        assert!(s.agents["rsu"].accepted >= steps as u64);
     }
     assert_eq!(by_time.len(), steps, "one window per capture");
     for (k, (t, agents)) in sent.iter().enumerate() {

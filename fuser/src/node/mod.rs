@@ -528,6 +528,7 @@ pub async fn run(
         clock,
         ingest: Ingest::new(IngestConfig {
             max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
+            await_before_first_frame: cfg.region.is_none() && cfg.ingest.await_before_first_frame,
             ..cfg.ingest.clone()
         }),
         windows: Windows::new(
@@ -547,9 +548,11 @@ pub async fn run(
         queued: 0,
         last_prune_us: now,
         region: cfg.region,
+        // A capture's parts leave its agent together: waiting half the window's wait for a
+        // missing one leaves the other half for the capture to make its window.
         parts: Parts::new(
             &subscribed,
-            (cfg.max_wait_ms * 1000.0) as u64,
+            (cfg.max_wait_ms * 500.0) as u64,
             cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
         ),
     };

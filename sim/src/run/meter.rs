@@ -19,17 +19,32 @@ pub const QUERY_TIMEOUT: Duration = Duration::from_secs(2);
 pub fn role_keys(scenario: &Scenario, role: Role) -> Vec<String> {
     let ns = &scenario.namespace;
     match role {
-        Role::Agent(a) => vec![keys::detections(ns, a)],
+        Role::Agent(a) => vec![agent_key(scenario, a)],
         Role::Fuser | Role::Router => {
             let mut k: Vec<String> = scenario
                 .agents
                 .iter()
-                .map(|a| keys::detections(ns, &a.name))
+                .map(|a| agent_key(scenario, &a.name))
                 .collect();
-            k.push(keys::fused(ns));
-            k.push(keys::tracks(ns));
+            let out = keys::FuserKeys::of(ns, None);
+            match scenario.regions {
+                None => k.extend([out.fused, out.tracks]),
+                Some(_) => {
+                    let any = keys::FuserKeys::any_region(ns);
+                    k.extend([any.fused, any.tracks]);
+                }
+            }
             k
         }
+    }
+}
+
+/// The key (expression) an agent's detections go out on: `v2x/NS/det/AGENT`, or in a city
+/// every tile's, `v2x/NS/det/*/AGENT`.
+pub fn agent_key(scenario: &Scenario, agent: &str) -> String {
+    match scenario.regions {
+        None => keys::detections(&scenario.namespace, agent),
+        Some(_) => format!("{}/{}/det/*/{agent}", keys::ROOT, scenario.namespace),
     }
 }
 

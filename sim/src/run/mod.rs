@@ -13,6 +13,7 @@
 //! ground-truth frame and prints the [`summary`]. SIGINT and SIGTERM end a run early, with the
 //! recording and the summary of what ran.
 
+pub mod city;
 pub mod epoch;
 pub mod meter;
 pub mod relay;
@@ -98,9 +99,11 @@ fn stop_on_signal() -> watch::Receiver<bool> {
     rx
 }
 
-/// Resolves when the stop flag turns true.
+/// Resolves when the stop flag turns true (never, once nobody can set it).
 async fn stopped(mut stop: watch::Receiver<bool>) {
-    let _ = stop.wait_for(|s| *s).await;
+    if stop.wait_for(|s| *s).await.is_err() {
+        std::future::pending::<()>().await;
+    }
 }
 
 /// Runs every role of a scenario in this process over loopback.
@@ -254,6 +257,9 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         None => Scenario::parse(crate::scenario::DEFAULT, "the default scenario", None)?,
     };
     let gt = scenario.dataset.data_args().load()?;
+    if let Some(regions) = &scenario.regions {
+        return run_city_command(&args, &scenario, regions, &gt).await;
+    }
     let secure = scenario.security.mode == SecurityMode::Mtls;
     for r in &args.roles {
         let is_agent = scenario.agents.iter().any(|a| &a.name == r);
@@ -331,6 +337,117 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         match args.format {
             RunFormat::Json => println!("{}", serde_json::to_string_pretty(&summary)?),
             RunFormat::Table => print_table(&summary),
+        }
+    }
+    Ok(())
+}
+
+/// `v2x-sim run` of a city scenario: every role here, or the named ones.
+async fn run_city_command(
+    args: &RunArgs,
+    scenario: &Scenario,
+    regions: &crate::scenario::RegionsSpec,
+    gt: &GroundTruth,
+) -> anyhow::Result<()> {
+    let names = city::city_roles(scenario, regions);
+    for r in &args.roles {
+        if !names.contains(r) {
+            bail!(
+                "--role {r}: not a role of this city scenario (roles: {})",
+                names.join(", ")
+            );
+        }
+    }
+    if args.viz.mcap.is_some() || args.viz.foxglove.is_some() || args.timeline.is_some() {
+        bail!("--mcap, --foxglove and --timeline show one fuser; a city scenario has several");
+    }
+    let schedule = Schedule::of(gt, scenario.duration_s);
+    let stop = stop_on_signal();
+    let (summary, outcome) = if args.roles.is_empty() {
+        eprintln!(
+            "running {} routers, {} regional fusers and {} agents in this process over loopback ({} frames)...",
+            regions.routers.len(),
+            regions.fusers.len(),
+            scenario.agents.len(),
+            schedule.frames.len()
+        );
+        let (summary, outcome, _) = city::run_city_local(scenario, gt, stop).await?;
+        (Some(summary), Some(outcome))
+    } else {
+        let start = std::time::Instant::now();
+        let here = city::run_city_roles(scenario, gt, &schedule, &args.roles, stop).await?;
+        if here.fusers.is_empty() {
+            let report = AgentReport {
+                namespace: scenario.namespace.clone(),
+                bandwidth: here
+                    .agents
+                    .iter()
+                    .map(|(n, side)| {
+                        (
+                            n.clone(),
+                            agent_bandwidth(scenario, &schedule, n, side, None),
+                        )
+                    })
+                    .collect(),
+                sent: here
+                    .agents
+                    .iter()
+                    .map(|(n, side)| (n.clone(), (side.totals.frames, side.totals.dropped)))
+                    .collect(),
+            };
+            if !here.agents.is_empty() {
+                match args.format {
+                    RunFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
+                    RunFormat::Table => print_agent_table(&report),
+                }
+            }
+            (None, None)
+        } else {
+            let all_here = here.fusers.len() == regions.fusers.len();
+            let reports: Vec<_> = here.fusers.iter().map(|(_, r, _)| r.clone()).collect();
+            let outcome = city::join(here.fusers.into_iter().map(|(_, _, o)| o).collect());
+            if all_here {
+                // Every region ran here: the city's summary.
+                let mut s = summarize(
+                    scenario,
+                    gt,
+                    &schedule,
+                    &outcome,
+                    &here.agents,
+                    start.elapsed().as_secs_f64(),
+                );
+                s.regions = reports;
+                (Some(s), Some(outcome))
+            } else {
+                // Some regions: their own figures (scored, the regions' recordings joined, by
+                // `v2x-sim eval`).
+                match args.format {
+                    RunFormat::Json => println!(
+                        "{}",
+                        serde_json::to_string_pretty(&serde_json::json!({
+                            "namespace": scenario.namespace,
+                            "regions": reports,
+                        }))?
+                    ),
+                    RunFormat::Table => summary::print_regions(&reports),
+                }
+                (None, Some(outcome))
+            }
+        }
+    };
+    if let (Some(path), Some(outcome)) = (&args.record, &outcome) {
+        let r = recorded(gt, &schedule, outcome);
+        write_results(path, &r, &gt.tokens)?;
+        eprintln!(
+            "recorded {} fused frames -> {}",
+            r.samples.len(),
+            path.display()
+        );
+    }
+    if let Some(s) = summary {
+        match args.format {
+            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&s)?),
+            RunFormat::Table => print_table(&s),
         }
     }
     Ok(())
@@ -417,7 +534,7 @@ async fn run_roles(
                         t.dropped,
                         t.payload_bytes,
                         sent.as_ref().map_or("?".into(), |tr| {
-                            let key = v2x_protocol::keys::detections(&scenario.namespace, &a.name);
+                            let key = meter::agent_key(scenario, &a.name);
                             tr.sent_with(&key).bytes.to_string()
                         })
                     );

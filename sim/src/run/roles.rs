@@ -80,7 +80,24 @@ pub async fn agent_role(
         scenario.seed.wrapping_add(idx as u64 * 7919),
     )
     .await?;
-    agent.wait_for_subscriber(Duration::from_secs(30)).await?;
+    match &scenario.regions {
+        None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
+        Some(r) => {
+            // Per tile: wait for the fuser of the tile the agent starts in, if it has one.
+            let tiling = r.tiling();
+            agent = agent.with_tiling(tiling);
+            let first = agent_captures(scenario, schedule, idx).first().copied();
+            if let Some(t) = first {
+                let (_, place) = agent_view(scenario, gt, schedule, idx, 0, t, &spec.agent_noise());
+                let home = tiling.tile_of(place);
+                if r.regions().iter().any(|g| g.tile == home) {
+                    agent
+                        .wait_for_subscriber_in(home, Duration::from_secs(30))
+                        .await?;
+                }
+            }
+        }
+    }
     let mut timeline = AgentTimeline::new(spec, &scenario.events);
     let mut state = timeline.at(0);
     for (j, t) in agent_captures(scenario, schedule, idx)
@@ -94,7 +111,7 @@ pub async fn agent_role(
         }
         tokio::select! {
             _ = tokio::time::sleep(Duration::from_micros(due.saturating_sub(now))) => {}
-            _ = stop.wait_for(|s| *s) => break,
+            Ok(_) = stop.wait_for(|s| *s) => break,
         }
         // The scripted events due by this capture, on the scenario's clock.
         let now_state = timeline.at(t.saturating_sub(schedule.t0_us));
@@ -178,7 +195,24 @@ pub async fn fuser_role(
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
     stop: impl std::future::Future<Output = ()>,
 ) -> anyhow::Result<FuserOutcome> {
+    regional_fuser_role(session, scenario, schedule, epoch_us, None, true, viz, stop).await
+}
+
+/// Runs a fuser role, the single fuser or (with `region`) a regional one, until `stop`
+/// resolves; `serves_epoch`: it answers the run's shared start.
+#[allow(clippy::too_many_arguments)]
+pub async fn regional_fuser_role(
+    session: &zenoh::Session,
+    scenario: &Scenario,
+    schedule: &Schedule,
+    epoch_us: u64,
+    region: Option<v2x_fuser::region::Region>,
+    serves_epoch: bool,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<FuserOutcome> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
+    cfg.region = region;
     cfg.viz = viz;
     cfg.motion = scenario.fuser.compensation.then(|| MotionParams {
         time_scale: scenario.speed,
@@ -197,7 +231,10 @@ pub async fn fuser_role(
         });
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
-    let answer = serve_epoch(session, &scenario.namespace, epoch_us).await?;
+    let answer = match serves_epoch {
+        true => Some(serve_epoch(session, &scenario.namespace, epoch_us).await?),
+        false => None,
+    };
     let (sampling, sampled) = watch::channel(false);
     let sampler = super::meter::sample_every_second(session.clone(), sampled);
     let mut fused = BTreeMap::new();
@@ -280,7 +317,9 @@ pub async fn fuser_role(
         stats.e2e_latency_ms = node::Latency::of(&e2e);
         stats.fusion_latency_ms = node::Latency::of(&stats.fusion_samples);
     }
-    answer.abort();
+    if let Some(a) = answer {
+        a.abort();
+    }
     let _ = sampling.send(true);
     let traffic = sampler.await.unwrap_or_default();
     // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
@@ -300,9 +339,9 @@ pub async fn fuser_role(
     })
 }
 
-/// Adds a later run of the node's counters to the earlier runs' (latencies are recomputed by
-/// the caller).
-fn absorb(all: &mut NodeStats, later: NodeStats) {
+/// Adds a later run of the node's counters (or another region's) to the earlier runs'
+/// (latencies are recomputed by the caller).
+pub fn absorb(all: &mut NodeStats, later: NodeStats) {
     for (name, a) in later.agents {
         let e = all.agents.entry(name).or_default();
         e.frames_in += a.frames_in;

@@ -6,6 +6,7 @@
 use crate::dataset::GroundTruth;
 
 /// The frames a scenario replays and their spacing.
+#[derive(Clone, Debug)]
 pub struct Schedule {
     /// Indices into the ground truth's frames, in replay order.
     pub frames: Vec<usize>,

@@ -11,7 +11,6 @@ use crate::scenario::Scenario;
 use crate::timeline::EventSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use v2x_protocol::keys;
 
 /// One second of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -141,7 +140,7 @@ pub fn timeline(
             continue;
         };
         for a in &agents {
-            let key = keys::detections(&scenario.namespace, a);
+            let key = super::meter::agent_key(scenario, a);
             let payload = after.key(&key).rx.since(&before.key(&key).rx);
             *row.payload_bytes.entry(a.clone()).or_default() += payload.put_payload_bytes;
             if let Some(p) = after.sole_sender(&key) {
@@ -291,7 +290,7 @@ mod tests {
             },
             ..Default::default()
         };
-        let key = keys::detections("default", "veh");
+        let key = v2x_protocol::keys::detections("default", "veh");
         for (s, (wire, payload)) in [(0, 0), (1300, 1000), (3200, 2500)].into_iter().enumerate() {
             let keys: BTreeMap<String, Flow> = [(key.clone(), rx(0, s as u64, payload))].into();
             let t = Traffic {

@@ -13,7 +13,6 @@ use std::collections::BTreeMap;
 use v2x_agent::AgentTotals;
 use v2x_fuser::ingest::AgentStats;
 use v2x_fuser::node::Latency;
-use v2x_protocol::keys;
 use v2x_protocol::nuscenes_json::Results;
 use v2x_protocol::traffic::{Flow, Traffic};
 
@@ -109,7 +108,7 @@ pub fn agent_bandwidth(
         st.payload_bytes
     };
     let objects = if t.objects > 0 { t.objects } else { st.objects };
-    let key = keys::detections(&scenario.namespace, name);
+    let key = super::meter::agent_key(scenario, name);
     let sent = side
         .sent
         .as_ref()
@@ -133,6 +132,13 @@ pub fn agent_bandwidth(
             router.iter().rev().find_map(|(_, tr)| own_transport(tr))
         });
     let secs = run_seconds(scenario, schedule);
+    // In a city an agent sends each frame as one put per tile: Zenoh's per-put figures, brought
+    // to per-frame ones.
+    let puts_per_frame = if t.published > 0 && t.parts > t.published {
+        t.parts as f64 / t.published as f64
+    } else {
+        1.0
+    };
     let rate = sent
         .map(|(all, _)| all.bytes as f64)
         .or(received_wire.map(|(b, puts)| per(b, puts) * st.frames_in as f64))
@@ -142,16 +148,17 @@ pub fn agent_bandwidth(
         objects_per_frame: per(objects, frames),
         payload_bytes_per_frame: per(payload, frames),
         payload_bytes_per_object: per(payload, objects),
-        zenoh_frames: sent.map(|(_, k)| k.put_msgs),
-        wire_bytes_per_frame: sent.map(|(all, k)| per(all.bytes, k.put_msgs)),
-        zenoh_payload_bytes_per_frame: sent.map(|(_, k)| per(k.put_payload_bytes, k.put_msgs)),
+        zenoh_frames: sent.map(|(_, k)| (k.put_msgs as f64 / puts_per_frame).round() as u64),
+        wire_bytes_per_frame: sent.map(|(all, k)| per(all.bytes, k.put_msgs) * puts_per_frame),
+        zenoh_payload_bytes_per_frame: sent
+            .map(|(_, k)| per(k.put_payload_bytes, k.put_msgs) * puts_per_frame),
         overhead_bytes_per_message: sent.and_then(|(all, _)| all.overhead_per_put()),
         received_payload_bytes_per_frame: received.map(|k| per(k.put_payload_bytes, st.frames_in)),
         received_wire_bytes_per_frame: received_wire.map(|(b, puts)| per(b, puts)),
         socket_bytes_per_frame: side
             .socket_bytes
             .zip(sent)
-            .map(|(w, (_, k))| per(w, k.put_msgs)),
+            .map(|(w, (_, k))| per(w, k.put_msgs) * puts_per_frame),
         kbit_s: rate * 8.0 / 1000.0 / secs,
     }
 }
@@ -218,6 +225,9 @@ pub struct Summary {
     pub fusion_latency_ms: Latency,
     /// How the roles talked.
     pub security: SecurityReport,
+    /// A city's regions, each with its own figures (absent for one fuser).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub regions: Vec<super::city::RegionReport>,
 }
 
 /// The security mode of a run and what it cost to connect.
@@ -377,6 +387,7 @@ pub fn summarize(
             mode: scenario.security.mode.name().into(),
             session_setup_ms: None,
         },
+        regions: Vec::new(),
     }
 }
 
@@ -436,6 +447,26 @@ pub fn print_agent_table(r: &AgentReport) {
 }
 
 /// Prints the summary as tables.
+/// Prints a city's regions, one row each.
+pub fn print_regions(regions: &[super::city::RegionReport]) {
+    println!("| region | router | windows (incomplete) | captures incomplete | fused boxes | agents heard | fusion p50 / p99 (ms) |\n|---|---|---|---|---|---|---|");
+    for r in regions {
+        println!(
+            "| {} | {} | {} ({}) | {} | {} | {} | {:.2} / {:.2} |",
+            r.tile,
+            r.router,
+            r.windows,
+            r.windows_incomplete,
+            r.captures_incomplete,
+            r.fused_objects,
+            r.agents_heard.join(", "),
+            r.fusion_latency_ms.p50_ms.unwrap_or(f64::NAN),
+            r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN)
+        );
+    }
+}
+
+/// Prints a run's summary as tables.
 pub fn print_table(s: &Summary) {
     let setup = s
         .security
@@ -502,6 +533,10 @@ pub fn print_table(s: &Summary) {
         "fusion latency (window close to publish):      {}",
         l(&s.fusion_latency_ms)
     );
+    if !s.regions.is_empty() {
+        println!();
+        print_regions(&s.regions);
+    }
 }
 
 fn f(v: Option<f64>) -> String {
