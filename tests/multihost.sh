@@ -2,7 +2,8 @@
 # Multi-host test: three network namespaces (vehicle, infrastructure, roadside) joined by veth
 # links, each running `v2x-sim run SCENARIO --role ...` with explicit endpoints, twice: plain
 # peers, then mutual TLS through a router with access control (certificates from
-# `v2x-sim certs`). The roadside fuser records the fused output, which is scored with `v2x-sim eval`;
+# `v2x-sim certs`); then a city: a second roadside host, two meshed routers, two regional fusers
+# on each roadside host, each agent a client of its own roadside's router. The roadside fuser records the fused output, which is scored with `v2x-sim eval`;
 # every host reports its own bytes from Zenoh's statistics; the plain run scripts a link change.
 # Needs root and iproute2; run from the repository root after `cargo build --release`.
 set -euo pipefail
@@ -13,14 +14,14 @@ if [ "$(id -u)" != 0 ] || ! command -v ip >/dev/null; then
     exit 0
 fi
 id=$$
-V=v2xveh$id; R=v2xrsu$id; F=v2xroad$id
+V=v2xveh$id; R=v2xrsu$id; F=v2xroad$id; E=v2xeast$id
 tmp=$(mktemp -d)
 cleanup() {
-    for n in "$V" "$R" "$F"; do ip netns del "$n" 2>/dev/null || true; done
+    for n in "$V" "$R" "$F" "$E"; do ip netns del "$n" 2>/dev/null || true; done
     rm -rf "$tmp"
 }
 trap cleanup EXIT
-for n in "$V" "$R" "$F"; do ip netns add "$n"; ip -n "$n" link set lo up; done
+for n in "$V" "$R" "$F" "$E"; do ip netns add "$n"; ip -n "$n" link set lo up; done
 # vehicle <-> roadside on 10.213.1.0/24, infrastructure <-> roadside on 10.213.2.0/24
 ip link add "vv$id" type veth peer name "vf$id"
 ip link set "vv$id" netns "$V"; ip link set "vf$id" netns "$F"
@@ -28,7 +29,14 @@ ip link add "rr$id" type veth peer name "rf$id"
 ip link set "rr$id" netns "$R"; ip link set "rf$id" netns "$F"
 ip -n "$V" addr add 10.213.1.2/24 dev "vv$id"; ip -n "$F" addr add 10.213.1.1/24 dev "vf$id"
 ip -n "$R" addr add 10.213.2.2/24 dev "rr$id"; ip -n "$F" addr add 10.213.2.1/24 dev "rf$id"
-for l in "$V:vv$id" "$F:vf$id" "$R:rr$id" "$F:rf$id"; do ip -n "${l%%:*}" link set "${l##*:}" up; done
+# the city's east roadside: <-> west roadside on 10.213.3.0/24, <-> infrastructure on 10.213.4.0/24
+ip link add "fe$id" type veth peer name "ef$id"
+ip link set "fe$id" netns "$F"; ip link set "ef$id" netns "$E"
+ip link add "re$id" type veth peer name "er$id"
+ip link set "re$id" netns "$R"; ip link set "er$id" netns "$E"
+ip -n "$F" addr add 10.213.3.1/24 dev "fe$id"; ip -n "$E" addr add 10.213.3.2/24 dev "ef$id"
+ip -n "$R" addr add 10.213.4.2/24 dev "re$id"; ip -n "$E" addr add 10.213.4.1/24 dev "er$id"
+for l in "$V:vv$id" "$F:vf$id" "$R:rr$id" "$F:rf$id" "$F:fe$id" "$E:ef$id" "$R:re$id" "$E:er$id"; do ip -n "${l%%:*}" link set "${l##*:}" up; done
 
 # One scenario, three hosts: the roadside runs ROADSIDE_ROLES, the vehicle and the roadside unit
 # their agent; the summary and the recording are checked.
@@ -158,4 +166,105 @@ noise = "large"
 zenoh = { connect = ["tls/10.213.2.1:7447"] }
 TOML
 run_case secure "$tmp/secure.toml" "--role router --role fuser"
-echo "multi-host test: RAN (3 network namespaces over veth: vehicle, infrastructure, roadside fuser; plain, and mutual TLS through a router with access control) - passed"
+# A city: two roadside hosts, each a router (east meshed with west) and the regional fusers of
+# two of the town's four 100 m tiles; the vehicle is a client of the west router, the
+# infrastructure of the east one. Each roadside records its regions; the two recordings, joined,
+# are scored as one.
+cat > "$tmp/city.toml" <<TOML
+namespace = "multihost-city"
+seed = 5
+duration_s = 5.0
+speed = 1.0
+
+[dataset]
+scenes = 1
+seconds = 5.0
+hz = 10.0
+
+[fuser]
+method = "csba-wls+"
+max_wait_ms = 200.0
+
+[[agents]]
+name = "veh"
+kind = "vehicle"
+noise = "mild"
+link = { latency_ms = 10.0, jitter_ms = 5.0 }
+zenoh = { mode = "client", connect = ["tcp/10.213.1.1:7447"], no_multicast_scouting = true }
+
+[[agents]]
+name = "rsu"
+kind = "infrastructure"
+noise = "large"
+zenoh = { mode = "client", connect = ["tcp/10.213.4.1:7447"], no_multicast_scouting = true }
+
+[regions]
+tile_m = 100.0
+halo_m = 30.0
+
+[[regions.routers]]
+name = "west"
+zenoh = { listen = ["tcp/0.0.0.0:7447"], no_multicast_scouting = true }
+
+[[regions.routers]]
+name = "east"
+zenoh = { listen = ["tcp/0.0.0.0:7447"], connect = ["tcp/10.213.3.1:7447"], no_multicast_scouting = true }
+
+[[regions.fusers]]
+tile = "-1_-1"
+router = "west"
+zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
+
+[[regions.fusers]]
+tile = "-1_0"
+router = "west"
+zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
+
+[[regions.fusers]]
+tile = "0_-1"
+router = "east"
+zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
+
+[[regions.fusers]]
+tile = "0_0"
+router = "east"
+zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
+TOML
+echo "  case: city"
+ip netns exec "$F" timeout 60 "$BIN/v2x-sim" run "$tmp/city.toml" --role router-west --role fuser--1_-1 --role fuser--1_0 --format json --record "$tmp/west.json" > "$tmp/west-summary.json" 2> "$tmp/west.log" &
+wpid=$!
+ip netns exec "$E" timeout 60 "$BIN/v2x-sim" run "$tmp/city.toml" --role router-east --role fuser-0_-1 --role fuser-0_0 --format json --record "$tmp/east.json" > "$tmp/east-summary.json" 2> "$tmp/east.log" &
+epid=$!
+ip netns exec "$V" timeout 60 "$BIN/v2x-sim" run "$tmp/city.toml" --role veh --format json > "$tmp/city-veh.json" 2> "$tmp/city-veh.log" &
+vpid=$!
+ip netns exec "$R" timeout 60 "$BIN/v2x-sim" run "$tmp/city.toml" --role rsu --format json > "$tmp/city-rsu.json" 2> "$tmp/city-rsu.log" &
+rpid=$!
+status=0
+wait "$vpid" || { echo "vehicle role failed:"; cat "$tmp/city-veh.log"; status=1; }
+wait "$rpid" || { echo "infrastructure role failed:"; cat "$tmp/city-rsu.log"; status=1; }
+wait "$wpid" || { echo "west roadside failed:"; cat "$tmp/west.log"; status=1; }
+wait "$epid" || { echo "east roadside failed:"; cat "$tmp/east.log"; status=1; }
+[ "$status" = 0 ] || exit 1
+python3 - "$tmp/west-summary.json" "$tmp/east-summary.json" "$tmp/west.json" "$tmp/east.json" "$tmp/city-joined.json" "$tmp/city-veh.json" <<'PY'
+import json, sys
+regions = json.load(open(sys.argv[1]))["regions"] + json.load(open(sys.argv[2]))["regions"]
+assert sorted(r["tile"] for r in regions) == ["-1_-1", "-1_0", "0_-1", "0_0"], regions
+for r in regions:
+    # every region fused (nearly) every frame, from both agents, across the router mesh
+    assert r["windows"] >= 45 and r["captures_incomplete"] == 0, r
+    assert r["agents_heard"] == ["rsu", "veh"], r
+    print("    region %s (router %s): %d windows (%d incomplete), %d boxes published"
+          % (r["tile"], r["router"], r["windows"], r["windows_incomplete"], r["fused_objects"]))
+veh = json.load(open(sys.argv[6]))["bandwidth"]["veh"]
+assert veh["zenoh_frames"] == veh["frames"] == 50, veh
+# The regions' recordings are disjoint by construction: joined, they are the city's output.
+west, east = json.load(open(sys.argv[3])), json.load(open(sys.argv[4]))
+joined = {"meta": west["meta"], "results": {}}
+for part in (west, east):
+    for token, boxes in part["results"].items():
+        joined["results"].setdefault(token, []).extend(boxes)
+json.dump(joined, open(sys.argv[5], "w"))
+PY
+"$BIN/v2x-sim" eval --scenes 1 --seconds 5 --hz 10 --format json "$tmp/city-joined.json" > "$tmp/city-eval.json" 2>/dev/null
+python3 -c 'import json,sys; m=json.load(open(sys.argv[1])); assert m["precision"]>=0.99 and m["tp"]>=45*20, m; print("    eval of the joined recordings: precision %.4f recall %.4f mATE %.3f m" % (m["precision"], m["recall"], m["mATE"]))' "$tmp/city-eval.json"
+echo "multi-host test: RAN (4 network namespaces over veth: vehicle, infrastructure, two roadside hosts; plain peers, mutual TLS through a router with access control, and a city of four regional fusers over two meshed routers) - passed"
