@@ -19,9 +19,8 @@
 //!   in [`MAX_MISSES`] windows in a row is no longer waited for until it sends again, so a token
 //!   alone, or an agent that stopped sending, costs at most that many incomplete windows. A frame
 //!   that then comes too late for its window, but within `max_wait` of its capture (it would have
-//!   made it had the window waited), makes the agent awaited again; a slower one does not. A
-//!   regional fuser awaits an agent only once it has sent a frame into its tiles
-//!   (`await_before_first_frame` off).
+//!   made it had the window waited), makes the agent awaited again; a slower one does not. Late
+//!   frames count towards the frame period as well.
 //!
 //! Every rejection is counted per agent and in totals by reason.
 
@@ -43,9 +42,6 @@ pub struct IngestConfig {
     /// How long a window waits for an awaited agent (us): a late frame that arrived within this
     /// of its capture makes its agent awaited again.
     pub max_wait_us: u64,
-    /// Whether an agent holding a token is awaited before its first frame. A regional fuser
-    /// sets it off: most agents of a city never send into its tiles.
-    pub await_before_first_frame: bool,
 }
 
 impl Default for IngestConfig {
@@ -55,7 +51,6 @@ impl Default for IngestConfig {
             max_agents: 256,
             forget_after_us: 60_000_000,
             max_wait_us: 150_000,
-            await_before_first_frame: true,
         }
     }
 }
@@ -395,8 +390,7 @@ impl Ingest {
     /// Counts a closed window against the awaited agents missing from it.
     pub fn window_closed(&mut self, anchor_us: u64, half_us: u64, members: &[&String]) {
         for (name, st) in self.agents.iter_mut() {
-            let heard = self.cfg.await_before_first_frame || st.stats.frames_in > 0;
-            if st.token && heard && st.expected(anchor_us, half_us) && !members.contains(&name) {
+            if st.token && st.expected(anchor_us, half_us) && !members.contains(&name) {
                 st.misses += 1;
             }
         }
@@ -407,10 +401,7 @@ impl Ingest {
     pub fn awaited(&self, anchor_us: u64, half_us: u64) -> BTreeSet<String> {
         self.agents
             .iter()
-            .filter(|(_, s)| {
-                let heard = self.cfg.await_before_first_frame || s.stats.frames_in > 0;
-                s.token && heard && s.expected(anchor_us, half_us)
-            })
+            .filter(|(_, s)| s.token && s.expected(anchor_us, half_us))
             .map(|(n, _)| n.clone())
             .collect()
     }
@@ -657,26 +648,20 @@ mod tests {
     }
 
     #[test]
-    fn a_regional_fuser_awaits_only_agents_that_sent_into_its_tiles() {
-        let mut i = Ingest::new(IngestConfig {
-            await_before_first_frame: false,
-            ..Default::default()
-        });
-        i.token("elsewhere", true, NOW);
-        i.token("here", true, NOW);
-        assert!(i.awaited(NOW, H).is_empty());
-        send(&mut i, "here", NOW);
-        let awaited = i.awaited(NOW + 100_000, H);
-        assert_eq!(awaited.into_iter().collect::<Vec<_>>(), vec!["here"]);
-        i.window_closed(NOW + 100_000, H, &[]);
-        assert_eq!(i.agent_stats()["elsewhere"].frames_in, 0);
-        // A first frame too late for its window still makes its agent awaited: a slow link
-        // must not keep an agent out of every window.
-        let t = NOW + 300_000;
-        i.offer("elsewhere", &payload("elsewhere", t), t + 60_000)
-            .unwrap();
-        i.record("elsewhere", Verdict::Late, 1, t);
-        assert!(i.awaited(NOW + 400_000, H).contains("elsewhere"));
+    fn late_frames_teach_the_period_too() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.token("a", true, NOW);
+        // Two captures 400 ms apart, then frames every 100 ms that all came too late.
+        send(&mut i, "a", NOW);
+        send(&mut i, "a", NOW + 400_000);
+        for k in 1..=2 {
+            let t = NOW + 400_000 + k * 100_000;
+            i.offer("a", &payload("a", t), t + 20_000).unwrap();
+            i.record("a", Verdict::Late, 1, t);
+        }
+        // Learnt from them: a 100 ms period, so expected 400 ms after the last (with a 400 ms
+        // period it would be expected at 200 or 600 ms only).
+        assert!(i.awaited(NOW + 1_000_000, H).contains("a"));
     }
 
     #[test]

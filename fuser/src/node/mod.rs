@@ -528,7 +528,6 @@ pub async fn run(
         clock,
         ingest: Ingest::new(IngestConfig {
             max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
-            await_before_first_frame: cfg.region.is_none() && cfg.ingest.await_before_first_frame,
             ..cfg.ingest.clone()
         }),
         windows: Windows::new(

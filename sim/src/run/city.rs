@@ -291,6 +291,21 @@ pub async fn run_city_local(
 #[cfg(test)]
 mod tests;
 
+/// How long a role on its own host keeps trying to reach its router.
+const CONNECT_FOR: Duration = Duration::from_secs(30);
+
+/// Opens a session, retrying for [`CONNECT_FOR`] while its router is not up yet.
+async fn open_retrying(args: &ZenohArgs) -> anyhow::Result<zenoh::Session> {
+    let deadline = tokio::time::Instant::now() + CONNECT_FOR;
+    loop {
+        match open_session(args).await {
+            Ok(s) => return Ok(s),
+            Err(e) if tokio::time::Instant::now() >= deadline => return Err(e.into()),
+            Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+        }
+    }
+}
+
 /// What the roles of a city run on this host did: each regional fuser's report and outcome.
 pub struct CityRoles {
     /// The regional fusers run here, in scenario order: tile, report, outcome.
@@ -350,7 +365,7 @@ pub async fn run_city_roles(
                     mode: Some(f.zenoh.mode.clone().unwrap_or_else(|| "client".into())),
                     ..f.zenoh.clone()
                 };
-                let session = open_session(&args)
+                let session = open_retrying(&args)
                     .await
                     .with_context(|| format!("the fuser of tile {}", f.tile))?;
                 let epoch = match k {
@@ -402,9 +417,18 @@ pub async fn run_city_roles(
             let stop = stop.clone();
             async move {
                 let args = super::secure::role_args(scenario, super::secure::Role::Agent(&a.name))?;
-                let session =
-                    meter::open_role_session(&args, scenario, super::secure::Role::Agent(&a.name))
-                        .await?;
+                // Its router may start after it: retry for a while.
+                let deadline = tokio::time::Instant::now() + CONNECT_FOR;
+                let session = loop {
+                    let role = super::secure::Role::Agent(&a.name);
+                    match meter::open_role_session(&args, scenario, role).await {
+                        Ok(s) => break s,
+                        Err(e) if tokio::time::Instant::now() >= deadline => {
+                            return Err(e.context(format!("agent {}", a.name)))
+                        }
+                        Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+                    }
+                };
                 let epoch = super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?;
                 let totals = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
                 let sent = meter::snapshot(&session, &a.name).await;
