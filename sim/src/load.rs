@@ -295,9 +295,12 @@ pub async fn run_regions(args: &LoadArgs) -> anyhow::Result<Vec<RegionRow>> {
 pub const HOLD_P99_MS: f64 = 50.0;
 
 /// Runs single-fuser loads with agents doubling from `args.agents` until one is not held (fusion
-/// p99 at least [`HOLD_P99_MS`], or fewer than 95 % of the windows fused); returns every load run
-/// and whether it held.
-pub async fn run_max_load(args: &LoadArgs) -> anyhow::Result<Vec<(LoadReport, bool)>> {
+/// p99 at least [`HOLD_P99_MS`], or fewer than 95 % of the windows fused) or cannot run (this
+/// machine's limits); returns every load run and whether it held, and why the search stopped
+/// early, if it did.
+pub async fn run_max_load(
+    args: &LoadArgs,
+) -> anyhow::Result<(Vec<(LoadReport, bool)>, Option<String>)> {
     let mut out = Vec::new();
     let mut agents = args.agents.max(1);
     loop {
@@ -305,12 +308,18 @@ pub async fn run_max_load(args: &LoadArgs) -> anyhow::Result<Vec<(LoadReport, bo
             agents,
             ..args.clone()
         };
-        let r = run(&a).await?;
+        let r = match run(&a).await {
+            Ok(r) => r,
+            Err(e) if !out.is_empty() => {
+                return Ok((out, Some(format!("{agents} agents could not run: {e:#}"))))
+            }
+            Err(e) => return Err(e),
+        };
         let held = r.fusion_latency_ms.p99_ms.is_some_and(|p| p < HOLD_P99_MS)
             && r.windows as f64 >= 0.95 * r.frames_per_agent as f64;
         out.push((r, held));
         if !held || agents >= v2x_protocol::limits::MAX_WINDOW_AGENTS {
-            return Ok(out);
+            return Ok((out, None));
         }
         agents = (agents * 2).min(v2x_protocol::limits::MAX_WINDOW_AGENTS);
     }
@@ -321,13 +330,18 @@ pub async fn run_max_load(args: &LoadArgs) -> anyhow::Result<Vec<(LoadReport, bo
 async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driven> {
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
-    // Single fuser: it listens and the agents connect to it (peer mode). Regions: a router
+    // Single fuser: it listens and the agents connect to it as clients. Regions: a router
     // listens and every fuser and agent is its client.
     let (router, fuser_args, agent_args) = match layout.tiling {
+        // Agents are clients: peers would also mesh with each other, a connection per pair.
         None => (
             None,
             ZenohArgs::loopback(std::slice::from_ref(&endpoint), &[]),
-            ZenohArgs::loopback(&[], std::slice::from_ref(&endpoint)),
+            ZenohArgs {
+                mode: Some("client".into()),
+                connect: vec![endpoint.clone()],
+                ..Default::default()
+            },
         ),
         Some(_) => {
             let router = open_session(&ZenohArgs {

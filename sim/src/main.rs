@@ -711,12 +711,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 return Ok(());
             }
             if args.max_load {
-                let runs = rt.block_on(v2x_sim::load::run_max_load(&args))?;
+                let (runs, stopped) = rt.block_on(v2x_sim::load::run_max_load(&args))?;
+                if let Some(why) = &stopped {
+                    eprintln!("the search stopped early: {why}");
+                }
                 if args.json {
                     let v: Vec<_> = runs
                         .iter()
                         .map(|(r, held)| serde_json::json!({"held": held, "report": r}))
                         .collect();
+                    let v = serde_json::json!({"runs": v, "stopped_early": stopped});
                     println!("{}", serde_json::to_string_pretty(&v)?);
                 } else {
                     println!("| agents | objects | boxes/s | windows | fusion p99 (ms) | held (p99 < {} ms) |\n|---|---|---|---|---|---|", v2x_sim::load::HOLD_P99_MS);
