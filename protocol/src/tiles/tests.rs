@@ -104,3 +104,22 @@ fn tile_lists_round_trip_and_reject_what_the_encoder_cannot_write() {
     assert!(encode_tiles(&many[..64]).is_ok());
     assert!(decode_tiles(&encode_tiles(&many[..64]).unwrap()).is_ok());
 }
+
+proptest::proptest! {
+    /// Any bytes: a tile list or an error, never a panic; what decodes encodes back to the same
+    /// bytes.
+    #[test]
+    fn any_attachment_decodes_or_is_refused(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..64)) {
+        if let Ok(tiles) = decode_tiles(&bytes) {
+            proptest::prop_assert_eq!(encode_tiles(&tiles).unwrap(), bytes);
+        }
+    }
+
+    /// Any set of tiles: encoded, decoded, the same set.
+    #[test]
+    fn any_tile_set_round_trips(raw in proptest::collection::btree_set((proptest::prelude::any::<i32>(), proptest::prelude::any::<i32>()), 1..=64)) {
+        let tiles: Vec<Tile> = raw.into_iter().map(|(x, y)| Tile { x, y }).collect();
+        let bytes = encode_tiles(&tiles).unwrap();
+        proptest::prop_assert_eq!(decode_tiles(&bytes).unwrap(), tiles);
+    }
+}
