@@ -184,25 +184,8 @@ impl Agent {
 
     /// Waits until a subscriber (the fuser) matches the agent's detections, or the timeout.
     pub async fn wait_for_subscriber(&self, timeout: Duration) -> anyhow::Result<()> {
-        let wait = async {
-            loop {
-                let status = self
-                    .publisher
-                    .matching_status()
-                    .await
-                    .map_err(|e| anyhow!("matching status: {e}"))?;
-                if status.matching() {
-                    return anyhow::Ok(());
-                }
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        };
-        tokio::time::timeout(timeout, wait).await.with_context(|| {
-            format!(
-                "agent {}: no fuser subscribed within {timeout:?}",
-                self.name
-            )
-        })?
+        let key = self.publisher.key_expr().to_string();
+        wait_matching(&self.publisher, &self.name, &key, timeout).await
     }
 
     /// Waits until a subscriber (a regional fuser) matches the agent's detections in `tile`, or
@@ -218,24 +201,7 @@ impl Agent {
             .declare_publisher(key.clone())
             .await
             .map_err(|e| anyhow!("agent {}: cannot declare {key}: {e}", self.name))?;
-        let wait = async {
-            loop {
-                let status = publisher
-                    .matching_status()
-                    .await
-                    .map_err(|e| anyhow!("matching status: {e}"))?;
-                if status.matching() {
-                    return anyhow::Ok(());
-                }
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        };
-        tokio::time::timeout(timeout, wait).await.with_context(|| {
-            format!(
-                "agent {}: no fuser subscribed to {key} within {timeout:?}",
-                self.name
-            )
-        })?
+        wait_matching(&publisher, &self.name, &key, timeout).await
     }
 
     /// Stamps, encodes and sends a frame through the simulated link: it may be dropped, is
@@ -322,6 +288,30 @@ impl Agent {
             })
             .collect()
     }
+}
+
+/// Waits until a subscriber matches `publisher` (on `key`, of agent `name`), or the timeout.
+async fn wait_matching(
+    publisher: &zenoh::pubsub::Publisher<'_>,
+    name: &str,
+    key: &str,
+    timeout: Duration,
+) -> anyhow::Result<()> {
+    let wait = async {
+        loop {
+            let status = publisher
+                .matching_status()
+                .await
+                .map_err(|e| anyhow!("matching status: {e}"))?;
+            if status.matching() {
+                return anyhow::Ok(());
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    };
+    tokio::time::timeout(timeout, wait)
+        .await
+        .with_context(|| format!("agent {name}: no fuser subscribed to {key} within {timeout:?}"))?
 }
 
 /// Microseconds since the Unix epoch on this machine's clock.
