@@ -250,6 +250,29 @@ pub fn yaw_difference(class: Class, ya: f64, yb: f64) -> f64 {
     }
 }
 
+/// [`yaw_difference`] for yaws near (-pi, pi] (as validated boxes carry): their difference
+/// needs at most one turn added or taken, without a division.
+fn yaw_difference_near(class: Class, ya: f64, yb: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let d = ya - yb;
+    let d = if d > PI {
+        d - TAU
+    } else if d <= -PI {
+        d + TAU
+    } else {
+        d
+    };
+    if !(d > -PI && d <= PI) {
+        return yaw_difference(class, ya, yb);
+    }
+    let d = d.abs();
+    if class == Class::Barrier {
+        d.min(PI - d)
+    } else {
+        d
+    }
+}
+
 /// The weighted cost C = (w_ds (1-DS) + w_cs (1-CS) + w_os (1-OS)) / (w_ds + w_cs + w_os).
 pub fn cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
     let [w_ds, w_cs, w_os] = weights;
@@ -258,7 +281,7 @@ pub fn cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
 
 /// The cost of a pair, or `None` when the gate rejects it (classes differ or CS = 0).
 pub fn pair_cost(p: &CsbaParams, a: &Detection, b: &Detection) -> Option<f64> {
-    prepared_cost(p, a, &Prepared::of(a), b, &Prepared::of(b))
+    prepared_cost(p, a, &Prepared::of(p, a), b, &Prepared::of(p, b))
 }
 
 /// **[ours]** C = -(w_ds ln DS + w_cs ln CS + w_os ln OS) / (w_ds + w_cs + w_os).
@@ -269,23 +292,49 @@ pub fn log_cost(weights: [f64; 3], ds: f64, cs: f64, os: f64) -> f64 {
 }
 
 /// What every pair of a detection needs, computed once per detection: [`pair_cost`] over
-/// prepared detections gives the same bits without recomputing them per pair.
+/// prepared detections gives the same bits without recomputing them per pair, and reads the
+/// detection itself only for a full covariance or the per-axis size score.
 #[derive(Copy, Clone, Debug)]
 struct Prepared {
+    class: Class,
+    center: [f64; 3],
+    yaw: f64,
+    /// The yaw's std.
+    yaw_std: f64,
+    /// cos and sin of the paper's orientation angle alpha = yaw / its std (the paper's
+    /// orientation score only).
+    alpha: (f64, f64),
     /// The centre variances when the covariance is diagonal (`pos_cov` absent).
     var: Option<[f64; 3]>,
     /// [`position_std`].
     pos_std: f64,
     /// [`volume_with_std`].
     volume: (f64, f64),
+    /// ln V and (sigma_V / V)^2, the log-ratio dimension score's terms.
+    ln_volume: (f64, f64),
 }
 
 impl Prepared {
-    fn of(d: &Detection) -> Self {
+    fn of(p: &CsbaParams, d: &Detection) -> Self {
         Prepared {
+            class: d.class,
+            center: d.center,
+            yaw: d.yaw,
+            yaw_std: d.std.yaw,
+            alpha: match p.orientation {
+                Orientation::Paper => {
+                    let (sin, cos) = (d.yaw / d.std.yaw).sin_cos();
+                    (cos, sin)
+                }
+                Orientation::Wrapped => (1.0, 0.0),
+            },
             var: d.pos_cov.is_none().then(|| d.std.pos.map(|s| s.powi(2))),
             pos_std: position_std(d),
             volume: volume_with_std(d),
+            ln_volume: {
+                let (v, sv) = volume_with_std(d);
+                (v.ln(), (sv / v).powi(2))
+            },
         }
     }
 }
@@ -326,12 +375,12 @@ fn prepared_cost(
     b: &Detection,
     pb: &Prepared,
 ) -> Option<f64> {
-    if a.class != b.class {
+    if pa.class != pb.class {
         return None;
     }
     let d_m = match (pa.var, pb.var) {
         (Some(va), Some(vb)) => (0..3)
-            .map(|k| (a.center[k] - b.center[k]).powi(2) / (va[k] + vb[k]))
+            .map(|k| (pa.center[k] - pb.center[k]).powi(2) / (va[k] + vb[k]))
             .sum::<f64>()
             .sqrt(),
         _ => mahalanobis(a, b),
@@ -359,16 +408,20 @@ fn prepared_cost(
             Score::Ln(-(z_r * z_r).min(z_inv * z_inv) / 2.0)
         }
         Dimension::LogRatio => {
-            let z = (va / vb).ln() / ((sva / va).powi(2) + (svb / vb).powi(2)).sqrt();
-            Score::Ln(-z * z / 2.0)
+            let ((la, ra), (lb, rb)) = (pa.ln_volume, pb.ln_volume);
+            Score::Ln(-(la - lb).powi(2) / (ra + rb) / 2.0)
         }
         Dimension::Axes => Score::Value(dimension_score_axes(a, b)),
     };
     let os = match p.orientation {
-        Orientation::Paper => Score::Value(orientation_score(p.orientation, a, b)),
+        Orientation::Paper => {
+            // cos(alpha_a - alpha_b) from each side's cos and sin
+            let cos = pa.alpha.0 * pb.alpha.0 + pa.alpha.1 * pb.alpha.1;
+            Score::Value((1.0 + cos) / 2.0)
+        }
         Orientation::Wrapped => {
-            let d = yaw_difference(a.class, a.yaw, b.yaw);
-            Score::Ln(-d * d / (2.0 * (a.std.yaw.powi(2) + b.std.yaw.powi(2))))
+            let d = yaw_difference_near(pa.class, pa.yaw, pb.yaw);
+            Score::Ln(-d * d / (2.0 * (pa.yaw_std.powi(2) + pb.yaw_std.powi(2))))
         }
     };
     let c = match p.combine {
@@ -415,21 +468,31 @@ pub fn bounds_applied() -> (u64, u64) {
     (CAPPED_ROWS.load(Relaxed), GREEDY_COMPONENTS.load(Relaxed))
 }
 
-/// Detections bucketed on a square grid over their bounding box (x, y), cells at least a given
-/// width: a point's own and neighbouring cells hold everything within that width of it.
+/// A candidate in the grid: what its pairs need and its index in the list.
+#[derive(Copy, Clone, Debug)]
+struct Slot {
+    prep: Prepared,
+    index: usize,
+}
+
+/// Detections bucketed by class and by square cell over their bounding box (x, y), stored
+/// contiguously per bucket so a scan reads memory in order.
 struct Grid {
     origin: [f64; 2],
     cell: f64,
     n: [usize; 2],
-    /// Cell k's detections: `items[start[k]..start[k + 1]]`.
+    /// Bucket (class c, column i, row j) holds `slots[start[k]..start[k + 1]]`,
+    /// k = (c n_0 + i) n_1 + j: the rows of one column of one class are adjacent.
     start: Vec<usize>,
-    items: Vec<usize>,
+    slots: Vec<Slot>,
+    /// Each slot's centre (x, y), apart so that a scan reads only what it tests.
+    xy: Vec<[f64; 2]>,
 }
 
 impl Grid {
     /// The grid of `dets` with cells at least `min_cell` wide, widened if need be so that
-    /// there are at most about four cells per detection (far-flung input stays small).
-    fn of(dets: &[Detection], min_cell: f64) -> Option<Grid> {
+    /// there are at most about as many cells as detections (far-flung input stays small).
+    fn of(dets: &[Detection], prep: &[Prepared], min_cell: f64) -> Option<Grid> {
         if dets.is_empty() || !(min_cell.is_finite() && min_cell > 0.0) {
             return None;
         }
@@ -440,7 +503,7 @@ impl Grid {
                 hi[k] = hi[k].max(d.center[k]);
             }
         }
-        let budget = (4 * dets.len() + 64) as f64;
+        let budget = (dets.len() + 64) as f64;
         let mut cell = min_cell;
         let cells = |cell: f64| ((hi[0] - lo[0]) / cell + 1.0) * ((hi[1] - lo[1]) / cell + 1.0);
         if cells(cell) > budget {
@@ -454,57 +517,100 @@ impl Grid {
             origin: lo,
             cell,
             n,
-            start: vec![0; n[0] * n[1] + 1],
-            items: vec![0; dets.len()],
+            start: vec![0; Class::ALL.len() * n[0] * n[1] + 1],
+            slots: Vec::with_capacity(dets.len()),
+            xy: vec![[0.0; 2]; dets.len()],
         };
-        let keys: Vec<usize> = dets.iter().map(|d| grid.key(d.center)).collect();
+        let keys: Vec<usize> = dets.iter().map(|d| grid.bucket(d)).collect();
         for &k in &keys {
             grid.start[k + 1] += 1;
         }
-        for k in 0..n[0] * n[1] {
-            grid.start[k + 1] += grid.start[k];
+        for k in 1..grid.start.len() {
+            grid.start[k] += grid.start[k - 1];
         }
         let mut fill = grid.start.clone();
-        for (i, &k) in keys.iter().enumerate() {
-            grid.items[fill[k]] = i;
+        grid.slots.resize(
+            dets.len(),
+            Slot {
+                prep: prep[0],
+                index: 0,
+            },
+        );
+        for (index, (&prep, &k)) in prep.iter().zip(&keys).enumerate() {
+            grid.slots[fill[k]] = Slot { prep, index };
+            grid.xy[fill[k]] = [prep.center[0], prep.center[1]];
             fill[k] += 1;
         }
         Some(grid)
     }
 
-    /// The cell column and row of a point, clamped to the grid.
-    fn index(&self, p: [f64; 3]) -> [usize; 2] {
-        [0, 1].map(|k| (((p[k] - self.origin[k]) / self.cell).max(0.0) as usize).min(self.n[k] - 1))
+    /// The cell column or row of a coordinate along axis k, clamped to the grid.
+    fn index(&self, k: usize, p: f64) -> usize {
+        (((p - self.origin[k]) / self.cell).max(0.0) as usize).min(self.n[k] - 1)
     }
 
-    fn key(&self, p: [f64; 3]) -> usize {
-        let [i, j] = self.index(p);
-        i * self.n[1] + j
+    /// The bucket of a detection: its class and the cell its centre lies in.
+    fn bucket(&self, d: &Detection) -> usize {
+        let (i, j) = (self.index(0, d.center[0]), self.index(1, d.center[1]));
+        (d.class.code() as usize * self.n[0] + i) * self.n[1] + j
     }
 
-    /// Every detection in the point's cell and the eight around it.
-    fn near(&self, p: [f64; 3]) -> impl Iterator<Item = usize> + '_ {
-        let [i, j] = self.index(p);
-        let rows = i.saturating_sub(1)..=(i + 1).min(self.n[0] - 1);
-        rows.flat_map(move |i| {
-            let lo = i * self.n[1] + j.saturating_sub(1);
-            let hi = i * self.n[1] + (j + 1).min(self.n[1] - 1);
-            self.items[self.start[lo]..self.start[hi + 1]]
-                .iter()
-                .copied()
+    /// The indices of `dets` ordered by cell (a counting sort), so that detections visited
+    /// one after the other scan the same cells.
+    fn visiting_order(&self, dets: &[Detection]) -> Vec<usize> {
+        let cell =
+            |d: &Detection| self.index(0, d.center[0]) * self.n[1] + self.index(1, d.center[1]);
+        let mut start = vec![0u32; self.n[0] * self.n[1] + 1];
+        for d in dets {
+            start[cell(d) + 1] += 1;
+        }
+        for k in 1..start.len() {
+            start[k] += start[k - 1];
+        }
+        let mut order = vec![0; dets.len()];
+        for (i, d) in dets.iter().enumerate() {
+            let k = cell(d);
+            order[start[k] as usize] = i;
+            start[k] += 1;
+        }
+        order
+    }
+
+    /// The slots (as ranges of positions) of every detection of `class` in the cells that
+    /// meet the box `centre` +- `radius`.
+    fn within(
+        &self,
+        class: Class,
+        centre: [f64; 3],
+        radius: [f64; 2],
+    ) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        let [lo, hi] =
+            [-1.0, 1.0].map(|s| [0, 1].map(|k| self.index(k, centre[k] + s * radius[k])));
+        let base = class.code() as usize * self.n[0];
+        (lo[0]..=hi[0]).map(move |i| {
+            let row = (base + i) * self.n[1];
+            self.start[row + lo[1]]..self.start[row + hi[1] + 1]
         })
     }
 }
 
-/// All eligible pairs (at most [`MAX_CANDIDATES`] per detection of `a`, the cheapest).
-/// No eligible pair can exceed |dx| <= lambda_max sqrt(Sa_xx + Sb_xx), nor the same in y: `b` is
-/// bucketed on a grid of cells at least that wide, each `a` looks at its own and the eight
-/// neighbouring cells, and only pairs of its class within both bounds are scored exactly. At a
+/// All eligible pairs (at most [`MAX_CANDIDATES`] per detection of `a`, the cheapest), grouped
+/// by detection of `a`. No eligible pair can exceed |dx| <= lambda_max sqrt(Sa_xx + Sb_xx),
+/// nor the same in y: `b` is bucketed by class on a grid of cells half that wide, each `a`
+/// scans the cells of its class that meet that box, and only pairs within both bounds are
+/// scored exactly. `a` is visited cell by cell, so neighbours share what the cache holds. At a
 /// steady density the work per detection is constant however large the scene.
 pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<Edge> {
-    let mut edges = Vec::with_capacity(2 * a.len());
+    let mut edges = Vec::new();
+    eligible_pairs_into(p, a, b, &mut edges);
+    edges
+}
+
+/// [`eligible_pairs`] into `edges` (cleared first), whose allocation is kept.
+fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: &mut Vec<Edge>) {
+    edges.clear();
     if a.is_empty() || b.is_empty() {
-        return edges;
+        return;
     }
     let max_var_b = |k: usize| {
         b.iter()
@@ -512,8 +618,8 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
             .fold(0.0, f64::max)
     };
     let (max_var_x_b, max_var_y_b) = (max_var_b(0), max_var_b(1));
-    let prep_a: Vec<Prepared> = a.iter().map(Prepared::of).collect();
-    let prep_b: Vec<Prepared> = b.iter().map(Prepared::of).collect();
+    let prep_a: Vec<Prepared> = a.iter().map(|d| Prepared::of(p, d)).collect();
+    let prep_b: Vec<Prepared> = b.iter().map(|d| Prepared::of(p, d)).collect();
     let max_std_b = prep_b.iter().map(|q| q.pos_std).fold(0.0, f64::max);
     // Per a: the largest |dx| and |dy| an eligible partner can have.
     let radii: Vec<[f64; 2]> = a
@@ -531,23 +637,24 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
             ]
         })
         .collect();
-    let cell = radii.iter().map(|r| r[0].max(r[1])).fold(0.0, f64::max);
-    let Some(grid) = Grid::of(b, cell) else {
-        return edges;
+    let widest = radii.iter().map(|r| r[0].max(r[1])).fold(0.0, f64::max);
+    let Some(grid) = Grid::of(b, &prep_b, widest / 2.0) else {
+        return;
     };
-    for (ia, da) in a.iter().enumerate() {
-        let [rx, ry] = radii[ia];
+    for ia in grid.visiting_order(a) {
+        let (da, [rx, ry]) = (&a[ia], radii[ia]);
         let row_start = edges.len();
-        for ib in grid.near(da.center) {
-            let db = &b[ib];
-            if db.class != da.class
-                || (db.center[0] - da.center[0]).abs() > rx
-                || (db.center[1] - da.center[1]).abs() > ry
-            {
-                continue;
-            }
-            if let Some(cost) = prepared_cost(p, da, &prep_a[ia], db, &prep_b[ib]) {
-                edges.push(Edge { a: ia, b: ib, cost });
+        for range in grid.within(da.class, da.center, [rx, ry]) {
+            for k in range {
+                let [x, y] = grid.xy[k];
+                if (x - da.center[0]).abs() > rx || (y - da.center[1]).abs() > ry {
+                    continue;
+                }
+                let slot = &grid.slots[k];
+                let ib = slot.index;
+                if let Some(cost) = prepared_cost(p, da, &prep_a[ia], &b[ib], &slot.prep) {
+                    edges.push(Edge { a: ia, b: ib, cost });
+                }
             }
         }
         let row = &mut edges[row_start..];
@@ -559,7 +666,6 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
             CAPPED_ROWS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
     }
-    edges
 }
 
 /// Minimum-cost assignment restricted to the given eligible edges: among the matchings of
@@ -570,8 +676,24 @@ pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
     if edges.is_empty() {
         return Vec::new();
     }
-    // Connected components of the bipartite edge graph (union-find over a's then b's), each
-    // with its a's, b's and largest cost.
+    SOLVER.with_borrow_mut(|solver| assign_with(solver, n_a, n_b, edges))
+}
+
+thread_local! {
+    /// Each thread's solver, whose buffers serve one assignment after another.
+    static SOLVER: std::cell::RefCell<sparse::Solver> = std::cell::RefCell::default();
+    /// Each thread's eligible pairs, kept between associations for the same reason.
+    static EDGES: std::cell::RefCell<Vec<Edge>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// [`assign`] with a given solver.
+fn assign_with(
+    solver: &mut sparse::Solver,
+    n_a: usize,
+    n_b: usize,
+    edges: &[Edge],
+) -> Vec<(usize, usize)> {
+    // Connected components of the bipartite edge graph (union-find over a's then b's).
     let mut parent: Vec<usize> = (0..n_a + n_b).collect();
     fn find(p: &mut [usize], mut x: usize) -> usize {
         while p[x] != x {
@@ -580,64 +702,76 @@ pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
         }
         x
     }
+    // Union by size keeps the trees shallow in one component spanning the scene.
+    let mut weight = vec![1u32; n_a + n_b];
     for e in edges {
         let (ra, rb) = (find(&mut parent, e.a), find(&mut parent, n_a + e.b));
         if ra != rb {
-            parent[ra] = rb;
+            let (small, large) = if weight[ra] < weight[rb] {
+                (ra, rb)
+            } else {
+                (rb, ra)
+            };
+            parent[small] = large;
+            weight[large] += weight[small];
         }
     }
+    let root: Vec<usize> = (0..n_a + n_b).map(|x| find(&mut parent, x)).collect();
+    // Each component's a's, b's (those with an edge) and largest cost.
     let mut size = vec![(0usize, 0usize, 0.0f64); n_a + n_b];
-    let mut seen = vec![false; n_a + n_b];
+    let mut linked = vec![false; n_a + n_b];
     for e in edges {
-        let r = find(&mut parent, e.a);
+        let r = root[e.a];
         size[r].2 = size[r].2.max(e.cost);
-        for (node, is_a) in [(e.a, true), (n_a + e.b, false)] {
-            if !seen[node] {
-                seen[node] = true;
-                if is_a {
-                    size[r].0 += 1;
-                } else {
-                    size[r].1 += 1;
-                }
-            }
-        }
+        linked[e.a] = true;
+        linked[n_a + e.b] = true;
     }
-    let too_big = |r: usize| size[r].0.saturating_mul(size[r].1) > MAX_EXACT_CELLS;
-    let mut pairs = Vec::new();
-    let mut exact: Vec<Edge> = Vec::new();
-    let mut greedy_edges: Vec<Edge> = Vec::new();
-    for e in edges {
-        let r = find(&mut parent, e.a);
-        if too_big(r) {
-            greedy_edges.push(*e);
+    for (node, _) in linked.iter().enumerate().filter(|(_, &l)| l) {
+        let r = root[node];
+        if node < n_a {
+            size[r].0 += 1;
         } else {
-            exact.push(*e);
+            size[r].1 += 1;
         }
     }
-    if !greedy_edges.is_empty() {
+    let too_big: Vec<bool> = size
+        .iter()
+        .map(|&(na, nb, _)| na.saturating_mul(nb) > MAX_EXACT_CELLS)
+        .collect();
+    let piled = |e: &Edge| too_big[root[e.a]];
+    let mut pairs = Vec::new();
+    if too_big.iter().any(|&b| b) {
         GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        greedy(&greedy_edges, &mut pairs);
+        let piled: Vec<Edge> = edges.iter().filter(|e| piled(e)).copied().collect();
+        greedy(&piled, &mut pairs);
     }
     // Rows: the smaller side (one path search per row). Leaving a row unmatched costs more
     // than any set of its component's real edges: (min(rows, cols) + 1) x (largest + 1).
     let transpose = n_a > n_b;
     let (n_rows, n_cols) = if transpose { (n_b, n_a) } else { (n_a, n_b) };
-    if transpose {
-        for e in &mut exact {
-            std::mem::swap(&mut e.a, &mut e.b);
-        }
-    }
-    let unmatched: Vec<f64> = (0..n_rows)
-        .map(|r| {
-            let node = if transpose { n_a + r } else { r };
-            let (na, nb, largest) = size[find(&mut parent, node)];
-            (na.min(nb) + 1) as f64 * (largest + 1.0)
+    solver.unmatched.clear();
+    solver.unmatched.extend((0..n_rows).map(|r| {
+        let node = if transpose { n_a + r } else { r };
+        let (na, nb, largest) = size[root[node]];
+        (na.min(nb) + 1) as f64 * (largest + 1.0)
+    }));
+    let exact = || {
+        edges.iter().filter(|e| !piled(e)).map(|e| {
+            if transpose {
+                (e.b, e.a, e.cost)
+            } else {
+                (e.a, e.b, e.cost)
+            }
         })
-        .collect();
-    for (r, c) in sparse::solve(n_rows, n_cols, &exact, &unmatched) {
+    };
+    let greedy_pairs = pairs.len();
+    for (r, c) in solver.solve(n_rows, n_cols, exact) {
         pairs.push(if transpose { (c, r) } else { (r, c) });
     }
-    pairs.sort_unstable();
+    // The solve gives rows in order: sort only when they were b's or greedy pairs came first.
+    if transpose || greedy_pairs > 0 {
+        pairs.sort_unstable();
+    }
     pairs
 }
 
@@ -706,8 +840,10 @@ fn greedy(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
 
 /// CSBA-3D on two lists: the matched (index in `a`, index in `b`) pairs.
 pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize)> {
-    let edges = eligible_pairs(p, a, b);
-    assign(a.len(), b.len(), &edges)
+    EDGES.with_borrow_mut(|edges| {
+        eligible_pairs_into(p, a, b, edges);
+        assign(a.len(), b.len(), edges)
+    })
 }
 
 mod sparse;

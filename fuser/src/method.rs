@@ -137,6 +137,9 @@ impl Method {
 
     /// Fuses one time step: `agents[k]` is agent k's detections, agents in a fixed order.
     pub fn fuse(&self, agents: &[Vec<Detection>]) -> Vec<Detection> {
+        if let Method::Csba(p) = self {
+            return csba_wls_parts(p, agents).0;
+        }
         self.fuse_sourced(agents)
             .into_iter()
             .map(|s| s.det)
@@ -238,6 +241,12 @@ pub fn csba_variants() -> [(&'static str, CsbaParams); 7] {
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
 /// each next agent's list in agent order (`docs/method.md` §1); every group is re-fused from all its members.
 pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
+    let (fused, sources) = csba_wls_parts(p, agents);
+    Sourced::zip(fused, sources)
+}
+
+/// [`csba_wls`] as the fused boxes and, apart, the agents of each.
+fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<AgentSet>) {
     // A group's members inline: two to four agents need no allocation per group.
     let n: usize = agents.iter().map(Vec::len).sum();
     let mut groups: Vec<smallvec::SmallVec<[&Detection; 4]>> = Vec::with_capacity(n);
@@ -267,7 +276,7 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
             }
         }
     }
-    Sourced::zip(fused, sources)
+    (fused, sources)
 }
 
 /// The chi-square test of a new member against its group's fused box: its squared centre

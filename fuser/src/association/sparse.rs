@@ -10,7 +10,6 @@
 //! A path search only ever visits the component of its row, so sparse scenes cost near-linear
 //! time whatever the density of the scene as a whole.
 
-use super::Edge;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
@@ -40,15 +39,18 @@ impl PartialOrd for Queued {
     }
 }
 
-/// The solver's reusable state; columns `n_cols..n_cols + n_rows` are the rows' own
-/// "unmatched" columns.
-struct Solver<'a> {
+/// The solver and its buffers, kept between solves so that a steady stream of scenes allocates
+/// nothing; columns `n_cols..n_cols + n_rows` are the rows' own "unmatched" columns.
+#[derive(Default)]
+pub(super) struct Solver {
     n_cols: usize,
     /// Row r's edges: `adj[start[r]..start[r + 1]]` as (column, cost).
     start: Vec<usize>,
     adj: Vec<(usize, f64)>,
+    /// Where the next edge of each row goes while `adj` is filled.
+    fill: Vec<usize>,
     /// Cost of leaving row r unmatched.
-    unmatched: &'a [f64],
+    pub(super) unmatched: Vec<f64>,
     u: Vec<f64>,
     v: Vec<f64>,
     row_of: Vec<usize>,
@@ -59,10 +61,19 @@ struct Solver<'a> {
     row_dist: Vec<f64>,
     touched_cols: Vec<usize>,
     touched_rows: Vec<usize>,
+    pending: Vec<usize>,
     heap: BinaryHeap<Queued>,
+    /// The distance of the nearest free column reached so far in this search.
+    bound: f64,
 }
 
-impl Solver<'_> {
+/// Clears `v` and fills it with `n` copies of `x`, keeping its allocation.
+fn reset<T: Clone>(v: &mut Vec<T>, n: usize, x: T) {
+    v.clear();
+    v.resize(n, x);
+}
+
+impl Solver {
     fn relax(&mut self, r: usize, d_r: f64) {
         let ur = self.u[r];
         let (lo, hi) = (self.start[r], self.start[r + 1]);
@@ -76,7 +87,11 @@ impl Solver<'_> {
                 continue;
             }
             let nd = d_r + cost - ur - self.v[c];
-            if nd < self.dist[c] {
+            // A column no nearer than a free one already reached cannot be on the path.
+            if nd < self.dist[c] && nd < self.bound {
+                if self.row_of[c] == NONE {
+                    self.bound = nd;
+                }
                 if self.dist[c] == f64::INFINITY {
                     self.touched_cols.push(c);
                 }
@@ -89,6 +104,7 @@ impl Solver<'_> {
 
     /// Places row `s` by the cheapest augmenting path in reduced costs.
     fn augment(&mut self, s: usize) {
+        self.bound = f64::INFINITY;
         self.row_dist[s] = 0.0;
         self.touched_rows.push(s);
         self.relax(s, 0.0);
@@ -137,74 +153,79 @@ impl Solver<'_> {
         self.touched_rows.clear();
         self.heap.clear();
     }
-}
 
-/// Among the matchings of largest size over `edges` (non-negative costs), one of least total
-/// cost, as (row, column) pairs in row order. `unmatched[r]` must exceed what any set of real
-/// edges of row r's component can cost (see [`super::assign`]).
-pub(super) fn solve(
-    n_rows: usize,
-    n_cols: usize,
-    edges: &[Edge],
-    unmatched: &[f64],
-) -> Vec<(usize, usize)> {
-    let mut start = vec![0usize; n_rows + 1];
-    for e in edges {
-        start[e.a + 1] += 1;
-    }
-    for r in 0..n_rows {
-        start[r + 1] += start[r];
-    }
-    let mut fill = start.clone();
-    let mut adj = vec![(0usize, 0.0f64); edges.len()];
-    for e in edges {
-        adj[fill[e.a]] = (e.b, e.cost);
-        fill[e.a] += 1;
-    }
-    let all = n_cols + n_rows;
-    let mut s = Solver {
-        n_cols,
-        start,
-        adj,
-        unmatched,
-        u: vec![0.0; n_rows],
-        v: vec![0.0; all],
-        row_of: vec![NONE; all],
-        col_of: vec![NONE; n_rows],
-        dist: vec![f64::INFINITY; all],
-        prev: vec![NONE; all],
-        done: vec![false; all],
-        row_dist: vec![0.0; n_rows],
-        touched_cols: Vec::new(),
-        touched_rows: Vec::new(),
-        heap: BinaryHeap::new(),
-    };
-    // Row reduction: u[r] = the row's cheapest edge, so every reduced cost is >= 0; a row whose
-    // cheapest column is still free takes it at once (a tight edge). Most rows of a sparse
-    // scene are placed here; the others by a path search.
-    let mut pending = Vec::new();
-    for r in 0..n_rows {
-        let edges = &s.adj[s.start[r]..s.start[r + 1]];
-        // A row without edges stays unmatched; nothing else can reach its own column.
-        let Some(&(c, cost)) = edges
-            .iter()
-            .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)))
-        else {
-            continue;
-        };
-        s.u[r] = cost;
-        if s.row_of[c] == NONE {
-            s.row_of[c] = r;
-            s.col_of[r] = c;
-        } else {
-            pending.push(r);
+    /// Among the matchings of largest size over the edges `(row, column, cost)` (non-negative
+    /// costs) that `edges` yields, one of least total cost, as (row, column) pairs in row order.
+    /// `self.unmatched[r]` must hold, for every row, more than what any set of real edges of
+    /// row r's component can cost (see [`super::assign`]). `edges` is called twice and must
+    /// yield the same edges both times.
+    pub(super) fn solve<I>(
+        &mut self,
+        n_rows: usize,
+        n_cols: usize,
+        edges: impl Fn() -> I,
+    ) -> Vec<(usize, usize)>
+    where
+        I: Iterator<Item = (usize, usize, f64)>,
+    {
+        debug_assert_eq!(self.unmatched.len(), n_rows);
+        self.n_cols = n_cols;
+        reset(&mut self.start, n_rows + 1, 0);
+        let mut n_edges = 0;
+        for (r, _, _) in edges() {
+            self.start[r + 1] += 1;
+            n_edges += 1;
         }
+        for r in 0..n_rows {
+            self.start[r + 1] += self.start[r];
+        }
+        self.fill.clone_from(&self.start);
+        reset(&mut self.adj, n_edges, (0, 0.0));
+        for (r, c, cost) in edges() {
+            self.adj[self.fill[r]] = (c, cost);
+            self.fill[r] += 1;
+        }
+        let all = n_cols + n_rows;
+        reset(&mut self.u, n_rows, 0.0);
+        reset(&mut self.v, all, 0.0);
+        reset(&mut self.row_of, all, NONE);
+        reset(&mut self.col_of, n_rows, NONE);
+        reset(&mut self.dist, all, f64::INFINITY);
+        reset(&mut self.prev, all, NONE);
+        reset(&mut self.done, all, false);
+        reset(&mut self.row_dist, n_rows, 0.0);
+        self.touched_cols.clear();
+        self.touched_rows.clear();
+        self.pending.clear();
+        self.heap.clear();
+        // Row reduction: u[r] = the row's cheapest edge, so every reduced cost is >= 0; a row
+        // whose cheapest column is still free takes it at once (a tight edge). Most rows of a
+        // sparse scene are placed here; the others by a path search.
+        for r in 0..n_rows {
+            let edges = &self.adj[self.start[r]..self.start[r + 1]];
+            // A row without edges stays unmatched; nothing else can reach its own column.
+            let Some(&(c, cost)) = edges
+                .iter()
+                .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)))
+            else {
+                continue;
+            };
+            self.u[r] = cost;
+            if self.row_of[c] == NONE {
+                self.row_of[c] = r;
+                self.col_of[r] = c;
+            } else {
+                self.pending.push(r);
+            }
+        }
+        let pending = std::mem::take(&mut self.pending);
+        for &r in &pending {
+            self.augment(r);
+        }
+        self.pending = pending;
+        (0..n_rows)
+            .filter(|&r| self.col_of[r] < n_cols)
+            .map(|r| (r, self.col_of[r]))
+            .collect()
     }
-    for r in pending {
-        s.augment(r);
-    }
-    (0..n_rows)
-        .filter(|&r| s.col_of[r] < n_cols)
-        .map(|r| (r, s.col_of[r]))
-        .collect()
 }

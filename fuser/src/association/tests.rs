@@ -289,6 +289,37 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Over a wide scene of many classes (many cells, cells widened to the budget, boxes on
+    /// cell borders), the grid finds exactly the pairs a scan of every pair finds.
+    #[test]
+    fn the_grid_finds_every_pair_of_a_wide_scene(
+        pts in prop::collection::vec((-200.0f64..200.0, -200.0f64..200.0, 0.1f64..4.0, 0usize..10, any::<bool>()), 2..120),
+    ) {
+        let dets: Vec<Detection> = pts.iter().map(|&(x, y, s, c, snap)| {
+            // snapped centres sit exactly on multiples of 5 m, where cell borders fall
+            let (x, y) = if snap { ((x / 5.0).round() * 5.0, (y / 5.0).round() * 5.0) } else { (x, y) };
+            let mut d = det([x, y, 0.0], [4.0, 2.0, 1.5], 0.3 * c as f64, s, 0.1, 0.2);
+            d.class = Class::ALL[c];
+            d
+        }).collect();
+        let (a, b) = dets.split_at(dets.len() / 3);
+        for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
+            let mut fast: Vec<(usize, usize, u64)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b, e.cost.to_bits())).collect();
+            fast.sort();
+            let mut slow = Vec::new();
+            for (i, da) in a.iter().enumerate() {
+                for (j, db) in b.iter().enumerate() {
+                    if let Some(c) = pair_cost(&p, da, db) { slow.push((i, j, c.to_bits())); }
+                }
+            }
+            prop_assert_eq!(fast, slow);
+        }
+    }
+}
+
 /// Total cost of a set of pairs under the edges.
 fn total(edges: &[Edge], pairs: &[(usize, usize)]) -> f64 {
     pairs
