@@ -378,25 +378,31 @@ fn prepared_cost(
     if pa.class != pb.class {
         return None;
     }
-    let d_m = match (pa.var, pb.var) {
+    // d_M^2: the gate and the Gaussian centre score need no square root.
+    let d2 = match (pa.var, pb.var) {
         (Some(va), Some(vb)) => (0..3)
             .map(|k| (pa.center[k] - pb.center[k]).powi(2) / (va[k] + vb[k]))
-            .sum::<f64>()
-            .sqrt(),
-        _ => mahalanobis(a, b),
+            .sum::<f64>(),
+        _ => mahalanobis(a, b).powi(2),
     };
     let lambda = match p.gate {
         Gate::Paper { factor } => factor * pa.pos_std.max(pb.pos_std),
         Gate::Mahalanobis { lambda } => lambda,
     };
-    let cs = centre_score(d_m, lambda);
-    if cs <= 0.0 {
+    // CS > 0 exactly when d_M < lambda_max.
+    if !(d2 < lambda * lambda) {
         return None;
     }
     // CS, DS, OS as in centre_score, dimension_score*, orientation_score
     let cs = match p.centre {
-        Centre::Linear => Score::Value(cs),
-        Centre::Gaussian => Score::Ln(-d_m * d_m / 2.0),
+        Centre::Linear => {
+            let cs = centre_score(d2.sqrt(), lambda);
+            if cs <= 0.0 {
+                return None;
+            }
+            Score::Value(cs)
+        }
+        Centre::Gaussian => Score::Ln(-d2 / 2.0),
     };
     let ((va, sva), (vb, svb)) = (pa.volume, pb.volume);
     let ds = match p.dimension {
