@@ -848,7 +848,9 @@ fn greedy(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
 pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize)> {
     EDGES.with_borrow_mut(|edges| {
         eligible_pairs_into(p, a, b, edges);
-        assign(a.len(), b.len(), edges)
+        let pairs = assign(a.len(), b.len(), edges);
+        sparse::trim(edges);
+        pairs
     })
 }
 

@@ -67,6 +67,17 @@ pub(super) struct Solver {
     bound: f64,
 }
 
+/// Capacity a kept buffer may hold beyond four times its last use: 64 Ki elements.
+const KEEP: usize = 1 << 16;
+
+/// Gives back a kept buffer's memory when it holds far more than its last use needed, so that
+/// one pile of boxes does not hold its megabytes for good.
+pub(super) fn trim<T>(v: &mut Vec<T>) {
+    if v.capacity() > KEEP && v.capacity() > 4 * v.len() {
+        v.shrink_to(v.len().max(KEEP));
+    }
+}
+
 /// Clears `v` and fills it with `n` copies of `x`, keeping its allocation.
 fn reset<T: Clone>(v: &mut Vec<T>, n: usize, x: T) {
     v.clear();
@@ -223,9 +234,33 @@ impl Solver {
             self.augment(r);
         }
         self.pending = pending;
+        trim(&mut self.adj);
         (0..n_rows)
             .filter(|&r| self.col_of[r] < n_cols)
             .map(|r| (r, self.col_of[r]))
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_buffer_far_larger_than_its_use_is_given_back() {
+        let mut v: Vec<u64> = Vec::with_capacity(1 << 20);
+        v.resize(10, 0);
+        trim(&mut v);
+        assert!(
+            v.capacity() >= KEEP && v.capacity() < 1 << 20,
+            "{}",
+            v.capacity()
+        );
+        assert_eq!(v.len(), 10);
+        // in use, or small: kept as it is
+        let mut used: Vec<u64> = Vec::with_capacity(1 << 20);
+        used.resize(1 << 19, 0);
+        trim(&mut used);
+        assert!(used.capacity() >= 1 << 20);
     }
 }
