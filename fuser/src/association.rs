@@ -310,7 +310,7 @@ struct Prepared {
     pos_std: f64,
     /// [`volume_with_std`].
     volume: (f64, f64),
-    /// ln V and (sigma_V / V)^2, the log-ratio dimension score's terms.
+    /// ln V and (sigma_V / V)^2, the log-ratio dimension score's terms (that score only).
     ln_volume: (f64, f64),
 }
 
@@ -331,9 +331,12 @@ impl Prepared {
             var: d.pos_cov.is_none().then(|| d.std.pos.map(|s| s.powi(2))),
             pos_std: position_std(d),
             volume: volume_with_std(d),
-            ln_volume: {
-                let (v, sv) = volume_with_std(d);
-                (v.ln(), (sv / v).powi(2))
+            ln_volume: match p.dimension {
+                Dimension::LogRatio => {
+                    let (v, sv) = volume_with_std(d);
+                    (v.ln(), (sv / v).powi(2))
+                }
+                Dimension::Paper | Dimension::Axes => (0.0, 0.0),
             },
         }
     }

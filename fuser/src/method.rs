@@ -251,22 +251,43 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
     let n: usize = agents.iter().map(Vec::len).sum();
     let mut groups: Vec<smallvec::SmallVec<[&Detection; 4]>> = Vec::with_capacity(n);
     let mut sources: Vec<AgentSet> = Vec::with_capacity(n);
-    let mut fused: Vec<Detection> = Vec::with_capacity(n);
+    // The running fused boxes. Until a second agent's boxes arrive they are the first agent's
+    // list itself (`base`), copied once, with its groups already re-fused, when they do.
+    let mut fused: Vec<Detection> = Vec::new();
+    let mut base: Option<&[Detection]> = None;
     for (k, list) in agents.iter().enumerate() {
-        let pairs = if fused.is_empty() {
-            Vec::new()
-        } else {
-            associate(p, &fused, list)
+        if list.is_empty() {
+            continue;
+        }
+        let Some(current) = base.or((!fused.is_empty()).then_some(&fused[..])) else {
+            base = Some(list);
+            groups.extend(list.iter().map(|d| smallvec::smallvec![d]));
+            sources.extend(std::iter::repeat_n(AgentSet::single(k), list.len()));
+            continue;
         };
+        let pairs: Vec<(usize, usize)> = associate(p, current, list)
+            .into_iter()
+            .filter(|&(g, j)| consistent(p, &current[g], &list[j]))
+            .collect();
         let mut taken = vec![false; list.len()];
-        for (g, j) in pairs {
-            if !consistent(p, &fused[g], &list[j]) {
-                continue;
-            }
+        for &(g, j) in &pairs {
             taken[j] = true;
             groups[g].push(&list[j]);
             sources[g].insert(k);
-            fused[g] = fuse_group(&groups[g]);
+        }
+        if let Some(first) = base.take() {
+            fused.reserve(n);
+            fused.extend(first.iter().zip(&groups).map(|(d, members)| {
+                if members.len() > 1 {
+                    fuse_group(members)
+                } else {
+                    d.clone()
+                }
+            }));
+        } else {
+            for &(g, _) in &pairs {
+                fused[g] = fuse_group(&groups[g]);
+            }
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
@@ -275,6 +296,9 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
                 fused.push(d.clone());
             }
         }
+    }
+    if let Some(first) = base {
+        fused = first.to_vec();
     }
     (fused, sources)
 }
