@@ -371,6 +371,7 @@ impl Score {
 const LN_FLOOR: f64 = -690.7755278982137;
 
 /// [`pair_cost`] with each side's [`Prepared`] quantities.
+#[inline(always)]
 fn prepared_cost(
     p: &CsbaParams,
     a: &Detection,
