@@ -261,16 +261,8 @@ proptest! {
         }).collect();
         let (a, b) = dets.split_at(dets.len() / 2);
         for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
-            let mut fast: Vec<(usize, usize, u64)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b, e.cost.to_bits())).collect();
-            fast.sort();
-            let mut slow = Vec::new();
-            for (i, da) in a.iter().enumerate() {
-                for (j, db) in b.iter().enumerate() {
-                    if let Some(c) = pair_cost(&p, da, db) { slow.push((i, j, c.to_bits())); }
-                }
-            }
             // the same pairs at the same costs, to the bit
-            prop_assert_eq!(fast, slow);
+            prop_assert_eq!(grid_pairs(&p, a, b), every_pair(&p, a, b));
         }
         // The log-product cost, taken from the scores' exponents, is the scores' formula.
         for da in a {
@@ -307,17 +299,32 @@ proptest! {
         }).collect();
         let (a, b) = dets.split_at(dets.len() / 3);
         for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
-            let mut fast: Vec<(usize, usize, u64)> = eligible_pairs(&p, a, b).iter().map(|e| (e.a, e.b, e.cost.to_bits())).collect();
-            fast.sort();
-            let mut slow = Vec::new();
-            for (i, da) in a.iter().enumerate() {
-                for (j, db) in b.iter().enumerate() {
-                    if let Some(c) = pair_cost(&p, da, db) { slow.push((i, j, c.to_bits())); }
-                }
-            }
-            prop_assert_eq!(fast, slow);
+            prop_assert_eq!(grid_pairs(&p, a, b), every_pair(&p, a, b));
         }
     }
+}
+
+/// [`eligible_pairs`] as sorted (a, b, cost bits).
+fn grid_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize, u64)> {
+    let mut pairs: Vec<_> = eligible_pairs(p, a, b)
+        .iter()
+        .map(|e| (e.a, e.b, e.cost.to_bits()))
+        .collect();
+    pairs.sort();
+    pairs
+}
+
+/// Every pair [`pair_cost`] admits, found by trying them all, as sorted (a, b, cost bits).
+fn every_pair(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize, u64)> {
+    let mut pairs = Vec::new();
+    for (i, da) in a.iter().enumerate() {
+        for (j, db) in b.iter().enumerate() {
+            if let Some(c) = pair_cost(p, da, db) {
+                pairs.push((i, j, c.to_bits()));
+            }
+        }
+    }
+    pairs
 }
 
 /// Total cost of a set of pairs under the edges.
