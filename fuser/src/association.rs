@@ -628,41 +628,44 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
             .fold(0.0, f64::max)
     };
     let (max_var_x_b, max_var_y_b) = (max_var_b(0), max_var_b(1));
-    let prep_a: Vec<Prepared> = a.iter().map(|d| Prepared::of(p, d)).collect();
     let prep_b: Vec<Prepared> = b.iter().map(|d| Prepared::of(p, d)).collect();
     let max_std_b = prep_b.iter().map(|q| q.pos_std).fold(0.0, f64::max);
     // Per a: the largest |dx| and |dy| an eligible partner can have.
-    let radii: Vec<[f64; 2]> = a
+    let reach = |da: &Detection| {
+        let lambda_bound = match p.gate {
+            Gate::Paper { factor } => factor * position_std(da).max(max_std_b),
+            Gate::Mahalanobis { lambda } => lambda,
+        };
+        let c = da.position_covariance();
+        [
+            lambda_bound * (c[0][0] + max_var_x_b).sqrt(),
+            lambda_bound * (c[1][1] + max_var_y_b).sqrt(),
+        ]
+    };
+    let widest = a
         .iter()
-        .zip(&prep_a)
-        .map(|(da, pa)| {
-            let lambda_bound = match p.gate {
-                Gate::Paper { factor } => factor * pa.pos_std.max(max_std_b),
-                Gate::Mahalanobis { lambda } => lambda,
-            };
-            let c = da.position_covariance();
-            [
-                lambda_bound * (c[0][0] + max_var_x_b).sqrt(),
-                lambda_bound * (c[1][1] + max_var_y_b).sqrt(),
-            ]
+        .map(|da| {
+            let [rx, ry] = reach(da);
+            rx.max(ry)
         })
-        .collect();
-    let widest = radii.iter().map(|r| r[0].max(r[1])).fold(0.0, f64::max);
+        .fold(0.0, f64::max);
     let Some(grid) = Grid::of(b, &prep_b, widest / 2.0) else {
         return;
     };
     for ia in grid.visiting_order(a) {
-        let (da, [rx, ry]) = (&a[ia], radii[ia]);
+        // a's own quantities live on the stack for its whole scan.
+        let da = &a[ia];
+        let (pa, [rx, ry]) = (Prepared::of(p, da), reach(da));
         let row_start = edges.len();
-        for range in grid.within(da.class, da.center, [rx, ry]) {
+        for range in grid.within(pa.class, pa.center, [rx, ry]) {
             for k in range {
                 let [x, y] = grid.xy[k];
-                if (x - da.center[0]).abs() > rx || (y - da.center[1]).abs() > ry {
+                if (x - pa.center[0]).abs() > rx || (y - pa.center[1]).abs() > ry {
                     continue;
                 }
                 let slot = &grid.slots[k];
                 let ib = slot.index;
-                if let Some(cost) = prepared_cost(p, da, &prep_a[ia], &b[ib], &slot.prep) {
+                if let Some(cost) = prepared_cost(p, da, &pa, &b[ib], &slot.prep) {
                     edges.push(Edge { a: ia, b: ib, cost });
                 }
             }
