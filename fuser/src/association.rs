@@ -453,11 +453,33 @@ fn prepared_cost(
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Edge {
     /// Index in the first list.
-    pub a: usize,
+    pub a: u32,
     /// Index in the second list.
-    pub b: usize,
+    pub b: u32,
     /// The pair's cost.
     pub cost: f64,
+}
+
+impl Edge {
+    /// The pair (a, b) at `cost`. Lists of boxes never reach 2^32 (they would not fit in
+    /// memory), so 32-bit indices keep an edge at 16 bytes.
+    pub fn new(a: usize, b: usize, cost: f64) -> Edge {
+        Edge {
+            a: u32::try_from(a).expect("fewer than 2^32 boxes in a list"),
+            b: u32::try_from(b).expect("fewer than 2^32 boxes in a list"),
+            cost,
+        }
+    }
+
+    /// The index in the first list.
+    pub fn ia(&self) -> usize {
+        self.a as usize
+    }
+
+    /// The index in the second list.
+    pub fn ib(&self) -> usize {
+        self.b as usize
+    }
 }
 
 /// The most eligible partners kept per detection of the first list (the cheapest). Honest scenes
@@ -666,7 +688,7 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
                 let slot = &grid.slots[k];
                 let ib = slot.index;
                 if let Some(cost) = prepared_cost(p, da, &pa, &b[ib], &slot.prep) {
-                    edges.push(Edge { a: ia, b: ib, cost });
+                    edges.push(Edge::new(ia, ib, cost));
                 }
             }
         }
@@ -689,71 +711,30 @@ pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
     if edges.is_empty() {
         return Vec::new();
     }
-    SOLVER.with_borrow_mut(|solver| assign_with(solver, n_a, n_b, edges))
+    KEPT.with_borrow_mut(|kept| assign_with(kept, n_a, n_b, edges))
 }
 
 thread_local! {
-    /// Each thread's solver, whose buffers serve one assignment after another.
-    static SOLVER: std::cell::RefCell<sparse::Solver> = std::cell::RefCell::default();
+    /// Each thread's components and solver, whose buffers serve one assignment after another.
+    static KEPT: std::cell::RefCell<Kept> = std::cell::RefCell::default();
     /// Each thread's eligible pairs, kept between associations for the same reason.
     static EDGES: std::cell::RefCell<Vec<Edge>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// [`assign`] with a given solver.
-fn assign_with(
-    solver: &mut sparse::Solver,
-    n_a: usize,
-    n_b: usize,
-    edges: &[Edge],
-) -> Vec<(usize, usize)> {
-    // Connected components of the bipartite edge graph (union-find over a's then b's).
-    let mut parent: Vec<usize> = (0..n_a + n_b).collect();
-    fn find(p: &mut [usize], mut x: usize) -> usize {
-        while p[x] != x {
-            p[x] = p[p[x]];
-            x = p[x];
-        }
-        x
-    }
-    // Union by size keeps the trees shallow in one component spanning the scene.
-    let mut weight = vec![1u32; n_a + n_b];
-    for e in edges {
-        let (ra, rb) = (find(&mut parent, e.a), find(&mut parent, n_a + e.b));
-        if ra != rb {
-            let (small, large) = if weight[ra] < weight[rb] {
-                (ra, rb)
-            } else {
-                (rb, ra)
-            };
-            parent[small] = large;
-            weight[large] += weight[small];
-        }
-    }
-    let root: Vec<usize> = (0..n_a + n_b).map(|x| find(&mut parent, x)).collect();
-    // Each component's a's, b's (those with an edge) and largest cost.
-    let mut size = vec![(0usize, 0usize, 0.0f64); n_a + n_b];
-    let mut linked = vec![false; n_a + n_b];
-    for e in edges {
-        let r = root[e.a];
-        size[r].2 = size[r].2.max(e.cost);
-        linked[e.a] = true;
-        linked[n_a + e.b] = true;
-    }
-    for (node, _) in linked.iter().enumerate().filter(|(_, &l)| l) {
-        let r = root[node];
-        if node < n_a {
-            size[r].0 += 1;
-        } else {
-            size[r].1 += 1;
-        }
-    }
-    let too_big: Vec<bool> = size
-        .iter()
-        .map(|&(na, nb, _)| na.saturating_mul(nb) > MAX_EXACT_CELLS)
-        .collect();
-    let piled = |e: &Edge| too_big[root[e.a]];
+/// An assignment's kept buffers: the components' and the solver's.
+#[derive(Default)]
+struct Kept {
+    components: components::Components,
+    solver: sparse::Solver,
+}
+
+/// [`assign`] with given buffers.
+fn assign_with(kept: &mut Kept, n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
+    let Kept { components, solver } = kept;
+    components.build(n_a, n_b, edges, MAX_EXACT_CELLS);
+    let piled = |e: &Edge| components.of_edge(e).piled;
     let mut pairs = Vec::new();
-    if too_big.iter().any(|&b| b) {
+    if components.any_piled() {
         GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let piled: Vec<Edge> = edges.iter().filter(|e| piled(e)).copied().collect();
         greedy(&piled, &mut pairs);
@@ -764,16 +745,15 @@ fn assign_with(
     let (n_rows, n_cols) = if transpose { (n_b, n_a) } else { (n_a, n_b) };
     solver.unmatched.clear();
     solver.unmatched.extend((0..n_rows).map(|r| {
-        let node = if transpose { n_a + r } else { r };
-        let (na, nb, largest) = size[root[node]];
-        (na.min(nb) + 1) as f64 * (largest + 1.0)
+        let x = components.of(if transpose { n_a + r } else { r });
+        (x.a.min(x.b) as f64 + 1.0) * (x.largest + 1.0)
     }));
     let exact = || {
         edges.iter().filter(|e| !piled(e)).map(|e| {
             if transpose {
-                (e.b, e.a, e.cost)
+                (e.ib(), e.ia(), e.cost)
             } else {
-                (e.a, e.b, e.cost)
+                (e.ia(), e.ib(), e.cost)
             }
         })
     };
@@ -805,8 +785,8 @@ fn assign_dense(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
 /// Solves edges densely: rows are their a's, columns their b's.
 #[cfg(test)]
 fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
-    let mut rows: Vec<usize> = comp.iter().map(|e| e.a).collect();
-    let mut cols: Vec<usize> = comp.iter().map(|e| e.b).collect();
+    let mut rows: Vec<usize> = comp.iter().map(Edge::ia).collect();
+    let mut cols: Vec<usize> = comp.iter().map(Edge::ib).collect();
     rows.sort_unstable();
     rows.dedup();
     cols.sort_unstable();
@@ -818,7 +798,7 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     let mut m = vec![absent; nr * nc];
     for e in comp {
         // rows and cols hold every edge's ends, so both searches find them
-        if let (Ok(r), Ok(c)) = (rows.binary_search(&e.a), cols.binary_search(&e.b)) {
+        if let (Ok(r), Ok(c)) = (rows.binary_search(&e.ia()), cols.binary_search(&e.ib())) {
             m[r * nc + c] = e.cost;
         }
     }
@@ -846,7 +826,7 @@ fn greedy(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
         if !used_a.contains(&e.a) && !used_b.contains(&e.b) {
             used_a.insert(e.a);
             used_b.insert(e.b);
-            pairs.push((e.a, e.b));
+            pairs.push((e.ia(), e.ib()));
         }
     }
 }
@@ -861,6 +841,7 @@ pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize
     })
 }
 
+mod components;
 mod sparse;
 #[cfg(test)]
 mod tests;

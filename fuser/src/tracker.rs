@@ -189,11 +189,7 @@ impl Tracker {
                 };
                 let d2 = (y.transpose() * &s_inv * &y)[0];
                 if d2 <= self.params.gate {
-                    edges.push(Edge {
-                        a: i,
-                        b: j,
-                        cost: d2 + s.determinant().max(1e-300).ln(),
-                    });
+                    edges.push(Edge::new(i, j, d2 + s.determinant().max(1e-300).ln()));
                 }
             }
         }

@@ -433,7 +433,7 @@ fn accumulate(scenes: &[Scene], class: Class, threshold: Option<f64>) -> (Counts
                 for (b, &j) in free_h.iter().enumerate() {
                     let d = dist(objs[i], hyps[j]);
                     if d < MATCH_DISTANCE {
-                        edges.push(Edge { a, b, cost: d });
+                        edges.push(Edge::new(a, b, d));
                     }
                 }
             }

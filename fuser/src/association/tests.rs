@@ -144,7 +144,7 @@ fn gate_rejects_other_classes_and_far_pairs() {
 }
 
 fn e(a: usize, b: usize, cost: f64) -> Edge {
-    Edge { a, b, cost }
+    Edge::new(a, b, cost)
 }
 
 #[test]
@@ -308,7 +308,7 @@ proptest! {
 fn grid_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize, u64)> {
     let mut pairs: Vec<_> = eligible_pairs(p, a, b)
         .iter()
-        .map(|e| (e.a, e.b, e.cost.to_bits()))
+        .map(|e| (e.ia(), e.ib(), e.cost.to_bits()))
         .collect();
     pairs.sort();
     pairs
@@ -334,7 +334,7 @@ fn total(edges: &[Edge], pairs: &[(usize, usize)]) -> f64 {
         .map(|&(a, b)| {
             edges
                 .iter()
-                .find(|e| e.a == a && e.b == b)
+                .find(|e| e.ia() == a && e.ib() == b)
                 .expect("a pair is an edge")
                 .cost
         })
