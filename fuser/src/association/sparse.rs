@@ -165,6 +165,100 @@ impl Solver {
         self.heap.clear();
     }
 
+    /// Row r's columns and their costs: its edges, then its own unmatched column.
+    fn columns(&self, r: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let own = (self.n_cols + r, self.unmatched[r]);
+        self.adj[self.start[r]..self.start[r + 1]]
+            .iter()
+            .copied()
+            .chain(std::iter::once(own))
+    }
+
+    /// Augmenting row reduction (Jonker and Volgenant's): each free row in `pending` takes its
+    /// cheapest column in c - v and lowers that column's v until the row's second-cheapest
+    /// column is as cheap, so the row is tight there and every other row's reduced costs only
+    /// grow; the column's former owner becomes free and tries next. Two passes, then each
+    /// row's u is set from its column (or its cheapest one, if still free): the duals are
+    /// feasible and tight on the matching, and `pending` holds the rows left for path searches.
+    fn reduce_free_rows(&mut self) {
+        let mut free = std::mem::take(&mut self.pending);
+        // Displaced rows retry at once while their column's v drops; a cap on the rows taken up
+        // per pass bounds the work whatever the costs (rows left over go to path searches).
+        let cap = 4 * self.u.len() + 64;
+        for _ in 0..2 {
+            let (count, mut k, mut kept, mut taken) = (free.len(), 0, 0, 0);
+            while k < count {
+                if taken == cap {
+                    free.truncate(count);
+                    free.drain(kept..k);
+                    self.pending = free;
+                    return self.set_row_duals();
+                }
+                taken += 1;
+                let i = free[k];
+                k += 1;
+                let (mut u1, mut j1, mut u2, mut j2) = (f64::INFINITY, NONE, f64::INFINITY, NONE);
+                for (c, cost) in self.columns(i) {
+                    let h = cost - self.v[c];
+                    if h < u2 {
+                        if h >= u1 {
+                            (u2, j2) = (h, c);
+                        } else {
+                            (u2, j2, u1, j1) = (u1, j1, h, c);
+                        }
+                    }
+                }
+                let mut owner = self.row_of[j1];
+                if u1 < u2 {
+                    self.v[j1] -= u2 - u1;
+                } else if owner != NONE {
+                    // A tie: the second column is as cheap; take it instead.
+                    j1 = j2;
+                    owner = self.row_of[j2];
+                }
+                self.row_of[j1] = i;
+                self.col_of[i] = j1;
+                if owner != NONE {
+                    self.col_of[owner] = NONE;
+                    if u1 < u2 {
+                        // Its column got dearer for it: it tries again at once.
+                        k -= 1;
+                        free[k] = owner;
+                    } else {
+                        free[kept] = owner;
+                        kept += 1;
+                    }
+                }
+            }
+            free.truncate(kept);
+            if free.is_empty() {
+                break;
+            }
+        }
+        self.pending = free;
+        self.set_row_duals();
+    }
+
+    /// u[r] from row r's column (its reduced cost there 0), or, for a free row, from its
+    /// cheapest column (its reduced costs all >= 0).
+    fn set_row_duals(&mut self) {
+        for r in 0..self.u.len() {
+            let c = self.col_of[r];
+            if self.start[r] == self.start[r + 1] && c == NONE {
+                continue;
+            }
+            self.u[r] = if c != NONE {
+                self.columns(r)
+                    .find(|&(col, _)| col == c)
+                    .map_or(0.0, |(_, cost)| cost - self.v[c])
+            } else {
+                self.columns(r)
+                    .map(|(col, cost)| cost - self.v[col])
+                    .fold(f64::INFINITY, f64::min)
+            };
+        }
+    }
+
     /// Among the matchings of largest size over the edges `(row, column, cost)` (non-negative
     /// costs) that `edges` yields, one of least total cost, as (row, column) pairs in row order.
     /// `self.unmatched[r]` must hold, for every row, more than what any set of real edges of
@@ -228,6 +322,9 @@ impl Solver {
             } else {
                 self.pending.push(r);
             }
+        }
+        if !self.pending.is_empty() {
+            self.reduce_free_rows();
         }
         let pending = std::mem::take(&mut self.pending);
         for &r in &pending {
