@@ -732,9 +732,11 @@ struct Kept {
 fn assign_with(kept: &mut Kept, n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
     let Kept { components, solver } = kept;
     components.build(n_a, n_b, edges, MAX_EXACT_CELLS);
-    let piled = |e: &Edge| components.of_edge(e).piled;
+    // Without a pile (the rule) no edge needs looking up.
+    let any_piled = components.any_piled();
+    let piled = |e: &Edge| any_piled && components.of_edge(e).piled;
     let mut pairs = Vec::new();
-    if components.any_piled() {
+    if any_piled {
         GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let piled: Vec<Edge> = edges.iter().filter(|e| piled(e)).copied().collect();
         greedy(&piled, &mut pairs);
