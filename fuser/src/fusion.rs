@@ -140,14 +140,14 @@ fn finish(
         None => [0.0; 3],
     };
     // Velocity: WLS over the members that measured one.
-    let moving: Vec<&Velocity> = members.iter().filter_map(|m| m.velocity.as_ref()).collect();
-    let velocity = (!moving.is_empty()).then(|| {
+    let moving = || members.iter().filter_map(|m| m.velocity.as_ref());
+    let velocity = moving().next().is_some().then(|| {
         let mut v = Velocity {
             v: [0.0; 2],
             std: [0.0; 2],
         };
         for k in 0..2 {
-            let (z, p) = wls_scalar(moving.iter().map(|m| (m.v[k], m.std[k] * m.std[k])));
+            let (z, p) = wls_scalar(moving().map(|m| (m.v[k], m.std[k] * m.std[k])));
             v.v[k] = z;
             v.std[k] = p.sqrt();
         }
