@@ -705,11 +705,21 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
 
 /// Minimum-cost assignment restricted to the given eligible edges: among the matchings of
 /// largest size, the one of least total cost. Returns the matched (a, b) pairs sorted by a.
-/// Solved exactly over the edges alone (`association/sparse.rs`); a component of more than
+/// Edges without a finite cost are ignored. Solved exactly over the edges alone
+/// (`association/sparse.rs`); a component of more than
 /// [`MAX_EXACT_CELLS`] possible pairs is matched greedily by cost.
 pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
     if edges.is_empty() {
         return Vec::new();
+    }
+    // An edge without a finite cost is no eligible pair (the solve's bounds need finite costs).
+    if edges.iter().any(|e| !e.cost.is_finite()) {
+        let finite: Vec<Edge> = edges
+            .iter()
+            .filter(|e| e.cost.is_finite())
+            .copied()
+            .collect();
+        return assign(n_a, n_b, &finite);
     }
     KEPT.with_borrow_mut(|kept| assign_with(kept, n_a, n_b, edges))
 }

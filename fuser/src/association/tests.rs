@@ -378,3 +378,17 @@ proptest! {
         prop_assert_eq!(cols.len(), sparse.len());
     }
 }
+
+#[test]
+fn edges_without_a_finite_cost_are_not_eligible() {
+    let edges = [
+        e(0, 0, f64::INFINITY),
+        e(0, 1, 0.5),
+        e(1, 0, f64::NAN),
+        e(1, 1, 0.2),
+        e(2, 2, f64::NEG_INFINITY),
+    ];
+    // Of the finite pairs (0, 1) and (1, 1), which share column 1, the cheaper.
+    assert_eq!(assign(3, 3, &edges), vec![(1, 1)]);
+    assert_eq!(assign(3, 3, &[e(0, 0, f64::INFINITY)]), vec![]);
+}
