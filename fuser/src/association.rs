@@ -524,7 +524,7 @@ struct Grid {
 impl Grid {
     /// The grid of `dets` with cells at least `min_cell` wide, widened if need be so that
     /// there are at most about as many cells as detections (far-flung input stays small).
-    fn of(dets: &[Detection], prep: &[Prepared], min_cell: f64) -> Option<Grid> {
+    fn of(p: &CsbaParams, dets: &[Detection], min_cell: f64) -> Option<Grid> {
         if dets.is_empty() || !(min_cell.is_finite() && min_cell > 0.0) {
             return None;
         }
@@ -564,11 +564,12 @@ impl Grid {
         grid.slots.resize(
             dets.len(),
             Slot {
-                prep: prep[0],
+                prep: Prepared::of(p, &dets[0]),
                 index: 0,
             },
         );
-        for (index, (&prep, &k)) in prep.iter().zip(&keys).enumerate() {
+        for (index, (d, &k)) in dets.iter().zip(&keys).enumerate() {
+            let prep = Prepared::of(p, d);
             grid.slots[fill[k]] = Slot { prep, index };
             grid.xy[fill[k]] = [prep.center[0], prep.center[1]];
             fill[k] += 1;
@@ -644,14 +645,11 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
     if a.is_empty() || b.is_empty() {
         return;
     }
-    let max_var_b = |k: usize| {
-        b.iter()
-            .map(|d| d.position_covariance()[k][k])
-            .fold(0.0, f64::max)
-    };
-    let (max_var_x_b, max_var_y_b) = (max_var_b(0), max_var_b(1));
-    let prep_b: Vec<Prepared> = b.iter().map(|d| Prepared::of(p, d)).collect();
-    let max_std_b = prep_b.iter().map(|q| q.pos_std).fold(0.0, f64::max);
+    // b's largest x and y variances and position std, in one pass.
+    let (max_var_x_b, max_var_y_b, max_std_b) = b.iter().fold((0.0, 0.0, 0.0), |(x, y, s), d| {
+        let c = d.position_covariance();
+        (f64::max(x, c[0][0]), f64::max(y, c[1][1]), f64::max(s, position_std(d)))
+    });
     // Per a: the largest |dx| and |dy| an eligible partner can have.
     let reach = |da: &Detection| {
         let lambda_bound = match p.gate {
@@ -671,7 +669,7 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
             rx.max(ry)
         })
         .fold(0.0, f64::max);
-    let Some(grid) = Grid::of(b, &prep_b, widest / 2.0) else {
+    let Some(grid) = Grid::of(p, b, widest / 2.0) else {
         return;
     };
     for ia in grid.visiting_order(a) {
@@ -721,7 +719,7 @@ pub fn assign(n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
             .collect();
         return assign(n_a, n_b, &finite);
     }
-    KEPT.with_borrow_mut(|kept| assign_with(kept, n_a, n_b, edges))
+    KEPT.with_borrow_mut(|kept| assign_with(kept, n_a, n_b, edges, MAX_EXACT_CELLS))
 }
 
 thread_local! {
@@ -738,39 +736,48 @@ struct Kept {
     solver: sparse::Solver,
 }
 
-/// [`assign`] with given buffers.
-fn assign_with(kept: &mut Kept, n_a: usize, n_b: usize, edges: &[Edge]) -> Vec<(usize, usize)> {
+/// [`assign`] with given buffers, components of more than `max_cells` possible pairs matched
+/// greedily.
+fn assign_with(
+    kept: &mut Kept,
+    n_a: usize,
+    n_b: usize,
+    edges: &[Edge],
+    max_cells: usize,
+) -> Vec<(usize, usize)> {
     let Kept { components, solver } = kept;
-    components.build(n_a, n_b, edges, MAX_EXACT_CELLS);
-    // Without a pile (the rule) no edge needs looking up.
-    let any_piled = components.any_piled();
-    let piled = |e: &Edge| any_piled && components.of_edge(e).piled;
-    let mut pairs = Vec::new();
-    if any_piled {
-        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let piled: Vec<Edge> = edges.iter().filter(|e| piled(e)).copied().collect();
-        greedy(&piled, &mut pairs);
-    }
-    // Rows: the smaller side (one path search per row). Leaving a row unmatched costs more
-    // than any set of its component's real edges: (min(rows, cols) + 1) x (largest + 1).
+    // Rows: the smaller side (one path search per row).
     let transpose = n_a > n_b;
     let (n_rows, n_cols) = if transpose { (n_b, n_a) } else { (n_a, n_b) };
     solver.unmatched.clear();
-    solver.unmatched.extend((0..n_rows).map(|r| {
-        let x = components.of(if transpose { n_a + r } else { r });
-        (x.a.min(x.b) as f64 + 1.0) * (x.largest + 1.0)
-    }));
-    let exact = || {
-        edges.iter().filter(|e| !piled(e)).map(|e| {
-            if transpose {
-                (e.ib(), e.ia(), e.cost)
-            } else {
-                (e.ia(), e.ib(), e.cost)
-            }
-        })
+    // Leaving a row unmatched must cost more than any set of its component's real edges:
+    // (min(a's, b's) + 1) x (largest + 1) over the component does. When no component can be
+    // piled (n_a x n_b within the limit), the same bound over all edges does for every row, and
+    // the components are not needed at all.
+    let any_piled = if n_a.saturating_mul(n_b) <= max_cells {
+        let largest = edges.iter().map(|e| e.cost).fold(0.0, f64::max);
+        let unmatched = (n_rows as f64 + 1.0) * (largest + 1.0);
+        solver.unmatched.resize(n_rows, unmatched);
+        false
+    } else {
+        components.build(n_a, n_b, edges, max_cells);
+        solver.unmatched.extend((0..n_rows).map(|r| {
+            let x = components.of(if transpose { n_a + r } else { r });
+            (x.a.min(x.b) as f64 + 1.0) * (x.largest + 1.0)
+        }));
+        components.any_piled()
     };
+    let mut pairs = Vec::new();
+    let mut exact = std::borrow::Cow::Borrowed(edges);
+    if any_piled {
+        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let (piled, rest): (Vec<Edge>, Vec<Edge>) =
+            edges.iter().partition(|e| components.of_edge(e).piled);
+        greedy(&piled, &mut pairs);
+        exact = std::borrow::Cow::Owned(rest);
+    }
     let greedy_pairs = pairs.len();
-    for (r, c) in solver.solve(n_rows, n_cols, exact) {
+    for (r, c) in solver.solve(n_rows, n_cols, &exact, transpose) {
         pairs.push(if transpose { (c, r) } else { (r, c) });
     }
     // The solve gives rows in order: sort only when they were b's or greedy pairs came first.

@@ -13,6 +13,8 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
+use super::Edge;
+
 const NONE: usize = usize::MAX;
 
 /// A column in the search queue, smallest distance first.
@@ -44,11 +46,11 @@ impl PartialOrd for Queued {
 #[derive(Default)]
 pub(super) struct Solver {
     n_cols: usize,
-    /// Row r's edges: `adj[start[r]..start[r + 1]]` as (column, cost).
-    start: Vec<usize>,
-    adj: Vec<(usize, f64)>,
-    /// Where the next edge of each row goes while `adj` is filled.
-    fill: Vec<usize>,
+    /// Row r's edges are `adj[span[r].0..span[r].1]`, each as (a: row, b: column), in the
+    /// caller's edges when they come grouped by row, else in `own`.
+    span: Vec<(u32, u32)>,
+    /// The edges grouped by row, when the caller's are not.
+    own: Vec<Edge>,
     /// Cost of leaving row r unmatched.
     pub(super) unmatched: Vec<f64>,
     u: Vec<f64>,
@@ -85,12 +87,12 @@ fn reset<T: Clone>(v: &mut Vec<T>, n: usize, x: T) {
 }
 
 impl Solver {
-    fn relax(&mut self, r: usize, d_r: f64) {
+    fn relax(&mut self, adj: &[Edge], r: usize, d_r: f64) {
         let ur = self.u[r];
-        let (lo, hi) = (self.start[r], self.start[r + 1]);
+        let (lo, hi) = (self.span[r].0 as usize, self.span[r].1 as usize);
         for k in lo..=hi {
             let (c, cost) = if k < hi {
-                self.adj[k]
+                (adj[k].ib(), adj[k].cost)
             } else {
                 (self.n_cols + r, self.unmatched[r])
             };
@@ -114,11 +116,11 @@ impl Solver {
     }
 
     /// Places row `s` by the cheapest augmenting path in reduced costs.
-    fn augment(&mut self, s: usize) {
+    fn augment(&mut self, adj: &[Edge], s: usize) {
         self.bound = f64::INFINITY;
         self.row_dist[s] = 0.0;
         self.touched_rows.push(s);
-        self.relax(s, 0.0);
+        self.relax(adj, s, 0.0);
         let (end, total) = loop {
             let Some(Queued { dist, col }) = self.heap.pop() else {
                 unreachable!("a row's own unmatched column is always free");
@@ -133,7 +135,7 @@ impl Solver {
             }
             self.row_dist[r] = dist;
             self.touched_rows.push(r);
-            self.relax(r, dist);
+            self.relax(adj, r, dist);
         };
         // Dual update: the reduced costs stay non-negative and zero on the matching.
         for &r in &self.touched_rows {
@@ -166,11 +168,12 @@ impl Solver {
     }
 
     /// Row r's columns and their costs: its edges, then its own unmatched column.
-    fn columns(&self, r: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+    fn columns<'a>(&'a self, adj: &'a [Edge], r: usize) -> impl Iterator<Item = (usize, f64)> + 'a {
         let own = (self.n_cols + r, self.unmatched[r]);
-        self.adj[self.start[r]..self.start[r + 1]]
+        let (lo, hi) = (self.span[r].0 as usize, self.span[r].1 as usize);
+        adj[lo..hi]
             .iter()
-            .copied()
+            .map(|e| (e.ib(), e.cost))
             .chain(std::iter::once(own))
     }
 
@@ -180,7 +183,7 @@ impl Solver {
     /// grow; the column's former owner becomes free and tries next. Two passes, then each
     /// row's u is set from its column (or its cheapest one, if still free): the duals are
     /// feasible and tight on the matching, and `pending` holds the rows left for path searches.
-    fn reduce_free_rows(&mut self) {
+    fn reduce_free_rows(&mut self, adj: &[Edge]) {
         let mut free = std::mem::take(&mut self.pending);
         // Displaced rows retry at once while their column's v drops; a cap on the rows taken up
         // per pass bounds the work whatever the costs (rows left over go to path searches).
@@ -192,13 +195,13 @@ impl Solver {
                     free.truncate(count);
                     free.drain(kept..k);
                     self.pending = free;
-                    return self.set_row_duals();
+                    return self.set_row_duals(adj);
                 }
                 taken += 1;
                 let i = free[k];
                 k += 1;
                 let (mut u1, mut j1, mut u2, mut j2) = (f64::INFINITY, NONE, f64::INFINITY, NONE);
-                for (c, cost) in self.columns(i) {
+                for (c, cost) in self.columns(adj, i) {
                     let h = cost - self.v[c];
                     if h < u2 {
                         if h >= u1 {
@@ -236,60 +239,111 @@ impl Solver {
             }
         }
         self.pending = free;
-        self.set_row_duals();
+        self.set_row_duals(adj);
     }
 
     /// u[r] from row r's column (its reduced cost there 0), or, for a free row, from its
     /// cheapest column (its reduced costs all >= 0).
-    fn set_row_duals(&mut self) {
+    fn set_row_duals(&mut self, adj: &[Edge]) {
         for r in 0..self.u.len() {
             let c = self.col_of[r];
-            if self.start[r] == self.start[r + 1] && c == NONE {
+            if self.span[r].0 == self.span[r].1 && c == NONE {
                 continue;
             }
             self.u[r] = if c != NONE {
-                self.columns(r)
+                self.columns(adj, r)
                     .find(|&(col, _)| col == c)
                     .map_or(0.0, |(_, cost)| cost - self.v[c])
             } else {
-                self.columns(r)
+                self.columns(adj, r)
                     .map(|(col, cost)| cost - self.v[col])
                     .fold(f64::INFINITY, f64::min)
             };
         }
     }
 
-    /// Among the matchings of largest size over the edges `(row, column, cost)` (non-negative
-    /// costs) that `edges` yields, one of least total cost, as (row, column) pairs in row order.
+    /// Among the matchings of largest size over `edges` (finite non-negative costs; rows their
+    /// `a` and columns their `b`, or the other way round when `transpose`), one of least total
+    /// cost, as (row, column) pairs in row order.
     /// `self.unmatched[r]` must hold, for every row, more than what any set of real edges of
-    /// row r's component can cost (see [`super::assign`]). `edges` is called twice and must
-    /// yield the same edges both times.
-    pub(super) fn solve<I>(
+    /// row r's component can cost (see [`super::assign`]).
+    pub(super) fn solve(
         &mut self,
         n_rows: usize,
         n_cols: usize,
-        edges: impl Fn() -> I,
-    ) -> Vec<(usize, usize)>
-    where
-        I: Iterator<Item = (usize, usize, f64)>,
-    {
+        edges: &[Edge],
+        transpose: bool,
+    ) -> Vec<(usize, usize)> {
         debug_assert_eq!(self.unmatched.len(), n_rows);
+        let mut own = std::mem::take(&mut self.own);
+        let adj = if !transpose && self.spans_in_place(n_rows, edges) {
+            edges
+        } else {
+            self.group_by_row(n_rows, edges, transpose, &mut own);
+            &own
+        };
+        let pairs = self.solve_grouped(n_rows, n_cols, adj);
+        trim(&mut own);
+        self.own = own;
+        pairs
+    }
+
+    /// Row spans over `edges` themselves when each row's edges are adjacent (as the eligible
+    /// pairs come, one detection of `a` after another); false otherwise.
+    fn spans_in_place(&mut self, n_rows: usize, edges: &[Edge]) -> bool {
+        reset(&mut self.span, n_rows, (0, 0));
+        let Ok(n) = u32::try_from(edges.len()) else {
+            return false;
+        };
+        let mut k = 0;
+        while k < n {
+            let r = edges[k as usize].ia();
+            let lo = k;
+            while k < n && edges[k as usize].ia() == r {
+                k += 1;
+            }
+            // a row seen before in another run: not grouped
+            if self.span[r] != (0, 0) {
+                return false;
+            }
+            self.span[r] = (lo, k);
+        }
+        true
+    }
+
+    /// `edges` grouped by row into `own` (a counting sort), with their spans; when
+    /// `transpose`, each edge's `a` and `b` swapped first.
+    fn group_by_row(&mut self, n_rows: usize, edges: &[Edge], transpose: bool, own: &mut Vec<Edge>) {
+        let n = u32::try_from(edges.len()).expect("fewer than 2^32 edges");
+        let flip = |e: &Edge| {
+            if transpose {
+                Edge { a: e.b, b: e.a, cost: e.cost }
+            } else {
+                *e
+            }
+        };
+        reset(&mut self.span, n_rows, (0, 0));
+        for e in edges {
+            self.span[flip(e).ia()].1 += 1;
+        }
+        let mut at = 0;
+        for s in &mut self.span {
+            let count = s.1;
+            *s = (at, at);
+            at += count;
+        }
+        debug_assert_eq!(at, n);
+        reset(own, edges.len(), Edge { a: 0, b: 0, cost: 0.0 });
+        for e in edges.iter().map(flip) {
+            let s = &mut self.span[e.ia()];
+            own[s.1 as usize] = e;
+            s.1 += 1;
+        }
+    }
+
+    /// [`Solver::solve`] over edges grouped by row, `adj[span[r].0..span[r].1]` for row r.
+    fn solve_grouped(&mut self, n_rows: usize, n_cols: usize, adj: &[Edge]) -> Vec<(usize, usize)> {
         self.n_cols = n_cols;
-        reset(&mut self.start, n_rows + 1, 0);
-        let mut n_edges = 0;
-        for (r, _, _) in edges() {
-            self.start[r + 1] += 1;
-            n_edges += 1;
-        }
-        for r in 0..n_rows {
-            self.start[r + 1] += self.start[r];
-        }
-        self.fill.clone_from(&self.start);
-        reset(&mut self.adj, n_edges, (0, 0.0));
-        for (r, c, cost) in edges() {
-            self.adj[self.fill[r]] = (c, cost);
-            self.fill[r] += 1;
-        }
         let all = n_cols + n_rows;
         reset(&mut self.u, n_rows, 0.0);
         reset(&mut self.v, all, 0.0);
@@ -307,14 +361,15 @@ impl Solver {
         // whose cheapest column is still free takes it at once (a tight edge). Most rows of a
         // sparse scene are placed here; the others by a path search.
         for r in 0..n_rows {
-            let edges = &self.adj[self.start[r]..self.start[r + 1]];
+            let (lo, hi) = self.span[r];
             // A row without edges stays unmatched; nothing else can reach its own column.
-            let Some(&(c, cost)) = edges
+            let Some(e) = adj[lo as usize..hi as usize]
                 .iter()
-                .min_by(|x, y| x.1.total_cmp(&y.1).then(x.0.cmp(&y.0)))
+                .min_by(|x, y| x.cost.total_cmp(&y.cost).then(x.b.cmp(&y.b)))
             else {
                 continue;
             };
+            let (c, cost) = (e.ib(), e.cost);
             self.u[r] = cost;
             if self.row_of[c] == NONE {
                 self.row_of[c] = r;
@@ -324,14 +379,13 @@ impl Solver {
             }
         }
         if !self.pending.is_empty() {
-            self.reduce_free_rows();
+            self.reduce_free_rows(adj);
         }
         let pending = std::mem::take(&mut self.pending);
         for &r in &pending {
-            self.augment(r);
+            self.augment(adj, r);
         }
         self.pending = pending;
-        trim(&mut self.adj);
         (0..n_rows)
             .filter(|&r| self.col_of[r] < n_cols)
             .map(|r| (r, self.col_of[r]))

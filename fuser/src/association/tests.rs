@@ -173,6 +173,37 @@ fn assignment_prefers_more_matches_and_keeps_components_apart() {
 }
 
 #[test]
+fn a_component_beyond_the_limit_is_matched_greedily_and_the_others_exactly() {
+    // Component 1: a0, a1 x b0, b1 (4 possible pairs). Greedy takes (0, 0) at 0.1 and is left
+    // with (1, 1) at 0.9 (total 1.0); the optimum is (0, 1) + (1, 0) at 0.3 + 0.3.
+    // Component 2: a2 x b2, b3 (2 pairs), the same trap one row smaller.
+    let edges = [
+        e(0, 0, 0.1),
+        e(0, 1, 0.3),
+        e(1, 0, 0.3),
+        e(1, 1, 0.9),
+        e(2, 2, 0.2),
+        e(2, 3, 0.4),
+    ];
+    let mut kept = Kept::default();
+    // limit 3: only component 1 (2 x 2 = 4 pairs) is beyond it
+    assert_eq!(
+        assign_with(&mut kept, 3, 4, &edges, 3),
+        vec![(0, 0), (1, 1), (2, 2)]
+    );
+    // limit 1: both are greedy; component 2 is the same either way
+    assert_eq!(
+        assign_with(&mut kept, 3, 4, &edges, 1),
+        vec![(0, 0), (1, 1), (2, 2)]
+    );
+    // within the limit, or as one whole: exact
+    let exact = vec![(0, 1), (1, 0), (2, 2)];
+    assert_eq!(assign_with(&mut kept, 3, 4, &edges, 4), exact);
+    assert_eq!(assign_with(&mut kept, 3, 4, &edges, 12), exact);
+    assert_eq!(assign(3, 4, &edges), exact);
+}
+
+#[test]
 fn associate_matches_noisy_copies() {
     let a: Vec<Detection> = (0..20)
         .map(|i| {
@@ -352,9 +383,10 @@ proptest! {
         nc in 1usize..60,
         density in 0.01f64..1.0,
         coarse in any::<bool>(),
+        shuffled in any::<bool>(),
         seed in any::<u64>(),
     ) {
-        use rand::{Rng, SeedableRng};
+        use rand::{seq::SliceRandom, Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let mut edges = Vec::new();
         for a in 0..nr {
@@ -366,11 +398,24 @@ proptest! {
                 }
             }
         }
+        // edges in any order, not only grouped by a as the eligible pairs come
+        if shuffled {
+            edges.shuffle(&mut rng);
+        }
         let sparse = assign(nr, nc, &edges);
         let dense = assign_dense(nr, nc, &edges);
         prop_assert_eq!(sparse.len(), dense.len());
         let (ts, td) = (total(&edges, &sparse), total(&edges, &dense));
         prop_assert!((ts - td).abs() < 1e-9, "sparse {} vs dense {}", ts, td);
+        // Past the limit on the whole (components built, each row its own unmatched cost) the
+        // optimum is the same while no component is beyond the limit.
+        let mut kept = Kept::default();
+        let split = assign_with(&mut kept, nr, nc, &edges, nr * nc - 1);
+        if !kept.components.any_piled() {
+            prop_assert_eq!(split.len(), dense.len());
+            let tc = total(&edges, &split);
+            prop_assert!((tc - td).abs() < 1e-9, "components {} vs dense {}", tc, td);
+        }
         let mut rows: Vec<_> = sparse.iter().map(|p| p.0).collect();
         let mut cols: Vec<_> = sparse.iter().map(|p| p.1).collect();
         rows.dedup(); cols.sort(); cols.dedup();
