@@ -201,8 +201,7 @@ impl Solver {
                 let i = free[k];
                 k += 1;
                 let (mut u1, mut j1, mut u2, mut j2) = (f64::INFINITY, NONE, f64::INFINITY, NONE);
-                for (c, cost) in self.columns(adj, i) {
-                    let h = cost - self.v[c];
+                let mut consider = |c: usize, h: f64| {
                     if h < u2 {
                         if h >= u1 {
                             (u2, j2) = (h, c);
@@ -210,7 +209,14 @@ impl Solver {
                             (u2, j2, u1, j1) = (u1, j1, h, c);
                         }
                     }
+                };
+                // its edges, then its own column, as `columns` yields them
+                let (lo, hi) = self.span[i];
+                for e in &adj[lo as usize..hi as usize] {
+                    consider(e.ib(), e.cost - self.v[e.ib()]);
                 }
+                let own = self.n_cols + i;
+                consider(own, self.unmatched[i] - self.v[own]);
                 let mut owner = self.row_of[j1];
                 if u1 < u2 {
                     self.v[j1] -= u2 - u1;
@@ -349,14 +355,7 @@ impl Solver {
         reset(&mut self.v, all, 0.0);
         reset(&mut self.row_of, all, NONE);
         reset(&mut self.col_of, n_rows, NONE);
-        reset(&mut self.dist, all, f64::INFINITY);
-        reset(&mut self.prev, all, NONE);
-        reset(&mut self.done, all, false);
-        reset(&mut self.row_dist, n_rows, 0.0);
-        self.touched_cols.clear();
-        self.touched_rows.clear();
         self.pending.clear();
-        self.heap.clear();
         // Row reduction: u[r] = the row's cheapest edge, so every reduced cost is >= 0; a row
         // whose cheapest column is still free takes it at once (a tight edge). Most rows of a
         // sparse scene are placed here; the others by a path search.
@@ -382,6 +381,16 @@ impl Solver {
             self.reduce_free_rows(adj);
         }
         let pending = std::mem::take(&mut self.pending);
+        if !pending.is_empty() {
+            // The path searches' state, set up only when some row needs one.
+            reset(&mut self.dist, all, f64::INFINITY);
+            reset(&mut self.prev, all, NONE);
+            reset(&mut self.done, all, false);
+            reset(&mut self.row_dist, n_rows, 0.0);
+            self.touched_cols.clear();
+            self.touched_rows.clear();
+            self.heap.clear();
+        }
         for &r in &pending {
             self.augment(adj, r);
         }
