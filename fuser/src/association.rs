@@ -316,6 +316,7 @@ struct Prepared {
 
 impl Prepared {
     fn of(p: &CsbaParams, d: &Detection) -> Self {
+        let volume = volume_with_std(d);
         Prepared {
             class: d.class,
             center: d.center,
@@ -330,10 +331,10 @@ impl Prepared {
             },
             var: d.pos_cov.is_none().then(|| d.std.pos.map(|s| s.powi(2))),
             pos_std: position_std(d),
-            volume: volume_with_std(d),
+            volume,
             ln_volume: match p.dimension {
                 Dimension::LogRatio => {
-                    let (v, sv) = volume_with_std(d);
+                    let (v, sv) = volume;
                     (v.ln(), (sv / v).powi(2))
                 }
                 Dimension::Paper | Dimension::Axes => (0.0, 0.0),
@@ -648,7 +649,11 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
     // b's largest x and y variances and position std, in one pass.
     let (max_var_x_b, max_var_y_b, max_std_b) = b.iter().fold((0.0, 0.0, 0.0), |(x, y, s), d| {
         let c = d.position_covariance();
-        (f64::max(x, c[0][0]), f64::max(y, c[1][1]), f64::max(s, position_std(d)))
+        (
+            f64::max(x, c[0][0]),
+            f64::max(y, c[1][1]),
+            f64::max(s, position_std(d)),
+        )
     });
     // Per a: the largest |dx| and |dy| an eligible partner can have.
     let reach = |da: &Detection| {
@@ -703,6 +708,8 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
 
 /// Minimum-cost assignment restricted to the given eligible edges: among the matchings of
 /// largest size, the one of least total cost. Returns the matched (a, b) pairs sorted by a.
+/// Every edge must have `a < n_a` and `b < n_b` (a panic otherwise, as for an index out of
+/// bounds).
 /// Edges without a finite cost are ignored. Solved exactly over the edges alone
 /// (`association/sparse.rs`); a component of more than
 /// [`MAX_EXACT_CELLS`] possible pairs is matched greedily by cost.

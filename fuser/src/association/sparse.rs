@@ -319,11 +319,21 @@ impl Solver {
 
     /// `edges` grouped by row into `own` (a counting sort), with their spans; when
     /// `transpose`, each edge's `a` and `b` swapped first.
-    fn group_by_row(&mut self, n_rows: usize, edges: &[Edge], transpose: bool, own: &mut Vec<Edge>) {
+    fn group_by_row(
+        &mut self,
+        n_rows: usize,
+        edges: &[Edge],
+        transpose: bool,
+        own: &mut Vec<Edge>,
+    ) {
         let n = u32::try_from(edges.len()).expect("fewer than 2^32 edges");
         let flip = |e: &Edge| {
             if transpose {
-                Edge { a: e.b, b: e.a, cost: e.cost }
+                Edge {
+                    a: e.b,
+                    b: e.a,
+                    cost: e.cost,
+                }
             } else {
                 *e
             }
@@ -339,7 +349,15 @@ impl Solver {
             at += count;
         }
         debug_assert_eq!(at, n);
-        reset(own, edges.len(), Edge { a: 0, b: 0, cost: 0.0 });
+        reset(
+            own,
+            edges.len(),
+            Edge {
+                a: 0,
+                b: 0,
+                cost: 0.0,
+            },
+        );
         for e in edges.iter().map(flip) {
             let s = &mut self.span[e.ia()];
             own[s.1 as usize] = e;
