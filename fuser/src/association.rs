@@ -757,20 +757,23 @@ fn assign_with(
     let transpose = n_a > n_b;
     let (n_rows, n_cols) = if transpose { (n_b, n_a) } else { (n_a, n_b) };
     solver.unmatched.clear();
-    // Leaving a row unmatched must cost more than any set of its component's real edges:
-    // (min(a's, b's) + 1) x (largest + 1) over the component does. When no component can be
-    // piled (n_a x n_b within the limit), the same bound over all edges does for every row, and
-    // the components are not needed at all.
+    // Leaving a row unmatched must cost more than what one more match can save: with m = min(a's,
+    // b's) of its component and costs in [-below, largest] (below, largest >= 0), a matching of
+    // k + 1 <= m pairs costs at most m largest + (m - 1) below more than one of k, so
+    // (m + 1) (largest + below + 1) will do. Costs may be negative (the tracker's
+    // log-likelihoods are). When no component can be piled (n_a x n_b within the limit), the
+    // same bound over all edges does for every row, and the components are not needed at all.
+    let below = edges.iter().map(|e| -e.cost).fold(0.0, f64::max);
     let any_piled = if n_a.saturating_mul(n_b) <= max_cells {
         let largest = edges.iter().map(|e| e.cost).fold(0.0, f64::max);
-        let unmatched = (n_rows as f64 + 1.0) * (largest + 1.0);
+        let unmatched = (n_rows as f64 + 1.0) * (largest + below + 1.0);
         solver.unmatched.resize(n_rows, unmatched);
         false
     } else {
         components.build(n_a, n_b, edges, max_cells);
         solver.unmatched.extend((0..n_rows).map(|r| {
             let x = components.of(if transpose { n_a + r } else { r });
-            (x.a.min(x.b) as f64 + 1.0) * (x.largest + 1.0)
+            (x.a.min(x.b) as f64 + 1.0) * (x.largest + below + 1.0)
         }));
         components.any_piled()
     };
@@ -818,9 +821,11 @@ fn solve_component(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
     cols.sort_unstable();
     cols.dedup();
     let (nr, nc) = (rows.len(), cols.len());
-    // (min(nr, nc) + 1) x (largest cost + 1) outweighs any set of present costs.
+    // (min(nr, nc) + 1) x (largest + below + 1) outweighs what one more present pair can save,
+    // costs lying in [-below, largest].
     let largest = comp.iter().map(|e| e.cost).fold(0.0, f64::max);
-    let absent = (nr.min(nc) + 1) as f64 * (largest + 1.0);
+    let below = comp.iter().map(|e| -e.cost).fold(0.0, f64::max);
+    let absent = (nr.min(nc) + 1) as f64 * (largest + below + 1.0);
     let mut m = vec![absent; nr * nc];
     for e in comp {
         // rows and cols hold every edge's ends, so both searches find them

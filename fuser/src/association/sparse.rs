@@ -268,7 +268,7 @@ impl Solver {
         }
     }
 
-    /// Among the matchings of largest size over `edges` (finite non-negative costs; rows their
+    /// Among the matchings of largest size over `edges` (finite costs, negative ones too; rows their
     /// `a` and columns their `b`, or the other way round when `transpose`), one of least total
     /// cost, as (row, column) pairs in row order.
     /// `self.unmatched[r]` must hold, for every row, more than what any set of real edges of

@@ -173,6 +173,21 @@ fn assignment_prefers_more_matches_and_keeps_components_apart() {
 }
 
 #[test]
+fn negative_costs_still_give_the_largest_matching() {
+    // a0-b0 alone saves 10; a0-b1 + a1-b0 save only 2 together, but match two pairs.
+    let edges = [e(0, 0, -10.0), e(0, 1, -1.0), e(1, 0, -1.0)];
+    assert_eq!(assign(2, 2, &edges), vec![(0, 1), (1, 0)]);
+    assert_eq!(assign_dense(2, 2, &edges), vec![(0, 1), (1, 0)]);
+    // beyond the exact limit on the whole (3 x 3 > 4), components built, none beyond it: the same
+    let with_other = [edges.as_slice(), &[e(2, 2, -0.5)]].concat();
+    let mut kept = Kept::default();
+    assert_eq!(
+        assign_with(&mut kept, 3, 3, &with_other, 4),
+        vec![(0, 1), (1, 0), (2, 2)]
+    );
+}
+
+#[test]
 fn a_component_beyond_the_limit_is_matched_greedily_and_the_others_exactly() {
     // Component 1: a0, a1 x b0, b1 (4 possible pairs). Greedy takes (0, 0) at 0.1 and is left
     // with (1, 1) at 0.9 (total 1.0); the optimum is (0, 1) + (1, 0) at 0.3 + 0.3.
@@ -384,6 +399,7 @@ proptest! {
         density in 0.01f64..1.0,
         coarse in any::<bool>(),
         shuffled in any::<bool>(),
+        negative in any::<bool>(),
         seed in any::<u64>(),
     ) {
         use rand::{seq::SliceRandom, Rng, SeedableRng};
@@ -394,7 +410,8 @@ proptest! {
                 if rng.gen::<f64>() < density {
                     // coarse costs make many ties
                     let c: f64 = if coarse { rng.gen_range(0..4) as f64 } else { rng.gen_range(0.0..5.0) };
-                    edges.push(e(a, b, c));
+                    // negative costs too, as the tracker's log-likelihoods can be
+                    edges.push(e(a, b, if negative { c - 3.0 } else { c }));
                 }
             }
         }
