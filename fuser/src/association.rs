@@ -508,6 +508,9 @@ struct Slot {
     index: usize,
 }
 
+/// Rows of cells per strip of the visiting order.
+const STRIP: usize = 8;
+
 /// Detections bucketed by class and by square cell over their bounding box (x, y), stored
 /// contiguously per bucket so a scan reads memory in order.
 struct Grid {
@@ -516,7 +519,7 @@ struct Grid {
     n: [usize; 2],
     /// Bucket (class c, column i, row j) holds `slots[start[k]..start[k + 1]]`,
     /// k = (c n_0 + i) n_1 + j: the rows of one column of one class are adjacent.
-    start: Vec<usize>,
+    start: Vec<u32>,
     slots: Vec<Slot>,
     /// Each slot's centre (x, y), apart so that a scan reads only what it tests.
     xy: Vec<[f64; 2]>,
@@ -529,6 +532,7 @@ impl Grid {
         if dets.is_empty() || !(min_cell.is_finite() && min_cell > 0.0) {
             return None;
         }
+        u32::try_from(dets.len()).expect("fewer than 2^32 boxes in a list");
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for d in dets {
             for k in 0..2 {
@@ -555,6 +559,7 @@ impl Grid {
             xy: vec![[0.0; 2]; dets.len()],
         };
         let keys: Vec<usize> = dets.iter().map(|d| grid.bucket(d)).collect();
+        // 32-bit offsets (checked above): half the bytes keep them in the cache on large scenes.
         for &k in &keys {
             grid.start[k + 1] += 1;
         }
@@ -571,8 +576,9 @@ impl Grid {
         );
         for (index, (d, &k)) in dets.iter().zip(&keys).enumerate() {
             let prep = Prepared::of(p, d);
-            grid.slots[fill[k]] = Slot { prep, index };
-            grid.xy[fill[k]] = [prep.center[0], prep.center[1]];
+            let at = fill[k] as usize;
+            grid.slots[at] = Slot { prep, index };
+            grid.xy[at] = [prep.center[0], prep.center[1]];
             fill[k] += 1;
         }
         Some(grid)
@@ -590,11 +596,16 @@ impl Grid {
     }
 
     /// The indices of `dets` ordered by cell (a counting sort), so that detections visited
-    /// one after the other scan the same cells.
+    /// one after the other scan the same cells. Cells go column by column within strips
+    /// [`STRIP`] rows high, so the cells a scan reads again a few detections later are still
+    /// in the cache however large the scene.
     fn visiting_order(&self, dets: &[Detection]) -> Vec<usize> {
-        let cell =
-            |d: &Detection| self.index(0, d.center[0]) * self.n[1] + self.index(1, d.center[1]);
-        let mut start = vec![0u32; self.n[0] * self.n[1] + 1];
+        let cell = |d: &Detection| {
+            let (i, j) = (self.index(0, d.center[0]), self.index(1, d.center[1]));
+            ((j / STRIP) * self.n[0] + i) * STRIP + j % STRIP
+        };
+        let strips = self.n[1].div_ceil(STRIP);
+        let mut start = vec![0u32; strips * self.n[0] * STRIP + 1];
         for d in dets {
             start[cell(d) + 1] += 1;
         }
@@ -623,7 +634,7 @@ impl Grid {
         let base = class.code() as usize * self.n[0];
         (lo[0]..=hi[0]).map(move |i| {
             let row = (base + i) * self.n[1];
-            self.start[row + lo[1]]..self.start[row + hi[1] + 1]
+            self.start[row + lo[1]] as usize..self.start[row + hi[1] + 1] as usize
         })
     }
 }
@@ -763,9 +774,10 @@ fn assign_with(
     // (m + 1) (largest + below + 1) will do. Costs may be negative (the tracker's
     // log-likelihoods are). When no component can be piled (n_a x n_b within the limit), the
     // same bound over all edges does for every row, and the components are not needed at all.
-    let below = edges.iter().map(|e| -e.cost).fold(0.0, f64::max);
+    let (below, largest) = edges.iter().fold((0.0, 0.0), |(b, l), e| {
+        (f64::max(b, -e.cost), f64::max(l, e.cost))
+    });
     let any_piled = if n_a.saturating_mul(n_b) <= max_cells {
-        let largest = edges.iter().map(|e| e.cost).fold(0.0, f64::max);
         let unmatched = (n_rows as f64 + 1.0) * (largest + below + 1.0);
         solver.unmatched.resize(n_rows, unmatched);
         false

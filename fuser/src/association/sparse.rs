@@ -17,6 +17,11 @@ use super::Edge;
 
 const NONE: usize = usize::MAX;
 
+/// Whether `e` comes before `best` as a row's cheapest edge: by cost, then by column.
+fn cheaper(e: &Edge, best: &Edge) -> bool {
+    e.cost.total_cmp(&best.cost).then(e.b.cmp(&best.b)).is_lt()
+}
+
 /// A column in the search queue, smallest distance first.
 #[derive(Copy, Clone, PartialEq)]
 struct Queued {
@@ -51,6 +56,9 @@ pub(super) struct Solver {
     span: Vec<(u32, u32)>,
     /// The edges grouped by row, when the caller's are not.
     own: Vec<Edge>,
+    /// Row r's cheapest edge as (cost, column), found with its span (meaningless when the
+    /// span is empty).
+    best: Vec<(f64, u32)>,
     /// Cost of leaving row r unmatched.
     pub(super) unmatched: Vec<f64>,
     u: Vec<f64>,
@@ -249,8 +257,12 @@ impl Solver {
     }
 
     /// u[r] from row r's column (its reduced cost there 0), or, for a free row, from its
-    /// cheapest column (its reduced costs all >= 0).
+    /// cheapest column (its reduced costs all >= 0). Only path searches read u: with no row
+    /// left for one, nothing is done.
     fn set_row_duals(&mut self, adj: &[Edge]) {
+        if self.pending.is_empty() {
+            return;
+        }
         for r in 0..self.u.len() {
             let c = self.col_of[r];
             if self.span[r].0 == self.span[r].1 && c == NONE {
@@ -286,6 +298,7 @@ impl Solver {
             edges
         } else {
             self.group_by_row(n_rows, edges, transpose, &mut own);
+            self.find_best(&own);
             &own
         };
         let pairs = self.solve_grouped(n_rows, n_cols, adj);
@@ -295,17 +308,25 @@ impl Solver {
     }
 
     /// Row spans over `edges` themselves when each row's edges are adjacent (as the eligible
-    /// pairs come, one detection of `a` after another); false otherwise.
+    /// pairs come, one detection of `a` after another), and each row's cheapest edge in the
+    /// same pass; false otherwise.
     fn spans_in_place(&mut self, n_rows: usize, edges: &[Edge]) -> bool {
         reset(&mut self.span, n_rows, (0, 0));
+        reset(&mut self.best, n_rows, (0.0, 0));
         let Ok(n) = u32::try_from(edges.len()) else {
             return false;
         };
         let mut k = 0;
         while k < n {
-            let r = edges[k as usize].ia();
-            let lo = k;
+            let first = &edges[k as usize];
+            let (r, lo) = (first.ia(), k);
+            let mut best = first;
+            k += 1;
             while k < n && edges[k as usize].ia() == r {
+                let e = &edges[k as usize];
+                if cheaper(e, best) {
+                    best = e;
+                }
                 k += 1;
             }
             // a row seen before in another run: not grouped
@@ -313,8 +334,20 @@ impl Solver {
                 return false;
             }
             self.span[r] = (lo, k);
+            self.best[r] = (best.cost, best.b);
         }
         true
+    }
+
+    /// Each row's cheapest edge over edges grouped by row.
+    fn find_best(&mut self, adj: &[Edge]) {
+        self.best.clear();
+        self.best.extend(self.span.iter().map(|&(lo, hi)| {
+            adj[lo as usize..hi as usize]
+                .iter()
+                .reduce(|best, e| if cheaper(e, best) { e } else { best })
+                .map_or((0.0, 0), |e| (e.cost, e.b))
+        }));
     }
 
     /// `edges` grouped by row into `own` (a counting sort), with their spans; when
@@ -378,15 +411,12 @@ impl Solver {
         // whose cheapest column is still free takes it at once (a tight edge). Most rows of a
         // sparse scene are placed here; the others by a path search.
         for r in 0..n_rows {
-            let (lo, hi) = self.span[r];
             // A row without edges stays unmatched; nothing else can reach its own column.
-            let Some(e) = adj[lo as usize..hi as usize]
-                .iter()
-                .min_by(|x, y| x.cost.total_cmp(&y.cost).then(x.b.cmp(&y.b)))
-            else {
+            if self.span[r].0 == self.span[r].1 {
                 continue;
-            };
-            let (c, cost) = (e.ib(), e.cost);
+            }
+            let (cost, c) = self.best[r];
+            let c = c as usize;
             self.u[r] = cost;
             if self.row_of[c] == NONE {
                 self.row_of[c] = r;
