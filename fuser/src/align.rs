@@ -85,7 +85,7 @@ impl Rigid {
         if let Some(p) = &mut d.pos_cov {
             // R P R^T on the horizontal block and the cross terms with z
             let r = [[c, -s], [s, c]];
-            let old = *p;
+            let old = **p;
             for i in 0..2 {
                 for j in 0..2 {
                     p[i][j] = (0..2)
@@ -460,7 +460,11 @@ mod tests {
     #[test]
     fn rotating_a_covariance_keeps_it_symmetric_and_turns_it() {
         let mut d = det(1.0, 0.0, Class::Car);
-        d.pos_cov = Some([[4.0, 0.0, 0.5], [0.0, 1.0, 0.0], [0.5, 0.0, 1.0]]);
+        d.pos_cov = Some(Box::new([
+            [4.0, 0.0, 0.5],
+            [0.0, 1.0, 0.0],
+            [0.5, 0.0, 1.0],
+        ]));
         let r = Rigid {
             from: [0.0; 2],
             to: [0.0; 2],

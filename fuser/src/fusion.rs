@@ -164,7 +164,7 @@ fn finish(
             size: size_std,
             yaw: yaw_var.sqrt(),
         },
-        pos_cov: full,
+        pos_cov: full.map(Box::new),
         velocity,
         id: members[best].id,
     }
@@ -325,7 +325,11 @@ mod tests {
         // eta = inv(b) (3,0,0) = (2, -1, 0); z = P eta = (10/8 - 1/8, 2/8 - 5/8, 0) = (9/8, -3/8, 0)
         let a = det([0.0; 3], 0.0, 1.0, 0.1, 1);
         let mut b = det([3.0, 0.0, 0.0], 0.0, 1.0, 0.1, 2);
-        b.pos_cov = Some([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 1.0]]);
+        b.pos_cov = Some(Box::new([
+            [2.0, 1.0, 0.0],
+            [1.0, 2.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]));
         let f = fuse_group(&[&a, &b]);
         assert!((f.center[0] - 9.0 / 8.0).abs() < 1e-12);
         assert!((f.center[1] + 3.0 / 8.0).abs() < 1e-12);

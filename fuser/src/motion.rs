@@ -177,7 +177,11 @@ mod tests {
         // (15 x 0.1)^2 / 3 = 0.75
         assert!((q.std.pos[0].powi(2) - (0.25 + 0.75)).abs() < 1e-12);
         // a full covariance grows on its diagonal
-        d.pos_cov = Some([[0.25, 0.1, 0.0], [0.1, 0.25, 0.0], [0.0, 0.0, 0.25]]);
+        d.pos_cov = Some(Box::new([
+            [0.25, 0.1, 0.0],
+            [0.1, 0.25, 0.0],
+            [0.0, 0.0, 0.25],
+        ]));
         let q = predict(&d, 0.1, &MotionParams::default());
         let c = q.pos_cov.unwrap();
         assert!((c[0][0] - 1.0).abs() < 1e-12 && c[0][1] == 0.1 && c[2][2] == 0.25);

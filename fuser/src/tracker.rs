@@ -429,7 +429,7 @@ fn estimate(t: &Track) -> Detection {
             size: t.size.map(|s| s.1.sqrt()),
             yaw: t.yaw.1.sqrt(),
         },
-        pos_cov: Some(pos_cov),
+        pos_cov: Some(Box::new(pos_cov)),
         velocity: Some(Velocity {
             v: [t.x[2], t.x[3]],
             std: [p[(2, 2)].sqrt(), p[(3, 3)].sqrt()],

@@ -50,7 +50,7 @@ pub fn results_round_trip(data: &[u8]) {
         assert_eq!(d1.len(), d2.len());
         for (a, b) in d1.iter().zip(d2) {
             assert_eq!((a.class, a.center, a.size), (b.class, b.center, b.size));
-            assert_eq!((a.score, a.std, a.pos_cov), (b.score, b.std, b.pos_cov));
+            assert_eq!((a.score, a.std, &a.pos_cov), (b.score, b.std, &b.pos_cov));
             assert!(
                 wrap_angle(a.yaw - b.yaw).abs() < 1e-9,
                 "{} {}",

@@ -419,7 +419,7 @@ fn parse_box(
         yaw: wrap_angle(quaternion_yaw(q)),
         score,
         std,
-        pos_cov,
+        pos_cov: pos_cov.map(Box::new),
         velocity,
         id,
     })
@@ -487,7 +487,7 @@ pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
         "yaw_std": d.std.yaw,
     });
     let m = b.as_object_mut().expect("built as an object");
-    if let Some(c) = d.pos_cov {
+    if let Some(c) = d.pos_cov.as_deref() {
         m.insert("translation_cov".into(), json!(c.concat()));
     }
     if let Some(v) = d.velocity {
@@ -804,7 +804,11 @@ mod tests {
         let r = parse_results(p(), &text, &mut TokenTable::new(), MissingStd::Error).unwrap();
         assert_eq!(
             r.samples["s1"][0].pos_cov,
-            Some([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 1.0]])
+            Some(Box::new([
+                [2.0, 1.0, 0.0],
+                [1.0, 2.0, 0.0],
+                [0.0, 0.0, 1.0]
+            ]))
         );
     }
 

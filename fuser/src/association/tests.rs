@@ -69,7 +69,11 @@ fn centre_score_hand_computed() {
 fn mahalanobis_with_full_covariance() {
     // Sa + Sb = [[2, 1, 0], [1, 2, 0], [0, 0, 2]], dp = (1, 1, 0): inv applied gives 2/3
     let mut a = det([1.0, 1.0, 0.0], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
-    a.pos_cov = Some([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    a.pos_cov = Some(Box::new([
+        [1.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ]));
     let b = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 1.0, 0.1, 0.1);
     close(mahalanobis(&a, &b), (2.0f64 / 3.0).sqrt());
 }
