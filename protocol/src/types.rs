@@ -453,6 +453,13 @@ impl Frame {
 mod tests {
     use super::*;
 
+    /// Fusion of large scenes is bound by memory traffic: a detection must not grow unnoticed.
+    #[test]
+    #[cfg(target_pointer_width = "64")]
+    fn a_detection_takes_176_bytes() {
+        assert_eq!(std::mem::size_of::<Detection>(), 176);
+    }
+
     #[test]
     fn wrap_angle_is_half_open() {
         assert_eq!(wrap_angle(PI), PI);
