@@ -7,7 +7,8 @@
 //! 2. **cost** of a (track, box) pair of the same class: the innovation y = z - H x with
 //!    S = H P H^T + R (R the box's own covariance; H measures the centre, and the velocity too
 //!    when the box has one) gives d^2 = y^T S^-1 y and the cost d^2 + ln det S, twice the
-//!    negative log-likelihood; pairs beyond the chi-square gate are not eligible;
+//!    negative log-likelihood; pairs beyond the chi-square gate are not eligible (with
+//!    `by_id`, a simulation's bound, a box's only pair is the track its ground-truth id had);
 //! 3. **assign** with the association's exact solver (`association::assign`);
 //! 4. **update** matched tracks with the Kalman gain (Joseph form); size by WLS against the box,
 //!    yaw as WLS-3D fuses it (period pi for barriers, a heading turned by pi beyond 4 stds taken
@@ -22,7 +23,7 @@
 use crate::association::{assign, Edge};
 use crate::fusion::FLIP_SIGMAS;
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
-use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity};
+use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 
 /// Parameters of the tracker.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -52,6 +53,10 @@ pub struct TrackerParams {
     /// Seconds of motion per second of window time: the replay speed when agents replay
     /// recorded data faster than real time on the wall clock (1 live).
     pub time_scale: f64,
+    /// Simulation only: a box goes to the track of its ground-truth id (`Detection::id`;
+    /// `NO_ID` never matching) instead of the likeliest track, ungated. The bound any
+    /// association can reach with this filter (`bench --tracking`, row `gt-wls tracked by id`).
+    pub by_id: bool,
 }
 
 impl Default for TrackerParams {
@@ -66,6 +71,7 @@ impl Default for TrackerParams {
             init_velocity_std: 10.0,
             yaw_rate_std: 0.5,
             time_scale: 1.0,
+            by_id: false,
         }
     }
 }
@@ -170,29 +176,11 @@ impl Tracker {
             predict(t, dt, &self.params);
         }
         // 2. cost of every eligible pair, 3. assignment
-        let mut edges = Vec::new();
-        let var: Vec<[f64; 2]> = boxes
-            .iter()
-            .map(|b| {
-                let c = b.position_covariance();
-                [c[0][0], c[1][1]]
-            })
-            .collect();
-        for (i, t) in self.tracks.iter().enumerate() {
-            for (j, b) in boxes.iter().enumerate() {
-                if b.class != t.class || !may_pass(t, b, var[j], self.params.gate) {
-                    continue;
-                }
-                let (y, s, _) = innovation(t, b);
-                let Some(s_inv) = s.clone().try_inverse() else {
-                    continue;
-                };
-                let d2 = (y.transpose() * &s_inv * &y)[0];
-                if d2 <= self.params.gate {
-                    edges.push(Edge::new(i, j, d2 + s.determinant().max(1e-300).ln()));
-                }
-            }
-        }
+        let edges = if self.params.by_id {
+            by_id_edges(&self.tracks, boxes)
+        } else {
+            self.likelihood_edges(boxes)
+        };
         let pairs = assign(self.tracks.len(), boxes.len(), &edges);
         // 4. update
         let mut hit = vec![false; self.tracks.len()];
@@ -260,6 +248,47 @@ impl Tracker {
         }
         out
     }
+
+    /// Step 2: every (track, box) pair of the same class inside the gate, costed d^2 + ln det S.
+    fn likelihood_edges(&self, boxes: &[Detection]) -> Vec<Edge> {
+        let mut edges = Vec::new();
+        let var: Vec<[f64; 2]> = boxes
+            .iter()
+            .map(|b| {
+                let c = b.position_covariance();
+                [c[0][0], c[1][1]]
+            })
+            .collect();
+        for (i, t) in self.tracks.iter().enumerate() {
+            for (j, b) in boxes.iter().enumerate() {
+                if b.class != t.class || !may_pass(t, b, var[j], self.params.gate) {
+                    continue;
+                }
+                let (y, s, _) = innovation(t, b);
+                let Some(s_inv) = s.clone().try_inverse() else {
+                    continue;
+                };
+                let d2 = (y.transpose() * &s_inv * &y)[0];
+                if d2 <= self.params.gate {
+                    edges.push(Edge::new(i, j, d2 + s.determinant().max(1e-300).ln()));
+                }
+            }
+        }
+        edges
+    }
+}
+
+/// Step 2 by ground truth: each box's track is the one whose last box had its id.
+fn by_id_edges(tracks: &[Track], boxes: &[Detection]) -> Vec<Edge> {
+    let mut edges = Vec::new();
+    for (i, t) in tracks.iter().enumerate() {
+        for (j, b) in boxes.iter().enumerate() {
+            if b.id != NO_ID && b.id == t.truth && b.class == t.class {
+                edges.push(Edge::new(i, j, 0.0));
+            }
+        }
+    }
+    edges
 }
 
 /// A tentative track from a box.

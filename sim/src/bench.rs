@@ -265,7 +265,8 @@ pub fn run_detection(
 pub struct TrackingRow {
     /// The noise setting.
     pub noise: String,
-    /// `agentN tracked`, `METHOD` (single-frame) or `METHOD tracked`.
+    /// `agentN tracked`, `METHOD` (single-frame), `METHOD tracked`, or `gt-wls tracked by id`
+    /// (the true groups tracked by the true ids: the bound of the tracker's association).
     pub method: String,
     /// The id-matched figures of the boxes (the paper's protocol).
     #[serde(flatten)]
@@ -274,8 +275,9 @@ pub struct TrackingRow {
     pub tracking: Option<TrackingMetrics>,
 }
 
-/// The tracking table: under each setting, each single agent tracked, and each method single-frame
-/// and tracked ([`v2x_fuser::tracker`] over the fused boxes of each scene in time order).
+/// The tracking table: under each setting, each single agent tracked, each method single-frame
+/// and tracked ([`v2x_fuser::tracker`] over the fused boxes of each scene in time order), and
+/// with gt-wls its boxes tracked by their true ids.
 pub fn run_tracking(
     gt: &GroundTruth,
     cfg: &BenchConfig,
@@ -285,8 +287,10 @@ pub fn run_tracking(
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
         let n_methods = cfg.methods.len();
-        // slots: agents tracked, then per method (single-frame, tracked)
-        let slots = n_agents + 2 * n_methods;
+        // slots: agents tracked, then per method (single-frame, tracked), then gt-wls tracked
+        // by id when gt-wls is a method
+        let gt_wls = cfg.methods.iter().position(|m| *m == Method::GtWls);
+        let slots = n_agents + 2 * n_methods + usize::from(gt_wls.is_some());
         let (accs, evals) = scenes(gt)
             .into_par_iter()
             .fold(
@@ -298,6 +302,13 @@ pub fn run_tracking(
                 },
                 |(mut accs, mut evals), frames| {
                     let mut trackers = vec![Tracker::new(params); slots];
+                    if gt_wls.is_some() {
+                        let by_id = TrackerParams {
+                            by_id: true,
+                            ..params
+                        };
+                        trackers[slots - 1] = Tracker::new(by_id);
+                    }
                     let scene = gt.frames[frames[0]].scene;
                     for i in frames {
                         let f = &gt.frames[i];
@@ -324,6 +335,9 @@ pub fn run_tracking(
                             cfg.methods.iter().map(|m| m.fuse(&dets)).collect();
                         for (m, fused) in fused.iter().enumerate() {
                             tracked(n_agents + 2 * m + 1, fused);
+                        }
+                        if let Some(m) = gt_wls {
+                            tracked(slots - 1, &fused[m]);
                         }
                         for (m, fused) in fused.iter().enumerate() {
                             accs[n_agents + 2 * m].add_frame(&f.objects, fused);
@@ -355,7 +369,8 @@ pub fn run_tracking(
                 cfg.methods
                     .iter()
                     .flat_map(|m| [(m.name(), false), (format!("{m} tracked"), true)]),
-            );
+            )
+            .chain(gt_wls.map(|_| ("gt-wls tracked by id".to_string(), true)));
         for ((method, is_tracked), (acc, eval)) in names.zip(accs.iter().zip(evals)) {
             rows.push(TrackingRow {
                 noise: setting.name.clone(),
@@ -586,5 +601,42 @@ mod tests {
         );
         assert!(b < 0.7 * a, "tracked {b} single-frame {a}");
         assert!(tracking_table(&rows).contains("| moderate | csba-wls+ tracked |"));
+    }
+
+    #[test]
+    fn tracking_by_true_id_bounds_the_trackers_association() {
+        let gt = generate(&TownConfig {
+            scenes: 2,
+            seconds: 6.0,
+            hz: 10.0,
+            seed: 2,
+        });
+        let cfg = BenchConfig {
+            methods: vec!["gt-wls".parse().unwrap()],
+            settings: vec![NoiseSetting::parse("large", 2).unwrap()],
+            seed: 3,
+            range: None,
+        };
+        let rows = run_tracking(&gt, &cfg, TrackerParams::default());
+        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "agent1 tracked",
+                "agent2 tracked",
+                "gt-wls",
+                "gt-wls tracked",
+                "gt-wls tracked by id"
+            ]
+        );
+        let (tracked, by_id) = (&rows[3], &rows[4]);
+        let (a, b) = (tracked.metrics.m_ate.unwrap(), by_id.metrics.m_ate.unwrap());
+        // The same boxes, each given to its own object's track: a smaller error.
+        assert!(b < 0.9 * a, "by id {b}, by likelihood {a}");
+        let (ta, tb) = (
+            tracked.tracking.as_ref().unwrap(),
+            by_id.tracking.as_ref().unwrap(),
+        );
+        assert!(tb.mota >= ta.mota, "{tb:?} {ta:?}");
     }
 }

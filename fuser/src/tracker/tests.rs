@@ -2,7 +2,6 @@ use super::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use v2x_protocol::NO_ID;
 
 const HZ10: u64 = 100_000;
 
@@ -216,4 +215,64 @@ fn a_faster_replay_is_tracked_in_data_time() {
         out = tr.step(k * HZ10 / 4, &[car(5.0 * t, 2.0 * t, 0.38)]);
     }
     assert!((out[0].det.velocity.unwrap().v[0] - 20.0).abs() < 0.2);
+}
+
+#[test]
+fn by_id_follows_the_true_ids_where_the_likelihood_follows_the_boxes() {
+    // Two parked cars 2 m apart, ids 1 and 2; at window 5 their boxes trade places, and at
+    // window 8 car 1's box lands 50 m away (far outside any gate).
+    let boxes = |k: u64| {
+        let (x1, x2) = match k {
+            0..=4 => (0.0, 2.0),
+            5..=7 => (2.0, 0.0),
+            _ => (50.0, 0.0),
+        };
+        let mut a = car(x1, 0.0, 0.0);
+        a.id = 1;
+        let mut b = car(x2, 0.0, 0.0);
+        b.id = 2;
+        [a, b]
+    };
+    let run = |by_id: bool| {
+        let mut tr = Tracker::new(TrackerParams {
+            by_id,
+            ..Default::default()
+        });
+        (0..10u64)
+            .map(|k| {
+                let mut out = tr.step(k * HZ10, &boxes(k));
+                out.sort_by_key(|t| t.det.id);
+                out.iter()
+                    .map(|t| (t.tracking_id, t.det.id))
+                    .collect::<Vec<_>>()
+            })
+            .collect::<Vec<_>>()
+    };
+    let ids = run(true);
+    // By id: one track per car from window 1 to the end, the jump included.
+    for out in &ids[1..] {
+        assert_eq!(out, &[(1, 1), (2, 2)]);
+    }
+    let near = run(false);
+    assert_eq!(near[4], [(1, 1), (2, 2)]);
+    // By likelihood the track at x = 0 takes car 2's box: the boxes' ids trade tracks.
+    assert_eq!(near[5], [(2, 1), (1, 2)]);
+    // and car 1's jump starts a new track (tentative, not shown) while track 2 coasts.
+    assert!(
+        near[8].iter().all(|&(track, _)| track <= 2),
+        "{:?}",
+        near[8]
+    );
+}
+
+#[test]
+fn by_id_never_matches_a_box_without_an_id() {
+    let mut tr = Tracker::new(TrackerParams {
+        by_id: true,
+        ..Default::default()
+    });
+    for k in 0..5u64 {
+        assert!(tr.step(k * HZ10, &[car(0.0, 0.0, 0.0)]).is_empty());
+    }
+    assert_eq!(tr.stats().births, 0);
 }
