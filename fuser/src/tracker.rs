@@ -8,7 +8,8 @@
 //!    S = H P H^T + R (R the box's own covariance; H measures the centre, and the velocity too
 //!    when the box has one) gives d^2 = y^T S^-1 y and the cost d^2 + ln det S, twice the
 //!    negative log-likelihood; pairs beyond the chi-square gate are not eligible (with
-//!    `by_id`, a simulation's bound, a box's only pair is the track its ground-truth id had);
+//!    `by_id`, a simulation's perfect association, a box's only pair is the track its
+//!    ground-truth id had);
 //! 3. **assign** with the association's exact solver (`association::assign`);
 //! 4. **update** matched tracks with the Kalman gain (Joseph form); size by WLS against the box,
 //!    yaw as WLS-3D fuses it (period pi for barriers, a heading turned by pi beyond 4 stds taken
@@ -54,8 +55,8 @@ pub struct TrackerParams {
     /// recorded data faster than real time on the wall clock (1 live).
     pub time_scale: f64,
     /// Simulation only: a box goes to the track of its ground-truth id (`Detection::id`;
-    /// `NO_ID` never matching) instead of the likeliest track, ungated. The bound any
-    /// association can reach with this filter (`bench --tracking`, row `gt-wls tracked by id`).
+    /// `NO_ID` never matching) instead of the likeliest track, ungated: what a perfect
+    /// association gives with this filter (`bench --tracking`, row `gt-wls tracked by id`).
     pub by_id: bool,
 }
 

@@ -266,7 +266,7 @@ pub struct TrackingRow {
     /// The noise setting.
     pub noise: String,
     /// `agentN tracked`, `METHOD` (single-frame), `METHOD tracked`, or `gt-wls tracked by id`
-    /// (the true groups tracked by the true ids: the bound of the tracker's association).
+    /// (the true groups tracked by the true ids: a perfect association of boxes to tracks).
     pub method: String,
     /// The id-matched figures of the boxes (the paper's protocol).
     #[serde(flatten)]
@@ -604,7 +604,7 @@ mod tests {
     }
 
     #[test]
-    fn tracking_by_true_id_bounds_the_trackers_association() {
+    fn tracking_by_true_id_beats_tracking_by_likelihood() {
         let gt = generate(&TownConfig {
             scenes: 2,
             seconds: 6.0,

@@ -140,8 +140,8 @@ enum Command {
         /// Instead of Table 2: single-frame fusion against tracking (`v2x-fuser track`) of the
         /// fused boxes and of each single agent, with MOTA, MOTP, IDS and FRAG, under each
         /// --noise setting; --methods defaults to csba-wls+ and gt-wls. With gt-wls, a row
-        /// `gt-wls tracked by id` gives each box to its true object's track: the bound of the
-        /// tracker's association.
+        /// `gt-wls tracked by id` gives each box to its true object's track: what a perfect
+        /// association of boxes to tracks gives.
         #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
         tracking: bool,
         /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
