@@ -255,6 +255,76 @@ fn associate_matches_noisy_copies() {
     }
 }
 
+/// A crowded scene: 40 cars in a 30 m square with 1.5 m position noise, so that most boxes
+/// have several eligible partners and the solve has conflicts to settle; b is a noisy copy of
+/// a in another order.
+fn crowded(seed: u64) -> (Vec<Detection>, Vec<Detection>) {
+    let mut state = seed;
+    let mut uniform = move || {
+        // xorshift64: a fixed sequence, no crate needed
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let a: Vec<Detection> = (0..40)
+        .map(|_| {
+            det(
+                [30.0 * uniform(), 30.0 * uniform(), 0.0],
+                [4.0 + uniform(), 2.0, 1.5],
+                uniform() * 6.0 - 3.0,
+                1.5,
+                0.5,
+                0.5,
+            )
+        })
+        .collect();
+    let b = a
+        .iter()
+        .rev()
+        .map(|d| {
+            let mut d = d.clone();
+            d.center[0] += 3.0 * (uniform() - 0.5);
+            d.center[1] += 3.0 * (uniform() - 0.5);
+            d.yaw = wrap_angle(d.yaw + uniform() - 0.5);
+            d
+        })
+        .collect();
+    (a, b)
+}
+
+#[test]
+fn copies_far_apart_associate_as_each_copy_alone() {
+    // Four copies of a crowded scene, 1 km apart, interleaved in both lists (copy k of box i
+    // at index 4 i + k): each copy's pairs are those of the scene alone.
+    const COPIES: usize = 4;
+    let (a, b) = crowded(7);
+    let copies = |list: &[Detection]| -> Vec<Detection> {
+        list.iter()
+            .flat_map(|d| {
+                (0..COPIES).map(move |k| {
+                    let mut d = d.clone();
+                    d.center[0] += 1000.0 * k as f64;
+                    d
+                })
+            })
+            .collect()
+    };
+    let (many_a, many_b) = (copies(&a), copies(&b));
+    for p in [CsbaParams::PAPER, CsbaParams::PLUS] {
+        let alone = associate(&p, &a, &b);
+        // crowded enough that the scene is no trivial one-to-one matching
+        assert!(eligible_pairs(&p, &a, &b).len() > 3 * a.len(), "{p:?}");
+        assert!(alone.len() >= 30, "{p:?}: {}", alone.len());
+        let mut expected: Vec<(usize, usize)> = alone
+            .iter()
+            .flat_map(|&(i, j)| (0..COPIES).map(move |k| (COPIES * i + k, COPIES * j + k)))
+            .collect();
+        expected.sort_unstable();
+        assert_eq!(associate(&p, &many_a, &many_b), expected, "{p:?}");
+    }
+}
+
 /// Brute force: among all matchings using allowed edges, the largest, then the cheapest.
 fn brute(nr: usize, nc: usize, m: &[Option<f64>]) -> (usize, f64) {
     fn rec(
