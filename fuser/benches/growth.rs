@@ -12,8 +12,8 @@
 //! Prints, per method and noise, the median time per step of each and their ratios to the
 //! 200-object step.
 //!
-//! Run: `cargo bench -p v2x-fuser --bench growth` (about two minutes); names filter what runs,
-//! a method's and a noise level's (`-- csba-wls+ large`).
+//! Run: `cargo bench -p v2x-fuser --bench growth` (a few seconds once built); names filter what
+//! runs, a method's and a noise level's (`-- csba-wls+ large`).
 
 use std::hint::black_box;
 use std::time::Instant;
