@@ -10,11 +10,15 @@
 //! instance (its boxes have more partners each, as fewer of them lie near the scene's rim).
 //!
 //! Prints, per method and noise, the median time per step of each and their ratios to the
-//! 200-object step.
+//! 200-object step; then this machine's time for a read at a random place in memory blocks of a
+//! few sizes, which is what a step's working set outgrowing a cache costs.
 //!
 //! Run: `cargo bench -p v2x-fuser --bench growth` (a few seconds once built); names filter what
 //! runs, a method's and a noise level's (`-- csba-wls+ large`).
 
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 use std::time::Instant;
 use v2x_fuser::association::eligible_pairs;
@@ -77,6 +81,27 @@ fn copies_apart(m: &Method, small: &[Vec<Detection>]) -> (Vec<Vec<Detection>>, f
         }
         step += 10.0;
     }
+}
+
+/// Nanoseconds per read when each read's place depends on the last one, over a random cycle
+/// through every 64-byte line of a block of `bytes`.
+fn random_read_ns(bytes: usize) -> f64 {
+    const LINE: usize = 64 / std::mem::size_of::<usize>();
+    let lines = bytes / 64;
+    let mut order: Vec<usize> = (0..lines).collect();
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(1));
+    let mut next = vec![0usize; lines * LINE];
+    for (k, &line) in order.iter().enumerate() {
+        next[line * LINE] = order[(k + 1) % lines] * LINE;
+    }
+    const READS: usize = 10_000_000;
+    let mut at = 0;
+    let t = Instant::now();
+    for _ in 0..READS {
+        at = next[at];
+    }
+    black_box(at);
+    t.elapsed().as_secs_f64() * 1e9 / READS as f64
 }
 
 fn main() {
@@ -155,4 +180,9 @@ fn main() {
          spacing {}",
         steps.join(", ")
     );
+    let reads: Vec<String> = [16, 64, 256, 1024, 4096]
+        .iter()
+        .map(|&kib| format!("{kib} KiB {:.1} ns", random_read_ns(kib << 10)))
+        .collect();
+    println!("random reads in a block of {}", reads.join(", "));
 }
