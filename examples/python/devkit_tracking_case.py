@@ -1,6 +1,7 @@
-"""Makes sim/tests/data/tracking_devkit_case.json: a random tracking case and the figures the
+"""Makes sim/tests/data/tracking_devkit_case.json: a random tracking case (each frame's objects in
+shuffled order), a crafted scene where two objects compete for one track, and the figures the
 nuScenes devkit's tracking evaluation gives for it (the Rust test sim/tests/tracking_devkit.rs
-checks v2x-sim's metrics against them).
+checks v2x-sim's metrics against them, every column).
 
     python -m venv venv && venv/bin/pip install nuscenes-devkit motmetrics pandas scikit-learn
     venv/bin/python examples/python/devkit_tracking_case.py sim/tests/data/tracking_devkit_case.json
@@ -69,9 +70,29 @@ def make_case(rng):
                     "xy": list(map(float, rng.uniform(-40, 40, 2))),
                     "score": float(rng.uniform(0.1, 0.7)),
                 })
+            rng.shuffle(gt)  # the devkit walks a frame's objects in file order, not by id
             frames.append({"t_us": t_us, "gt": gt, "boxes": boxes})
         scenes.append(frames)
+    scenes.append(competing_scene())
     return scenes
+
+
+def competing_scene():
+    """Two cars, B listed before A, that both last matched track T and are both near it: in
+    frame 2 as annotated, in frame 3 as filled in by interpolation (appended in the order the
+    tracks first appear). motmetrics keeps T for the object listed first."""
+    t0 = 1_000_000 * 300
+    a = lambda x: {"id": 1001, "class": "car", "xy": [x, 0.0]}
+    b = lambda x: {"id": 1002, "class": "car", "xy": [x, 0.0]}
+    hyp = lambda track, x: {"track": track, "class": "car", "xy": [x, 0.0], "score": 0.9}
+    frames = [
+        ([b(3.0), a(0.0)], [hyp("T", 0.1), hyp("U", 3.1)]),  # A-T, B-U
+        ([b(2.0), a(0.0)], [hyp("T", 2.2)]),  # T leaves A for B: a switch; last[A] = last[B] = T
+        ([b(1.5), a(0.5)], [hyp("T", 1.0), hyp("V", 0.4)]),  # both near T: B, listed first, keeps it
+        ([], [hyp("T", 1.2), hyp("V", 0.9)]),  # neither annotated: both filled in, B first
+        ([b(2.0), a(1.0)], [hyp("T", 2.1), hyp("V", 1.1)]),
+    ]
+    return [{"t_us": t0 + 500_000 * k, "gt": gt, "boxes": boxes} for k, (gt, boxes) in enumerate(frames)]
 
 
 def to_tracks(scenes, gt):
@@ -129,9 +150,8 @@ def evaluate(scenes):
                 value = float(np.nanmean(values))
             metrics.add_label_metric(name, class_name, value)
     out = {m: metrics.compute_metric(m) for m in ["amota", "amotp", "mota", "motp", "ids", "frag", "tp", "fp", "fn"]}
-    out["classes"] = {c: {"amota": metrics.label_metrics["amota"][c], "mota": metrics.label_metrics["mota"][c],
-                          "ids": metrics.label_metrics["ids"][c]} for c in cfg.class_names
-                      if not np.isnan(metrics.label_metrics["amota"][c])}
+    out["classes"] = {c: {m: metrics.label_metrics[m][c] for m in ["amota", "amotp", "mota", "motp", "ids", "frag"]}
+                      for c in cfg.class_names if not np.isnan(metrics.label_metrics["amota"][c])}
     return out
 
 

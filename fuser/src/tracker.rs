@@ -58,6 +58,9 @@ pub struct TrackerParams {
     /// `NO_ID` never matching) instead of the likeliest track, ungated: what a perfect
     /// association gives with this filter (`bench --tracking`, row `gt-wls tracked by id`).
     pub by_id: bool,
+    /// Also follow the classes the nuScenes tracking benchmark does not score (barrier, traffic
+    /// cone, construction vehicle); by default their boxes are passed over.
+    pub all_classes: bool,
 }
 
 impl Default for TrackerParams {
@@ -73,6 +76,7 @@ impl Default for TrackerParams {
             yaw_rate_std: 0.5,
             time_scale: 1.0,
             by_id: false,
+            all_classes: false,
         }
     }
 }
@@ -156,8 +160,21 @@ impl Tracker {
         self.last_us = None;
     }
 
-    /// Takes the fused boxes of the window at `t_us` and returns the confirmed tracks it updated.
+    /// Takes the fused boxes of the window at `t_us` (of the tracking classes only, unless
+    /// `all_classes`) and returns the confirmed tracks it updated.
     pub fn step(&mut self, t_us: u64, boxes: &[Detection]) -> Vec<Tracked> {
+        let boxes: std::borrow::Cow<[Detection]> =
+            if self.params.all_classes || boxes.iter().all(|b| b.class.is_tracking()) {
+                boxes.into()
+            } else {
+                boxes
+                    .iter()
+                    .filter(|b| b.class.is_tracking())
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .into()
+            };
+        let boxes = &*boxes;
         let scale = self.params.time_scale;
         let dt = match self.last_us {
             Some(last)

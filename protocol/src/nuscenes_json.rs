@@ -131,6 +131,62 @@ pub struct Results {
     pub meta: Value,
     /// Detections per sample token, in file order within a sample.
     pub samples: BTreeMap<String, Vec<Detection>>,
+    /// The sample tokens in the order the file lists them (empty for results made in memory).
+    pub order: Vec<String>,
+}
+
+impl Results {
+    /// Every sample with its detections, in the order the file lists them (the order in which
+    /// the nuScenes devkit meets them, which breaks ties in score), then any sample the order
+    /// does not name in token order.
+    pub fn in_file_order(&self) -> impl Iterator<Item = (&String, &Vec<Detection>)> {
+        let listed: std::collections::HashSet<&str> =
+            self.order.iter().map(String::as_str).collect();
+        self.order
+            .iter()
+            .filter_map(|k| self.samples.get_key_value(k))
+            .chain(
+                self.samples
+                    .iter()
+                    .filter(move |(k, _)| !listed.contains(k.as_str())),
+            )
+    }
+}
+
+/// The sample tokens of a results document's `results` object in the order the text lists them
+/// (a JSON object read into a map loses it).
+fn sample_order(text: &str) -> Vec<String> {
+    use serde::de::{Deserializer, IgnoredAny, MapAccess, Visitor};
+    struct Keys;
+    impl<'de> Visitor<'de> for Keys {
+        type Value = Vec<String>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("an object")
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Vec<String>, A::Error> {
+            let mut keys = Vec::new();
+            while let Some(k) = map.next_key::<String>()? {
+                map.next_value::<IgnoredAny>()?;
+                keys.push(k);
+            }
+            Ok(keys)
+        }
+    }
+    #[derive(serde::Deserialize)]
+    struct Doc {
+        #[serde(default, deserialize_with = "keys")]
+        results: Vec<String>,
+    }
+    fn keys<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
+        d.deserialize_map(Keys)
+    }
+    let mut seen = std::collections::HashSet::new();
+    serde_json::from_str::<Doc>(text)
+        .map(|d| d.results)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|k| seen.insert(k.clone()))
+        .collect()
 }
 
 /// How to fill in stds a box does not give.
@@ -267,7 +323,11 @@ pub fn parse_results(
         }
         samples.insert(token.clone(), dets);
     }
-    Ok(Results { meta, samples })
+    Ok(Results {
+        meta,
+        samples,
+        order: sample_order(text),
+    })
 }
 
 fn parse_box(
@@ -586,6 +646,19 @@ mod tests {
                 "translation_std": [0.5, 0.6, 0.7], "size_std": [0.1, 0.2, 0.3], "yaw_std": 0.05,
                 "instance_token": "abc"}],
         "s2": []}}"#;
+
+    #[test]
+    fn samples_keep_the_files_order() {
+        let text = r#"{"results": {"zz": [], "aa": [], "mm": []}}"#;
+        let r = parse_results(p(), text, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        let order: Vec<&str> = r.in_file_order().map(|(k, _)| k.as_str()).collect();
+        assert_eq!(order, ["zz", "aa", "mm"]);
+        // made in memory: token order
+        let mut made = r.clone();
+        made.order.clear();
+        let order: Vec<&str> = made.in_file_order().map(|(k, _)| k.as_str()).collect();
+        assert_eq!(order, ["aa", "mm", "zz"]);
+    }
 
     #[test]
     fn parses_conventions() {

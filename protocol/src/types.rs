@@ -46,6 +46,23 @@ impl Class {
         Class::Barrier,
     ];
 
+    /// The seven classes of the nuScenes tracking benchmark (`tracking_name`), alphabetically
+    /// as its devkit lists them: no construction vehicle, traffic cone or barrier.
+    pub const TRACKING: [Class; 7] = [
+        Class::Bicycle,
+        Class::Bus,
+        Class::Car,
+        Class::Motorcycle,
+        Class::Pedestrian,
+        Class::Trailer,
+        Class::Truck,
+    ];
+
+    /// Whether the nuScenes tracking benchmark scores this class (it is a `tracking_name`).
+    pub fn is_tracking(self) -> bool {
+        Class::TRACKING.contains(&self)
+    }
+
     /// The nuScenes detection name (`detection_name` in results files).
     pub fn name(self) -> &'static str {
         match self {

@@ -291,6 +291,12 @@ pub fn run_tracking(
         // by id when gt-wls is a method
         let gt_wls = cfg.methods.iter().position(|m| *m == Method::GtWls);
         let slots = n_agents + 2 * n_methods + usize::from(gt_wls.is_some());
+        // Every class is tracked, so that the tracked rows' detection columns compare with the
+        // single-frame rows'; the tracking columns score the tracking classes alone.
+        let params = TrackerParams {
+            all_classes: true,
+            ..params
+        };
         let (accs, evals) = scenes(gt)
             .into_par_iter()
             .fold(

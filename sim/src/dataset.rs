@@ -84,7 +84,8 @@ pub struct GtFrame {
     pub timestamp_us: u64,
     /// Ego position when known (m).
     pub ego: Option<[f64; 3]>,
-    /// The objects.
+    /// The objects, in the order of the source (for nuScenes tables, `sample_annotation.json`
+    /// order, as the devkit lists them).
     pub objects: Vec<GtObject>,
 }
 
@@ -174,6 +175,17 @@ impl GroundTruth {
             Motion::Frames => self
                 .nearest_frame(scene, t_us)
                 .map_or_else(Vec::new, |i| self.frames[i].objects.clone()),
+        }
+    }
+
+    /// Whether any object is known between frames: the town's actors, or an object annotated
+    /// in more than one frame (in most vehicle-infrastructure data sets each annotation is its
+    /// own instance, and nothing can be interpolated).
+    pub fn tracked_across_frames(&self) -> bool {
+        match &self.motion {
+            Motion::Frames => false,
+            Motion::Town(_) => true,
+            Motion::Tracks(scenes) => scenes.iter().flat_map(|s| s.values()).any(|t| t.len() > 1),
         }
     }
 
@@ -508,9 +520,6 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
     frames.sort_by(|a, b| {
         (a.scene, a.timestamp_us, &a.sample_token).cmp(&(b.scene, b.timestamp_us, &b.sample_token))
     });
-    for f in &mut frames {
-        f.objects.sort_by_key(|o| o.id);
-    }
     Ok(GroundTruth {
         scenes,
         frames,
@@ -629,6 +638,29 @@ mod tests {
         assert_eq!(gt.skipped.get("animal"), Some(&1));
         assert_eq!(gt.boxes(), 4);
         assert!((gt.hz() - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn objects_keep_the_annotation_order() {
+        // as the devkit lists a sample's boxes: sample_annotation.json order, either way round
+        let tmp = tmpdir("annotation-order");
+        let dir = copy_fixture(&tmp);
+        let names = |gt: &GroundTruth| -> Vec<String> {
+            gt.frames[0]
+                .objects
+                .iter()
+                .map(|o| gt.tokens.name(o.id).unwrap().to_string())
+                .collect()
+        };
+        let gt = load_nuscenes(&tmp, "v1.0-fixture").unwrap();
+        assert_eq!(names(&gt), ["inst-car", "inst-ped"]);
+        let path = dir.join("sample_annotation.json");
+        let mut anns: Vec<Value> =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        anns.reverse();
+        std::fs::write(&path, serde_json::to_string(&anns).unwrap()).unwrap();
+        let gt = load_nuscenes(&tmp, "v1.0-fixture").unwrap();
+        assert_eq!(names(&gt), ["inst-ped", "inst-car"]);
     }
 
     fn copy_fixture(tmp: &Path) -> PathBuf {

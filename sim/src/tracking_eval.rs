@@ -6,7 +6,13 @@
 //! - each track's boxes get the track's mean score;
 //! - a track (ground truth or predicted) missing from frames between its first and last gets
 //!   boxes interpolated there, with the devkit's weights (a box at time t between boxes at
-//!   l and r takes (1 - w) of the left centre and w of the right, w = (r - t) / (r - l)).
+//!   l and r takes (1 - w) of the left centre and w of the right, w = (r - t) / (r - l)),
+//!   appended after the frame's own boxes with the tracks in the order they first appear, as
+//!   the devkit's `interpolate_tracks` appends them.
+//!
+//! Order matters: each frame's ground truth is walked in the order given (for nuScenes tables,
+//! `sample_annotation.json` order, the devkit's), so when two objects last matched the same
+//! track and both are near it, the first keeps it, as `motmetrics` decides.
 //!
 //! Events, per class and frame in time order (frames with neither objects nor boxes skipped):
 //! 1. a ground-truth object keeps the track it last matched if that track is under 2 m away;
@@ -33,17 +39,6 @@ use v2x_protocol::Class;
 
 /// The matching distance (m): pairs at this distance or more never match.
 pub const MATCH_DISTANCE: f64 = 2.0;
-
-/// The classes the tracking benchmark scores.
-pub const TRACKING_CLASSES: [Class; 7] = [
-    Class::Bicycle,
-    Class::Bus,
-    Class::Car,
-    Class::Motorcycle,
-    Class::Pedestrian,
-    Class::Trailer,
-    Class::Truck,
-];
 
 /// Recall thresholds of AMOTA.
 const NUM_THRESHOLDS: usize = 40;
@@ -99,7 +94,7 @@ pub struct TrackingMetrics {
     pub gt_tracks: usize,
     /// Identity switches per 100 ground-truth objects.
     pub ids_per_100_tracks: f64,
-    /// Per class (`tracking_name`): AMOTA, MOTA and IDS.
+    /// Per class (`tracking_name`): AMOTA, AMOTP, MOTA, MOTP, IDS and FRAG.
     pub classes: BTreeMap<String, ClassTracking>,
 }
 
@@ -115,6 +110,15 @@ pub struct ClassTracking {
     /// Identity switches at the class's best threshold.
     #[serde(rename = "IDS")]
     pub ids: usize,
+    /// MOTP averaged over recall thresholds (m).
+    #[serde(rename = "AMOTP")]
+    pub amotp: f64,
+    /// MOTP at the class's best threshold (m).
+    #[serde(rename = "MOTP")]
+    pub motp: f64,
+    /// Fragmentations at the class's best threshold.
+    #[serde(rename = "FRAG")]
+    pub frag: usize,
 }
 
 /// A ground-truth box, reduced.
@@ -207,8 +211,12 @@ impl TrackingEval {
             });
         }
         let s = self.scenes.last_mut().expect("pushed above");
+        // Only the tracking classes exist for the benchmark: a track's boxes of other classes
+        // neither count towards its mean score nor stand in its gaps (the devkit never loads
+        // them).
         let gt = gt
             .iter()
+            .filter(|o| o.class.is_tracking())
             .map(|o| Obj {
                 id: o.id,
                 class: o.class,
@@ -217,6 +225,7 @@ impl TrackingEval {
             .collect();
         let hyps = boxes
             .iter()
+            .filter(|b| b.class.is_tracking())
             .map(|b| {
                 let n = s.tracks.len();
                 Hyp {
@@ -241,7 +250,7 @@ impl TrackingEval {
         let mut m = TrackingMetrics::default();
         let (mut amota, mut amotp, mut mota, mut motp) = (vec![], vec![], vec![], vec![]);
         let mut objects = std::collections::HashSet::new();
-        for class in TRACKING_CLASSES {
+        for class in Class::TRACKING {
             let gt_count: usize = frames(&scenes)
                 .map(|f| f.gt.iter().filter(|o| o.class == class).count())
                 .sum();
@@ -274,6 +283,9 @@ impl TrackingEval {
                     amota: c.amota,
                     mota: c.mota,
                     ids: c.best.map_or(0, |b| b.switches),
+                    amotp: c.amotp,
+                    motp: c.motp,
+                    frag: c.best.map_or(0, |b| b.frag),
                 },
             );
         }
@@ -482,26 +494,44 @@ fn prepare(scene: &Scene) -> Scene {
         h.score = sum / n as f64;
     }
     let times: Vec<u64> = scene.frames.iter().map(|f| f.t_us).collect();
-    // ground truth: per object, the frames it is in
-    let mut seen: BTreeMap<u32, Vec<(usize, Obj)>> = BTreeMap::new();
-    for (k, f) in out.frames.iter().enumerate() {
-        for o in &f.gt {
-            seen.entry(o.id).or_default().push((k, o.clone()));
-        }
-    }
+    let seen = by_first_appearance(out.frames.iter().map(|f| f.gt.iter().map(|o| (o.id, o))));
     for (k, xy, right) in gaps(&seen, &times) {
         out.frames[k].gt.push(Obj { xy, ..right });
     }
-    let mut seen: BTreeMap<usize, Vec<(usize, Hyp)>> = BTreeMap::new();
-    for (k, f) in out.frames.iter().enumerate() {
-        for h in &f.hyps {
-            seen.entry(h.track).or_default().push((k, h.clone()));
-        }
-    }
+    let seen = by_first_appearance(
+        out.frames
+            .iter()
+            .map(|f| f.hyps.iter().map(|h| (h.track, h))),
+    );
     for (k, xy, right) in gaps(&seen, &times) {
         out.frames[k].hyps.push(Hyp { xy, ..right });
     }
     out
+}
+
+/// Each track's boxes with their frame index, the tracks in the order the devkit's
+/// `interpolate_tracks` meets them (frame by frame, each frame's list in order), so that the
+/// boxes it fills in follow each frame's own boxes in that order.
+fn by_first_appearance<'a, K, B, F, I>(frames: F) -> Vec<Vec<(usize, B)>>
+where
+    K: std::hash::Hash + Eq,
+    B: Clone + 'a,
+    F: Iterator<Item = I>,
+    I: Iterator<Item = (K, &'a B)>,
+{
+    let mut index: HashMap<K, usize> = HashMap::new();
+    let mut tracks: Vec<Vec<(usize, B)>> = Vec::new();
+    for (k, boxes) in frames.enumerate() {
+        for (key, b) in boxes {
+            let n = tracks.len();
+            let t = *index.entry(key).or_insert(n);
+            if t == n {
+                tracks.push(Vec::new());
+            }
+            tracks[t].push((k, b.clone()));
+        }
+    }
+    tracks
 }
 
 /// A box the metrics can interpolate.
@@ -524,12 +554,9 @@ impl Located for Hyp {
 /// The devkit's `interpolate_tracks`: for each frame between a track's first and last that
 /// lacks it, the centre from its neighbours (weights as the devkit sets them) and the right
 /// neighbour's other fields.
-fn gaps<K, B: Located>(
-    seen: &BTreeMap<K, Vec<(usize, B)>>,
-    times: &[u64],
-) -> Vec<(usize, [f64; 2], B)> {
+fn gaps<B: Located>(seen: &[Vec<(usize, B)>], times: &[u64]) -> Vec<(usize, [f64; 2], B)> {
     let mut out = Vec::new();
-    for boxes in seen.values() {
+    for boxes in seen {
         for pair in boxes.windows(2) {
             let ((l, left), (r, right)) = (&pair[0], &pair[1]);
             for k in l + 1..*r {

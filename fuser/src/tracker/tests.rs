@@ -276,3 +276,34 @@ fn by_id_never_matches_a_box_without_an_id() {
     }
     assert_eq!(tr.stats().births, 0);
 }
+
+#[test]
+fn only_the_tracking_classes_are_followed_unless_asked() {
+    // a car, a barrier and a cone standing still for five windows
+    let boxes = |_: u64| {
+        let mut barrier = car(10.0, 0.0, 0.0);
+        barrier.class = Class::Barrier;
+        let mut cone = car(20.0, 0.0, 0.0);
+        cone.class = Class::TrafficCone;
+        vec![car(0.0, 0.0, 0.0), barrier, cone]
+    };
+    for (all_classes, want) in [
+        (false, vec![Class::Car]),
+        (true, vec![Class::Car, Class::TrafficCone, Class::Barrier]),
+    ] {
+        let mut tr = Tracker::new(TrackerParams {
+            all_classes,
+            ..Default::default()
+        });
+        let mut out = Vec::new();
+        for k in 0..5 {
+            out = tr.step(k * HZ10, &boxes(k));
+        }
+        let mut classes: Vec<Class> = out.iter().map(|t| t.det.class).collect();
+        classes.sort();
+        let mut want = want;
+        want.sort();
+        assert_eq!(classes, want, "all_classes {all_classes}");
+        assert_eq!(tr.stats().births, want.len() as u64);
+    }
+}

@@ -639,7 +639,7 @@ mod tests {
         let both = at
             .iter()
             .filter(|o| before.iter().any(|b| b.id == o.id))
-            .filter(|o| crate::tracking_eval::TRACKING_CLASSES.contains(&o.class))
+            .filter(|o| o.class.is_tracking())
             .count();
         assert!(both > 0);
         let renamed = tracked_with(|o, k| if k < 10 { o } else { o + 1000 })
