@@ -13,6 +13,11 @@
 //!   averaged from 10% recall to the highest recall reached (1 when it is not reached);
 //! - mAP and the mean TP errors are taken over the ten classes, a class without ground truth
 //!   scoring AP 0 and errors 1 (as in the devkit); NDS = (5 mAP + sum of max(0, 1 - error)) / 10.
+//!   [`DetectionEval::summary_over`] takes them over a subset instead (`v2x-sim eval` by default
+//!   over the classes the ground truth holds), the ten-class mAP and NDS still reported;
+//! - equal scores are broken as the devkit breaks them: the prediction added later first, frames
+//!   in the order added (`v2x-sim eval` adds a file's samples in the order the file lists them,
+//!   as the devkit reads them), and among equally near ground-truth boxes the first listed.
 //!
 //! Not applied: the devkit's per-class range filter around the ego vehicle and its removal of
 //! boxes without lidar points (the evaluation has no ego pose; the simulated agents' own range
@@ -220,10 +225,14 @@ impl DetectionEval {
     /// The devkit's `accumulate` for one class and threshold.
     fn accumulate(&self, class: Class, th: f64) -> Curves {
         let npos = self.ground_truth(class);
-        if npos == 0 {
-            return Curves::no_predictions();
-        }
         let preds: Vec<&Pred> = self.preds.iter().filter(|p| p.det.class == class).collect();
+        if npos == 0 {
+            // the devkit's AP of a class without ground truth is 0; its boxes are all false
+            return Curves {
+                fp: preds.len(),
+                ..Curves::no_predictions()
+            };
+        }
         // Descending score; among equal scores the later prediction first (the devkit reverses
         // an ascending sort of (score, index)).
         let mut order: Vec<usize> = (0..preds.len()).collect();
@@ -301,12 +310,36 @@ impl DetectionEval {
         }
     }
 
-    /// Every figure of the benchmark.
+    /// Every figure of the benchmark, the headline averaged over the ten classes as the devkit
+    /// averages it.
     pub fn summary(&self) -> DetectionMetrics {
+        self.summary_over(&Class::ALL)
+    }
+
+    /// The classes that have ground truth in the frames added, in [`Class::ALL`] order.
+    pub fn ground_truth_classes(&self) -> Vec<Class> {
+        Class::ALL
+            .into_iter()
+            .filter(|c| self.ground_truth(*c) > 0)
+            .collect()
+    }
+
+    /// Every figure of the benchmark, the headline (mAP, NDS, the mean TP errors, precision and
+    /// recall) taken over `classes` only; the ten-class mAP and NDS beside it. With no class
+    /// given, over the ten.
+    pub fn summary_over(&self, classes: &[Class]) -> DetectionMetrics {
+        let classes: Vec<Class> = if classes.is_empty() {
+            Class::ALL.to_vec()
+        } else {
+            Class::ALL
+                .into_iter()
+                .filter(|c| classes.contains(c))
+                .collect()
+        };
         let first = (100.0 * MIN_RECALL).round() as usize + 1;
         let mut per_class = BTreeMap::new();
-        let mut aps = Vec::new();
-        let mut tp_by_metric: [Vec<f64>; 5] = Default::default();
+        // per class: its mean AP and TP errors, in Class::ALL order
+        let mut scored: Vec<(Class, f64, [Option<f64>; 5])> = Vec::new();
         let (mut tp2, mut fp2, mut npos) = (0, 0, 0);
         for class in Class::ALL {
             let mut ap = BTreeMap::new();
@@ -343,15 +376,14 @@ impl DetectionEval {
                     Some(v.iter().sum::<f64>() / v.len() as f64)
                 }
             });
-            for (k, e) in errs.iter().enumerate() {
-                tp_by_metric[k].extend(*e);
-            }
             let n_gt = self.ground_truth(class);
-            tp2 += c.tp;
-            fp2 += c.fp;
-            npos += n_gt;
+            if classes.contains(&class) {
+                tp2 += c.tp;
+                fp2 += c.fp;
+                npos += n_gt;
+            }
             let mean_ap = class_aps.iter().sum::<f64>() / class_aps.len() as f64;
-            aps.push(mean_ap);
+            scored.push((class, mean_ap, errs));
             per_class.insert(
                 class.name().to_string(),
                 ClassDetection {
@@ -368,18 +400,36 @@ impl DetectionEval {
                 },
             );
         }
-        let m_ap = aps.iter().sum::<f64>() / aps.len() as f64;
-        let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
-        let tp_err: [f64; 5] = std::array::from_fn(|k| mean(&tp_by_metric[k]));
-        let tp_scores: f64 = tp_err.iter().map(|e| (1.0 - e).max(0.0)).sum();
+        let headline = |over: &[Class]| {
+            let rows: Vec<&(Class, f64, [Option<f64>; 5])> =
+                scored.iter().filter(|r| over.contains(&r.0)).collect();
+            let m_ap = rows.iter().map(|r| r.1).sum::<f64>() / rows.len() as f64;
+            let tp_err: [f64; 5] = std::array::from_fn(|k| {
+                let v: Vec<f64> = rows.iter().filter_map(|r| r.2[k]).collect();
+                // a metric no chosen class defines (cones alone: no AVE) counts as worst
+                if v.is_empty() {
+                    1.0
+                } else {
+                    v.iter().sum::<f64>() / v.len() as f64
+                }
+            });
+            let tp_scores: f64 = tp_err.iter().map(|e| (1.0 - e).max(0.0)).sum();
+            let nds = (MEAN_AP_WEIGHT * m_ap + tp_scores) / (MEAN_AP_WEIGHT + 5.0);
+            (m_ap, nds, tp_err)
+        };
+        let (m_ap, nds, tp_err) = headline(&classes);
+        let (m_ap_all, nds_all, _) = headline(&Class::ALL);
         DetectionMetrics {
             m_ap,
-            nds: (MEAN_AP_WEIGHT * m_ap + tp_scores) / (MEAN_AP_WEIGHT + 5.0),
+            nds,
             m_ate: tp_err[0],
             m_ase: tp_err[1],
             m_aoe: tp_err[2],
             m_ave: tp_err[3],
             m_aae: tp_err[4],
+            classes: classes.iter().map(|c| c.name().to_string()).collect(),
+            m_ap_all,
+            nds_all,
             precision: (tp2 + fp2 > 0).then(|| tp2 as f64 / (tp2 + fp2) as f64),
             recall: (npos > 0).then(|| tp2 as f64 / npos as f64),
             tp: tp2,
@@ -426,10 +476,10 @@ pub struct ClassDetection {
 /// The nuScenes detection benchmark's figures (`eval --match distance --format json`).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct DetectionMetrics {
-    /// Mean AP over the ten classes and the four thresholds.
+    /// Mean AP over the headline's classes and the four thresholds.
     #[serde(rename = "mAP")]
     pub m_ap: f64,
-    /// nuScenes detection score.
+    /// nuScenes detection score over the headline's classes.
     #[serde(rename = "NDS")]
     pub nds: f64,
     /// Class-mean TP translation error (m).
@@ -447,7 +497,16 @@ pub struct DetectionMetrics {
     /// Class-mean TP attribute error.
     #[serde(rename = "mAAE")]
     pub m_aae: f64,
-    /// TP / (TP + FP) at 2 m over all predictions.
+    /// The classes the headline averages (all ten unless asked otherwise).
+    pub classes: Vec<String>,
+    /// Mean AP over all ten classes, as the devkit reports it (0 for a class without ground
+    /// truth).
+    #[serde(rename = "mAP_all10")]
+    pub m_ap_all: f64,
+    /// NDS over all ten classes, as the devkit reports it.
+    #[serde(rename = "NDS_all10")]
+    pub nds_all: f64,
+    /// TP / (TP + FP) at 2 m over the headline classes' predictions.
     pub precision: Option<f64>,
     /// TP / ground truth at 2 m over all predictions.
     pub recall: Option<f64>,

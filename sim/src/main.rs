@@ -10,7 +10,7 @@ use std::time::Instant;
 use v2x_fuser::Method;
 use v2x_protocol::nuscenes_json::write_results;
 use v2x_sim::bench::{self, BenchConfig};
-use v2x_sim::cli::{evaluate_file, DataArgs, Evaluation};
+use v2x_sim::cli::{evaluate_file, DataArgs, EvalOptions, Evaluation};
 use v2x_sim::noise::{place_agents, NoiseSetting};
 
 #[derive(Parser)]
@@ -87,7 +87,7 @@ enum Command {
         /// does: AMOTA, AMOTP, and MOTA, MOTP, IDS, FRAG at each class's best score threshold,
         /// 2 m centre distance, the seven tracking classes. The same file without --tracking
         /// scores its boxes as detections.
-        #[arg(long, conflicts_with_all = ["replay_start_at"])]
+        #[arg(long, conflicts_with_all = ["replay_start_at", "at", "classes"])]
         tracking: bool,
         /// Output format.
         #[arg(long, value_enum, default_value = "table")]
@@ -99,6 +99,17 @@ enum Command {
         /// With --replay-start-at: the agents' --speed.
         #[arg(long, default_value_t = 1.0, requires = "replay_start_at")]
         replay_speed: f64,
+        /// When a sample is scored: `frame` (a sample token at its own frame, whatever the
+        /// file's meta.v2x_timestamps say) or `capture` (at its capture time from
+        /// meta.v2x_timestamps, the ground truth interpolated along its tracks; only for ground
+        /// truth tracked across frames). Keys that are no sample token (t<us>) use their time.
+        #[arg(long, value_enum, default_value = "frame")]
+        at: v2x_sim::cli::Timing,
+        /// The classes to score, comma-separated nuScenes names (e.g. car,truck,bus): other
+        /// classes' boxes, ground truth and predictions, are left out. Default: every class, the
+        /// benchmark's headline averaged over the classes the ground truth holds.
+        #[arg(long, value_parser = v2x_sim::cli::parse_classes)]
+        classes: Option<Vec<v2x_protocol::Class>>,
         /// The results file to score.
         pred: PathBuf,
     },
@@ -240,6 +251,20 @@ fn evaluate_tracking(
         bail!(
             "{}: sample {s} is not in the ground truth: score the file against the data it was made from (--dataroot/--version, or the same town flags)",
             path.display()
+        );
+    }
+    let mut other: std::collections::BTreeMap<&str, usize> = Default::default();
+    for b in tracks.values().flatten() {
+        if !b.class.is_tracking() {
+            *other.entry(b.class.name()).or_default() += 1;
+        }
+    }
+    if !other.is_empty() {
+        let list: Vec<String> = other.iter().map(|(c, n)| format!("{c} {n}")).collect();
+        eprintln!(
+            "{}: boxes of classes the tracking benchmark does not score were left out ({}); the official devkit refuses a file with them",
+            path.display(),
+            list.join(", ")
         );
     }
     let mut eval = v2x_sim::tracking_eval::TrackingEval::new();
@@ -395,6 +420,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             format,
             replay_start_at,
             replay_speed,
+            at,
+            classes,
             tracking,
             pred,
         } => {
@@ -442,7 +469,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             };
             let gt = data.load()?;
-            let (evaluation, note) = evaluate_file(&gt, &pred, all_frames, replay, matching)?;
+            let opts = EvalOptions {
+                all_frames,
+                replay,
+                how: matching,
+                timing: at,
+                classes,
+            };
+            let (evaluation, note) = evaluate_file(&gt, &pred, &opts)?;
             eprintln!("{note}");
             let csv = format == Format::Csv;
             match evaluation {
@@ -643,7 +677,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     v2x_protocol::Uncertainty::uniform(1.0, 1.0, 1.0),
                 ),
             )?;
-            let (samples, unknown) = v2x_sim::cli::sample_times(&gt, &results, None);
+            let (samples, unknown) =
+                v2x_sim::cli::sample_times(&gt, &results, None, v2x_sim::cli::Timing::Capture);
             if let Some(k) = unknown.first() {
                 bail!(
                     "{}: {} sample(s) have no time within the ground truth, e.g. '{k}' (is this the right --dataroot/--version?)",
@@ -656,7 +691,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .build()
                 .context("starting the async runtime")?;
             let viz = rt.block_on(v2x_fuser::viz::Viz::open(Some(&out), None))?;
-            for (key, t, scene) in &samples {
+            for v2x_sim::cli::SampleTime {
+                key,
+                t_us: t,
+                scene,
+                ..
+            } in &samples
+            {
                 let truth: Vec<_> = gt
                     .objects_at(*scene, *t)
                     .iter()

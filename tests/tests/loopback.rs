@@ -3,7 +3,7 @@
 //! recorded results file read back by `eval`.
 
 use v2x_protocol::{wire, Frame};
-use v2x_sim::cli::{evaluate_file, Evaluation, Match};
+use v2x_sim::cli::{evaluate_file, EvalOptions, Evaluation, Match};
 use v2x_sim::metrics::Accumulator;
 use v2x_sim::run::{agent_view, recorded, run_local, Schedule};
 use v2x_sim::scenario::Scenario;
@@ -68,7 +68,11 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
         &gt.tokens,
     )
     .unwrap();
-    let (m, _) = evaluate_file(&gt, &path, false, None, Match::Id).unwrap();
+    let opts = EvalOptions {
+        how: Match::Id,
+        ..Default::default()
+    };
+    let (m, _) = evaluate_file(&gt, &path, &opts).unwrap();
     let Evaluation::Id(m) = m else {
         panic!("matched by id")
     };
