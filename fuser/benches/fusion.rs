@@ -72,10 +72,10 @@ fn bench_methods(c: &mut Criterion) {
     group.finish();
 }
 
-/// Registration of agent 1 to agent 2 at 2 x 80 objects (per window, and pooling 10 windows
-/// in steady state), beside the csba-wls+ step it precedes.
+/// Registration of agent 1 to agent 2 at 2 x 80 objects (per window, and filtered in steady
+/// state), beside the csba-wls+ step it precedes.
 fn bench_align(c: &mut Criterion) {
-    use v2x_fuser::align::{align, AlignParams, Aligner, ALIGN_WINDOWS};
+    use v2x_fuser::align::{align, AlignParams, Aligner};
     let mut group = c.benchmark_group("align/2x80");
     group
         .warm_up_time(Duration::from_millis(500))
@@ -87,12 +87,17 @@ fn bench_align(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::new("per-window", noise.name()), &s, |b, s| {
             b.iter(|| black_box(align(black_box(s), 1, &p)))
         });
-        let mut pooled = Aligner::new(p, ALIGN_WINDOWS);
-        for _ in 0..ALIGN_WINDOWS {
-            pooled.align(&["a", "b"], &s, 1);
+        let mut filtered = Aligner::new(p);
+        let mut t = 0u64;
+        for _ in 0..10 {
+            t += 100_000;
+            filtered.align(Some(t), &["a", "b"], &s, 1);
         }
-        group.bench_with_input(BenchmarkId::new("pooled", noise.name()), &s, |b, s| {
-            b.iter(|| black_box(pooled.align(&["a", "b"], black_box(s), 1)))
+        group.bench_with_input(BenchmarkId::new("filtered", noise.name()), &s, |b, s| {
+            b.iter(|| {
+                t += 100_000;
+                black_box(filtered.align(Some(t), &["a", "b"], black_box(s), 1))
+            })
         });
     }
     group.finish();

@@ -4,6 +4,7 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
+use v2x_fuser::align::AlignParams;
 use v2x_fuser::{node, Method, METHODS};
 use v2x_protocol::nuscenes_json::MissingStd;
 use v2x_protocol::nuscenes_json::{
@@ -35,7 +36,7 @@ enum Command {
     #[command(after_help = methods_help())]
     Fuse {
         /// Fusion method (see the list below).
-        #[arg(long, short, default_value = "csba-wls")]
+        #[arg(long, short, default_value = "csba-wls+")]
         method: Method,
         /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
         /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it, a missing std is an error.
@@ -46,11 +47,8 @@ enum Command {
         /// Window width delta t (ms) when files carry capture times.
         #[arg(long, default_value_t = 100.0)]
         window_ms: f64,
-        /// Register every agent to the agent of --align-to by the boxes both see (a rigid shift
-        /// and turn per agent, solved over its last 10 windows) before association: for agents
-        /// whose pose is wrong.
-        #[arg(long)]
-        align: bool,
+        #[command(flatten)]
+        align: AlignArgs,
         /// With --align: the reference agent, as its position among the inputs (1 = first).
         /// `v2x-sim gen` writes the roadside unit as agent2.json.
         #[arg(long, default_value_t = 2, requires = "align")]
@@ -85,6 +83,11 @@ enum Command {
         /// Windows in a row without a box a confirmed track survives.
         #[arg(long, default_value_t = 3)]
         max_misses: u32,
+        /// Also track the classes the nuScenes tracking benchmark does not score (barrier,
+        /// traffic cone, construction vehicle). Without it the file holds the seven tracking
+        /// classes only, as the official devkit's loader requires; with it the devkit refuses it.
+        #[arg(long)]
+        all_classes: bool,
         /// Where to write the tracking results file.
         #[arg(long, short)]
         output: PathBuf,
@@ -113,15 +116,16 @@ enum Command {
         motion: MotionArgs,
         #[command(flatten)]
         region: RegionArgs,
-        /// Register every agent to the first roadside unit (else the first agent) by the boxes
-        /// both see (a rigid shift and turn per agent, solved over its last 10 windows) before
-        /// association: for agents whose pose is wrong.
-        #[arg(long)]
-        align: bool,
+        #[command(flatten)]
+        align: AlignArgs,
         /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
-        /// tracks each window updated on v2x/NS/tracks, each box's id its track's.
+        /// tracks each window updated on v2x/NS/tracks, each box's id its track's (the seven
+        /// classes of the nuScenes tracking benchmark, as `v2x-fuser track` writes them).
         #[arg(long)]
         track: bool,
+        /// With --track: also track barriers, traffic cones and construction vehicles.
+        #[arg(long, requires = "track")]
+        track_all_classes: bool,
         /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
         /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
         /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -196,6 +200,52 @@ impl MotionArgs {
                 time_scale: self.time_scale,
             }),
         )
+    }
+}
+
+/// Registration of agents whose own pose is wrong (`docs/method.md` §3.1).
+#[derive(clap::Args)]
+struct AlignArgs {
+    /// Register every agent to a reference agent by the boxes both see, before association: a
+    /// rigid shift and turn per agent, measured each window, filtered over time (decaying to
+    /// none across gaps), and applied only when it differs significantly from no correction.
+    /// Each estimate is reported (fuse: meta.v2x_registration; node: the stats and MCAP).
+    #[arg(long)]
+    align: bool,
+    /// With --align: fewest matched boxes a window measures an offset from.
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().min_matches)]
+    align_min_matches: usize,
+    /// With --align: std per axis (m) of how far two agents' boxes of one object disagree beyond
+    /// their stated stds (0.5: the two sides' labels in real vehicle-infrastructure data).
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().disagreement_m)]
+    align_disagreement_m: f64,
+    /// With --align: time constant (s) with which an estimate fades to none without matches.
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().tau_s)]
+    align_tau_s: f64,
+    /// With --align: the chi-square (3 degrees of freedom) an estimate must reach against no
+    /// correction to be applied (16.27: 99.9%; 0 applies every estimate).
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().chi2)]
+    align_chi2: f64,
+    /// With --align: largest centre distance (m) of a candidate match before any correction.
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().gate_m)]
+    align_gate_m: f64,
+}
+
+impl AlignArgs {
+    fn params(&self) -> anyhow::Result<Option<AlignParams>> {
+        if !self.align {
+            return Ok(None);
+        }
+        let p = AlignParams {
+            min_matches: self.align_min_matches,
+            disagreement_m: self.align_disagreement_m,
+            tau_s: self.align_tau_s,
+            chi2: self.align_chi2,
+            gate_m: self.align_gate_m,
+            ..Default::default()
+        };
+        p.validate().map_err(|e| anyhow::anyhow!("--align: {e}"))?;
+        Ok(Some(p))
     }
 }
 
@@ -316,7 +366,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if !(window_ms > 0.0 && window_ms.is_finite()) {
                 anyhow::bail!("--window-ms must be > 0");
             }
-            if align && !(1..=inputs.len()).contains(&align_to) {
+            let align_params = align.params()?;
+            if align_params.is_some() && !(1..=inputs.len()).contains(&align_to) {
                 anyhow::bail!(
                     "--align-to {align_to}: there are {} inputs (give 1 to {})",
                     inputs.len(),
@@ -327,7 +378,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let opts = v2x_fuser::offline::OfflineOptions {
                 motion: motion.params()?,
                 window_ms,
-                align: align.then(|| (v2x_fuser::align::AlignParams::default(), align_to - 1)),
+                align: align_params.map(|p| (p, align_to - 1)),
             };
             let (samples, n_in, n_out, by_time) =
                 v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
@@ -350,6 +401,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             window_ms,
             confirm_hits,
             max_misses,
+            all_classes,
             output,
             inputs,
         } => {
@@ -368,6 +420,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let params = v2x_fuser::tracker::TrackerParams {
                 confirm_hits,
                 max_misses,
+                all_classes,
                 ..Default::default()
             };
             let tracks =
@@ -394,6 +447,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             region,
             align,
             track,
+            track_all_classes,
             record,
             viz,
             duration_s,
@@ -415,9 +469,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 limits.apply(&mut cfg)?;
                 cfg.motion = motion.params()?;
                 cfg.region = region.region()?;
-                cfg.align = align.then(v2x_fuser::align::AlignParams::default);
+                cfg.align = align.params()?;
                 cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
                     time_scale: motion.time_scale,
+                    all_classes: track_all_classes,
                     ..Default::default()
                 });
                 cfg.viz = viz.open().await?;

@@ -174,7 +174,7 @@ impl std::fmt::Debug for Viz {
 }
 
 /// The JSON schema of a `/stats` message.
-const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"}}}"#;
+const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"},"registration":{"type":"object","additionalProperties":{"type":"object","properties":{"pivot":{"type":"array","items":{"type":"number"}},"shift_m":{"type":"array","items":{"type":"number"}},"turn_rad":{"type":"number"},"std":{"type":"array","items":{"type":"number"}},"matches":{"type":"integer"},"chi2":{"type":"number"},"applied":{"type":"boolean"}}}}}}"#;
 
 impl Viz {
     /// Opens the MCAP file (`mcap`) and/or starts the live server on `live` (host, port); at
@@ -247,7 +247,9 @@ impl Viz {
         channel.log_with_time(update, t_us * 1000);
     }
 
-    /// Logs one fused window's statistics at its reference time.
+    /// Logs one fused window's statistics at its reference time, with each registered agent's
+    /// estimate when the fuser registers agents.
+    #[allow(clippy::too_many_arguments)]
     pub fn window(
         &self,
         t_us: u64,
@@ -256,6 +258,7 @@ impl Viz {
         objects: usize,
         fusion_ms: f64,
         e2e_ms: f64,
+        registration: &std::collections::BTreeMap<String, crate::align::Registration>,
     ) {
         let msg = serde_json::json!({
             "members": members,
@@ -263,6 +266,7 @@ impl Viz {
             "objects": objects,
             "fusion_ms": fusion_ms,
             "e2e_ms": e2e_ms,
+            "registration": registration,
         });
         self.stats.log_with_meta(
             msg.to_string().as_bytes(),

@@ -4,6 +4,7 @@
 use foxglove::schemas::SceneUpdate;
 use foxglove::Decode;
 use std::collections::BTreeMap;
+use v2x_fuser::align::Registration;
 use v2x_fuser::viz::{agent_colour, Viz, FUSED};
 use v2x_protocol::{AgentSet, Class, Detection, Provenance, Uncertainty, Velocity};
 
@@ -53,7 +54,28 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
             sources: vec![[0, 1].into_iter().collect(), AgentSet::single(1)],
         };
         viz.fused(t, &[car(10.1, 1), car(30.0, 2)], &provenance);
-        viz.window(t, &["rsu".into(), "veh".into()], true, 2, 0.2, 25.0);
+        let registration = [(
+            "veh".to_string(),
+            Registration {
+                pivot: [10.0, 2.0],
+                shift_m: [0.66, -0.5],
+                turn_rad: 0.01,
+                std: [0.1, 0.1, 0.002],
+                matches: 4,
+                chi2: 40.0,
+                applied: true,
+            },
+        )]
+        .into();
+        viz.window(
+            t,
+            &["rsu".into(), "veh".into()],
+            true,
+            2,
+            0.2,
+            25.0,
+            &registration,
+        );
     }
     viz.close().unwrap();
 
@@ -71,6 +93,11 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
                 );
                 let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
                 assert_eq!(v["members"], serde_json::json!(["rsu", "veh"]));
+                assert_eq!(
+                    v["registration"]["veh"]["shift_m"],
+                    serde_json::json!([0.66, -0.5])
+                );
+                assert_eq!(v["registration"]["veh"]["applied"], true);
             }
             _ => {
                 assert_eq!(schema.name, "foxglove.SceneUpdate");

@@ -9,7 +9,7 @@ use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
-use v2x_fuser::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
+use v2x_fuser::align::{reference_agent, AlignParams, Aligner};
 use v2x_fuser::region::{self, Tiling};
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;
@@ -188,8 +188,8 @@ pub struct DetectionRow {
 
 /// The distance-matched table (the nuScenes detection benchmark, `bench --profile`): under each
 /// setting, each single agent and each method, and with `align` each method again after the
-/// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::align`], pooling
-/// [`ALIGN_WINDOWS`] frames of a scene.
+/// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::align`], filtered over
+/// the frames of a scene.
 pub fn run_detection(
     gt: &GroundTruth,
     cfg: &BenchConfig,
@@ -201,7 +201,7 @@ pub fn run_detection(
         let n_agents = setting.agents.len();
         let n_methods = cfg.methods.len();
         let slots = n_agents + n_methods * (1 + usize::from(align_with.is_some()));
-        // Scenes in parallel, each scene's frames in order: the aligner pools over windows.
+        // Scenes in parallel, each scene's frames in order: the aligner filters over windows.
         let names: Vec<String> = (0..n_agents).map(|a| format!("agent{}", a + 1)).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
         let evals = scenes(gt)
@@ -209,7 +209,7 @@ pub fn run_detection(
             .fold(
                 || vec![DetectionEval::new(); slots],
                 |mut evals, frames| {
-                    let mut aligner = align_with.map(|p| Aligner::new(*p, ALIGN_WINDOWS));
+                    let mut aligner = align_with.map(|p| Aligner::new(*p));
                     for i in frames {
                         let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
                         let objects = &gt.frames[i].objects;
@@ -224,8 +224,9 @@ pub fn run_detection(
                                 .iter()
                                 .map(|p| p.kind)
                                 .collect();
+                            let t = Some(gt.frames[i].timestamp_us);
                             let (aligned, _) =
-                                aligner.align(&names, &dets, reference_agent(&kinds));
+                                aligner.align(t, &names, &dets, reference_agent(&kinds));
                             for (m, method) in cfg.methods.iter().enumerate() {
                                 let slot = n_agents + n_methods + m;
                                 evals[slot].add_frame(objects, &method.fuse(&aligned));

@@ -79,6 +79,8 @@ pub struct FuserSpec {
     /// Register every agent to the roadside unit by its boxes before association
     /// (`v2x-fuser node --align`).
     pub align: bool,
+    /// The registration's settings (`[fuser.registration]`), with `align`.
+    pub registration: RegistrationSpec,
     /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
     /// (`v2x-fuser node --track`).
     pub track: bool,
@@ -94,8 +96,53 @@ impl Default for FuserSpec {
             max_wait_ms: 150.0,
             compensation: true,
             align: false,
+            registration: RegistrationSpec::default(),
             track: false,
             zenoh: ZenohArgs::default(),
+        }
+    }
+}
+
+/// The registration's settings in a scenario (`[fuser.registration]`), as the node's
+/// `--align-*` flags.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct RegistrationSpec {
+    /// Fewest matched boxes a window measures an offset from.
+    pub min_matches: usize,
+    /// Std per axis (m) of how far two agents' boxes of one object disagree beyond their stds.
+    pub disagreement_m: f64,
+    /// Time constant (s) with which an estimate fades to none without matches.
+    pub tau_s: f64,
+    /// Chi-square (3 degrees of freedom) an estimate must reach to be applied.
+    pub chi2: f64,
+    /// Largest centre distance (m) of a candidate match before any correction.
+    pub gate_m: f64,
+}
+
+impl Default for RegistrationSpec {
+    fn default() -> Self {
+        let p = v2x_fuser::align::AlignParams::default();
+        RegistrationSpec {
+            min_matches: p.min_matches,
+            disagreement_m: p.disagreement_m,
+            tau_s: p.tau_s,
+            chi2: p.chi2,
+            gate_m: p.gate_m,
+        }
+    }
+}
+
+impl RegistrationSpec {
+    /// The registration's parameters.
+    pub fn params(&self) -> v2x_fuser::align::AlignParams {
+        v2x_fuser::align::AlignParams {
+            min_matches: self.min_matches,
+            disagreement_m: self.disagreement_m,
+            tau_s: self.tau_s,
+            chi2: self.chi2,
+            gate_m: self.gate_m,
+            ..Default::default()
         }
     }
 }
@@ -389,6 +436,11 @@ impl Scenario {
         if !(self.fuser.window_ms > 0.0) || !(self.fuser.max_wait_ms >= 0.0) {
             return Err("fuser.window_ms must be > 0 and fuser.max_wait_ms >= 0".into());
         }
+        self.fuser
+            .registration
+            .params()
+            .validate()
+            .map_err(|e| format!("fuser.registration: {e}"))?;
         let mut names = std::collections::BTreeSet::new();
         for a in &self.agents {
             keys::validate_chunk("agent name", &a.name).map_err(|e| format!("agents: {e}"))?;
@@ -513,6 +565,19 @@ mod tests {
                 .contains("fuser.method")
         );
         assert!(bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\ncolour = 3").contains("colour"));
+        assert!(bad(
+            "[fuser.registration]\ntau_s = -1\n[[agents]]\nname = \"a\"\nnoise = \"mild\""
+        )
+        .contains("fuser.registration: tau_s -1"));
+        let s = Scenario::parse(
+            "[fuser]\nalign = true\n[fuser.registration]\nchi2 = 30\nmin_matches = 5\n[[agents]]\nname = \"a\"\nnoise = \"mild\"",
+            "x.toml",
+            None,
+        )
+        .unwrap();
+        let p = s.fuser.registration.params();
+        assert_eq!((p.chi2, p.min_matches), (30.0, 5));
+        assert_eq!(p.tau_s, v2x_fuser::align::AlignParams::default().tau_s);
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
         assert!(
             bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\nfaults = \"flip=3\"")

@@ -101,6 +101,8 @@ pub struct Fused {
     /// With tracking: the confirmed tracks the window updated, each box's id its tracking id
     /// (as published on the tracks key).
     pub tracks: Option<Vec<v2x_protocol::Detection>>,
+    /// With registration: each registered agent's estimate in this window.
+    pub registration: std::collections::BTreeMap<String, crate::align::Registration>,
 }
 
 /// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in
@@ -319,6 +321,7 @@ impl State {
             for agent in self.ingest.prune(now) {
                 self.windows.forget_agent(&agent);
                 self.parts.forget_agent(&agent);
+                self.stats.registration.remove(&agent);
             }
         }
         for line in self.log.tick(now) {
@@ -354,6 +357,9 @@ impl State {
             return;
         }
         self.ingest.fused(&d.fused.provenance.agents);
+        for (agent, r) in &d.fused.registration {
+            self.stats.registration.insert(agent.clone(), *r);
+        }
         self.stats.windows += 1;
         if !d.fused.provenance.complete {
             self.stats.windows_incomplete += 1;
@@ -371,6 +377,7 @@ impl State {
                 f.frame.detections.len(),
                 fusion_us as f64 / 1000.0,
                 e2e_ms,
+                &f.registration,
             );
         }
         self.fusion_hist.record(fusion_us as i64);

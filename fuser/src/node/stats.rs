@@ -138,6 +138,9 @@ pub struct NodeStats {
     pub fused_objects: u64,
     /// What was changed to keep fused output within the wire's domain.
     pub fit: FitStats,
+    /// With registration (`--align`): each agent's latest estimate, its stds, its matches and
+    /// whether it is applied.
+    pub registration: BTreeMap<String, crate::align::Registration>,
     /// Tracks (live, confirmed so far, ended so far), when the node tracks.
     pub tracks: Option<crate::tracker::TrackStats>,
     /// Windows open now.

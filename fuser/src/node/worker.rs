@@ -5,7 +5,7 @@
 //! loop, which keeps the statistics.
 
 use super::{Clock, Fused};
-use crate::align::{reference_agent, AlignParams, Aligner, ALIGN_WINDOWS};
+use crate::align::{reference_agent, AlignParams, Aligner};
 use crate::motion::{align_window, MotionParams};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
@@ -46,10 +46,15 @@ pub fn fuse_window(
 ) -> Fused {
     let agents: Vec<String> = closed.frames.keys().cloned().collect();
     let (t_ref, mut lists) = align_window(&closed, motion);
+    let mut registration = std::collections::BTreeMap::new();
     if let Some(aligner) = aligner {
         let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
         let names: Vec<&str> = agents.iter().map(String::as_str).collect();
-        lists = aligner.align(&names, &lists, reference_agent(&kinds)).0;
+        let (aligned, regs) = aligner.align(Some(t_ref), &names, &lists, reference_agent(&kinds));
+        lists = aligned;
+        for (name, r) in agents.iter().zip(regs) {
+            registration.extend(r.map(|r| (name.clone(), r)));
+        }
     }
     let (detections, sources) = method
         .fuse_sourced(&lists)
@@ -71,6 +76,7 @@ pub fn fuse_window(
             sources,
         },
         tracks: None,
+        registration,
     }
 }
 
@@ -108,7 +114,7 @@ struct Carried {
 impl Fusion {
     fn fresh(&self) -> Carried {
         Carried {
-            aligner: self.align.map(|p| Aligner::new(p, ALIGN_WINDOWS)),
+            aligner: self.align.map(Aligner::new),
             tracker: self.track.map(Tracker::new),
         }
     }
@@ -226,6 +232,7 @@ pub(super) async fn run(
                         sources: Vec::new(),
                     },
                     tracks: None,
+                    registration: Default::default(),
                 },
                 Fit::default(),
                 Some(format!("fusion failed: {e}")),

@@ -221,7 +221,7 @@ pub async fn regional_fuser_role(
     cfg.align = scenario
         .fuser
         .align
-        .then(v2x_fuser::align::AlignParams::default);
+        .then(|| scenario.fuser.registration.params());
     cfg.track = scenario
         .fuser
         .track
