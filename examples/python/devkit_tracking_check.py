@@ -77,9 +77,9 @@ def main():
     ap.add_argument("results")
     args = ap.parse_args()
     nusc = NuScenes(version=args.version, dataroot=tables(args.dataroot, args.version), verbose=False)
-    pred, _ = load_prediction(args.results, 500, TrackingBox, verbose=False)  # the official loader
-    cfg = config_factory("tracking_nips_2019")
+    cfg = config_factory("tracking_nips_2019")  # as TrackingEval: this sets the tracking names
     TrackingMetricData.set_nelem(cfg.num_thresholds)
+    pred, _ = load_prediction(args.results, 500, TrackingBox, verbose=False)  # the official loader
     gt = create_tracks(nusc, ground_truth(nusc), True)
     pred = create_tracks(nusc, {t: pred.boxes[t] for t in pred.sample_tokens}, False)
     metrics = TrackingMetrics(cfg)

@@ -45,9 +45,9 @@ pub struct AlignParams {
     pub min_matches: usize,
     /// Lowest score of a box used as a match.
     pub min_score: f64,
-    /// Std per axis (m) of how far two agents' boxes of one object disagree beyond their stated
-    /// stds (labels or detectors that place an object differently): 0.5 m, as the two sides'
-    /// labels of one object in real vehicle-infrastructure data.
+    /// Std per axis (m) of how far two agents' boxes of one object disagree at least, beyond
+    /// their stated stds (labels or detectors that place an object differently); wider scatter
+    /// in a window's residuals widens its measurement further (step 6).
     pub disagreement_m: f64,
     /// Prior std (m) of an agent's shift, what the estimate decays to.
     pub prior_shift_m: f64,
@@ -64,8 +64,8 @@ pub struct AlignParams {
     pub drift_m: f64,
     /// How fast (rad per square root of a second) an agent's turn may drift while measured.
     pub drift_rad: f64,
-    /// The chi-square (3 degrees of freedom) an estimate must exceed to be applied: 16.27, the
-    /// 99.9% quantile.
+    /// The chi-square (3 degrees of freedom) an estimate must exceed to be applied: 7.81, the 95%
+    /// quantile.
     pub chi2: f64,
 }
 
@@ -76,14 +76,14 @@ impl Default for AlignParams {
             inlier_m: 1.5,
             min_matches: 3,
             min_score: 0.3,
-            disagreement_m: 0.5,
+            disagreement_m: 0.2,
             prior_shift_m: 2.0,
             prior_turn_rad: 3f64.to_radians(),
             tau_s: 10.0,
             correlation_s: 2.0,
             drift_m: 0.005,
             drift_rad: 0.0001,
-            chi2: 16.27,
+            chi2: 7.81,
         }
     }
 }

@@ -215,15 +215,15 @@ struct AlignArgs {
     /// With --align: fewest matched boxes a window measures an offset from.
     #[arg(long, requires = "align", default_value_t = AlignParams::default().min_matches)]
     align_min_matches: usize,
-    /// With --align: std per axis (m) of how far two agents' boxes of one object disagree beyond
-    /// their stated stds (0.5: the two sides' labels in real vehicle-infrastructure data).
+    /// With --align: std per axis (m) of how far two agents' boxes of one object disagree at
+    /// least, beyond their stated stds (a window whose matches scatter more is widened by it).
     #[arg(long, requires = "align", default_value_t = AlignParams::default().disagreement_m)]
     align_disagreement_m: f64,
     /// With --align: time constant (s) with which an estimate fades to none without matches.
     #[arg(long, requires = "align", default_value_t = AlignParams::default().tau_s)]
     align_tau_s: f64,
     /// With --align: the chi-square (3 degrees of freedom) an estimate must reach against no
-    /// correction to be applied (16.27: 99.9%; 0 applies every estimate).
+    /// correction to be applied (7.81: 95%; 0 applies every estimate).
     #[arg(long, requires = "align", default_value_t = AlignParams::default().chi2)]
     align_chi2: f64,
     /// With --align: largest centre distance (m) of a candidate match before any correction.
@@ -380,18 +380,37 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 window_ms,
                 align: align_params.map(|p| (p, align_to - 1)),
             };
-            let (samples, n_in, n_out, by_time) =
-                v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
-            let how = match (by_time, opts.motion.is_some()) {
+            let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
+            let how = match (report.by_time, opts.motion.is_some()) {
                 (true, true) => "grouped by capture time, motion-compensated",
                 (true, false) => "grouped by capture time, not compensated",
                 (false, _) => "grouped by sample token (the files carry no capture times)",
             };
             eprintln!(
-                "{method}: fused {n_in} boxes from {} agents over {samples} samples into {n_out} boxes ({how}) -> {}",
+                "{method}: fused {} boxes from {} agents over {} samples into {} boxes ({how}) -> {}",
+                report.boxes_in,
                 inputs.len(),
+                report.samples,
+                report.boxes_out,
                 output.display()
             );
+            for (agent, measured, applied, last) in &report.registration {
+                let last = last.map_or(String::new(), |r| {
+                    format!(
+                        "; last estimate shift ({:.2}, {:.2}) m +- ({:.2}, {:.2}), turn {:.2} deg, {}",
+                        r.shift_m[0],
+                        r.shift_m[1],
+                        r.std[0],
+                        r.std[1],
+                        r.turn_rad.to_degrees(),
+                        if r.applied { "applied" } else { "not applied" }
+                    )
+                });
+                eprintln!(
+                    "registration of {agent}: measured in {measured} of {} windows, applied in {applied}{last} (per window: meta.v2x_registration)",
+                    report.samples
+                );
+            }
             Ok(())
         }
         Command::Track {

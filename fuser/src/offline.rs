@@ -298,26 +298,89 @@ pub fn track_files(
     Ok(tracks)
 }
 
-/// Reads, fuses and writes: the `v2x-fuser fuse` command. Returns (samples, boxes in, boxes out,
-/// whether frames were grouped by capture time).
+/// What `v2x-fuser fuse` did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FuseReport {
+    /// Samples (windows) written.
+    pub samples: usize,
+    /// Boxes read, over every input.
+    pub boxes_in: usize,
+    /// Fused boxes written.
+    pub boxes_out: usize,
+    /// Whether frames were grouped by capture time (else by sample token).
+    pub by_time: bool,
+    /// With registration, per input registered: `agentN`, the windows it was measured in,
+    /// the windows its correction was applied in, and its last estimate.
+    pub registration: Vec<(String, usize, usize, Option<Registration>)>,
+}
+
+/// Reads, fuses and writes: the `v2x-fuser fuse` command.
 pub fn fuse_files(
     method: &Method,
     inputs: &[PathBuf],
     output: &std::path::Path,
     missing: MissingStd,
     opts: &OfflineOptions,
-) -> Result<(usize, usize, usize, bool), JsonError> {
+) -> Result<FuseReport, JsonError> {
     let Inputs { agents, tokens } = read_inputs(inputs, missing)?;
     let by_time = !agents.is_empty() && agents.iter().all(|r| capture_times(r).is_some());
     let fused = fuse_results(method, &agents, opts);
     write_results(output, &fused, &tokens)?;
-    let n_in = agents
+    let boxes_in = agents
         .iter()
         .flat_map(|r| r.samples.values())
         .map(Vec::len)
         .sum();
-    let n_out = fused.samples.values().map(Vec::len).sum();
-    Ok((fused.samples.len(), n_in, n_out, by_time))
+    Ok(FuseReport {
+        samples: fused.samples.len(),
+        boxes_in,
+        boxes_out: fused.samples.values().map(Vec::len).sum(),
+        by_time,
+        registration: registration_summary(&fused),
+    })
+}
+
+/// Per registered input, from `meta.v2x_registration` in time (else token) order: the windows
+/// measured, the windows applied, the last estimate.
+fn registration_summary(fused: &Results) -> Vec<(String, usize, usize, Option<Registration>)> {
+    let Some(Value::Object(per_sample)) = fused.meta.get("v2x_registration") else {
+        return Vec::new();
+    };
+    let times = capture_times(fused);
+    let mut keys: Vec<&String> = per_sample.keys().collect();
+    keys.sort_by_key(|k| (times.as_ref().and_then(|t| t.get(*k).copied()), *k));
+    let mut out: BTreeMap<String, (usize, usize, Option<Registration>)> = BTreeMap::new();
+    for k in keys {
+        for (agent, r) in per_sample[k].as_object().into_iter().flatten() {
+            let e = out.entry(agent.clone()).or_default();
+            let num = |f: &str| r[f].as_f64().unwrap_or(f64::NAN);
+            let pair = |f: &str| {
+                [
+                    r[f][0].as_f64().unwrap_or(f64::NAN),
+                    r[f][1].as_f64().unwrap_or(f64::NAN),
+                ]
+            };
+            let reg = Registration {
+                pivot: pair("pivot"),
+                shift_m: pair("shift_m"),
+                turn_rad: num("turn_deg").to_radians(),
+                std: [
+                    pair("std_m")[0],
+                    pair("std_m")[1],
+                    num("std_turn_deg").to_radians(),
+                ],
+                matches: r["matches"].as_u64().unwrap_or(0) as usize,
+                chi2: num("chi2"),
+                applied: r["applied"].as_bool().unwrap_or(false),
+            };
+            e.0 += usize::from(reg.matches > 0);
+            e.1 += usize::from(reg.applied);
+            e.2 = Some(reg);
+        }
+    }
+    out.into_iter()
+        .map(|(a, (m, ap, r))| (a, m, ap, r))
+        .collect()
 }
 
 #[cfg(test)]

@@ -236,10 +236,28 @@ fn track_then_score_tracks_and_boxes() {
     assert!(ok, "{err}");
     let agents = [dir.join("agent1.json"), dir.join("agent2.json")];
     let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
-        .args(["fuse", "--method", "csba-wls+", "--output"])
+        .args(["fuse", "--output"])
         .arg(dir.join("fused.json"))
         .args(&agents));
-    assert!(ok, "{err}");
+    assert!(
+        ok && err.starts_with("csba-wls+: fused"),
+        "the default method: {err}"
+    );
+    // Registration says what it estimated, per window in the file and in sum on stderr.
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--align", "--output"])
+        .arg(dir.join("aligned.json"))
+        .args(&agents));
+    assert!(
+        ok && err.contains("registration of agent1: measured in"),
+        "{err}"
+    );
+    let aligned: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("aligned.json")).unwrap()).unwrap();
+    let reports = aligned["meta"]["v2x_registration"].as_object().unwrap();
+    assert!(reports
+        .values()
+        .any(|r| r["agent1"]["matches"].as_u64() > Some(2)));
     let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
         .args(["track", "--output"])
         .arg(dir.join("tracked.json"))
@@ -255,6 +273,42 @@ fn track_then_score_tracks_and_boxes() {
     ] {
         assert!(text.contains(field), "{field}");
     }
+    // Only the seven classes the devkit's tracking loader accepts, unless asked for all.
+    let names = |file: &str| -> std::collections::BTreeSet<String> {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap();
+        v["results"]
+            .as_object()
+            .unwrap()
+            .values()
+            .flat_map(|b| b.as_array().unwrap().clone())
+            .map(|b| b["tracking_name"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let tracking = [
+        "bicycle",
+        "bus",
+        "car",
+        "motorcycle",
+        "pedestrian",
+        "trailer",
+        "truck",
+    ];
+    let seen = names("tracked.json");
+    assert!(
+        seen.iter().all(|n| tracking.contains(&n.as_str())),
+        "{seen:?}"
+    );
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["track", "--all-classes", "--output"])
+        .arg(dir.join("all.json"))
+        .args(&agents));
+    assert!(ok, "{err}");
+    let all = names("all.json");
+    assert!(
+        all.contains("barrier") && all.contains("traffic_cone"),
+        "{all:?}"
+    );
     let eval = |file: &str, extra: &[&str]| -> serde_json::Value {
         let (ok, json, err) = run(Command::new(bin("v2x-sim"))
             .args(["eval", "--all-frames", "--format", "json"])

@@ -377,3 +377,59 @@ async fn tracks_follow_the_fused_windows_on_their_key() {
     let st = finish(s).await;
     assert_eq!(st.tracks.unwrap().live, 2);
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn registration_is_reported_in_the_stats() {
+    // Vehicle a reports six cars 0.66 m east and north of where roadside unit b does (a
+    // calibration error): within a few windows the fuser applies the shift, and says so.
+    let ns = "registration";
+    let mut c = cfg(ns, 300.0);
+    c.align = Some(Default::default());
+    let mut s = setup(ns, c).await;
+    let cars = |dx: f64, dy: f64| -> Vec<Detection> {
+        (0..6)
+            .map(|i| {
+                let mut d = det(12.0 * i as f64 + dx, i);
+                d.center[1] = 5.0 * (i % 2) as f64 + dy;
+                d.std = Uncertainty::uniform(0.1, 0.1, 0.1);
+                d
+            })
+            .collect()
+    };
+    let mut last = 0;
+    let mut fused = None;
+    // (rounds run ahead of the clock by a window each: eight stay within what the fuser admits)
+    for _ in 0..8 {
+        let t = next_t(&mut last);
+        s.a.send(Frame {
+            detections: cars(-0.66, -0.66),
+            ..frame(t)
+        })
+        .unwrap();
+        s.b.send(Frame {
+            detections: cars(0.0, 0.0),
+            ..frame(t)
+        })
+        .unwrap();
+        fused = Some(next_fused(&mut s.fuser.1).await);
+    }
+    let fused = fused.unwrap();
+    let r = fused.registration["a"];
+    assert!(r.applied && r.matches == 6, "{r:?}");
+    // registered, each pair fuses into one box
+    assert_eq!(fused.frame.detections.len(), 6);
+    let v = stats_until(&s.sa, ns, "registration stats", |v| {
+        v["registration"]["a"]["applied"] == true
+    })
+    .await;
+    let shift = &v["registration"]["a"]["shift_m"];
+    for k in 0..2 {
+        let x = shift[k].as_f64().unwrap();
+        assert!((x - 0.66).abs() < 0.05, "{shift}");
+    }
+    assert!(
+        v["registration"].get("b").is_none(),
+        "the reference is not registered"
+    );
+    finish(s).await;
+}
