@@ -103,7 +103,7 @@ pub fn run_timing(
                 };
                 let lists: Vec<Vec<Detection>> = (0..2)
                     .map(|a| {
-                        let objects = gt.objects_at(frame.scene, caps[a]);
+                        let objects = gt.in_draw_order(gt.objects_at(frame.scene, caps[a]));
                         let draw = if a == 0 { k as u64 } else { draw2 };
                         let noise = &setting.agents[a];
                         let capture = Capture {

@@ -50,13 +50,14 @@ pub fn agent_detections(
 ) -> Vec<Vec<Detection>> {
     let frame = &gt.frames[i];
     let places = place_agents(frame, setting.agents.len(), seed);
+    let objects = gt.in_draw_order(frame.objects.clone());
     setting
         .agents
         .iter()
         .enumerate()
         .map(|(a, noise)| {
             detect(
-                &frame.objects,
+                &objects,
                 Capture::of(frame, i as u64),
                 a,
                 noise,

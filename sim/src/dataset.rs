@@ -189,6 +189,16 @@ impl GroundTruth {
         }
     }
 
+    /// A frame's objects in the order the simulation draws their noise in (one draw after
+    /// another): by id for nuScenes tables, as seeded runs have always drawn them, whatever the
+    /// order of `sample_annotation.json`; as they are for the town.
+    pub fn in_draw_order(&self, mut objects: Vec<GtObject>) -> Vec<GtObject> {
+        if matches!(self.motion, Motion::Tracks(_)) {
+            objects.sort_by_key(|o| o.id);
+        }
+        objects
+    }
+
     /// Frames per second of the data (median spacing of the first scene).
     pub fn hz(&self) -> f64 {
         let mut dts: Vec<u64> = self

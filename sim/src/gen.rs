@@ -138,7 +138,7 @@ pub fn generate(
                     (format!("t{t}"), t)
                 };
                 let places = place_agents(frame, setting.agents.len(), seed);
-                let objects = gt.objects_at(scene, t);
+                let objects = gt.in_draw_order(gt.objects_at(scene, t));
                 let capture = Capture {
                     draw,
                     scene,

@@ -29,7 +29,7 @@ pub fn agent_view(
     noise: &AgentNoise,
 ) -> (Vec<Detection>, [f64; 3]) {
     let spec = &scenario.agents[idx];
-    let objects = gt.objects_at(schedule.scene, t_us);
+    let objects = gt.in_draw_order(gt.objects_at(schedule.scene, t_us));
     let near = gt
         .nearest_frame(schedule.scene, t_us)
         .map(|i| &gt.frames[i]);
