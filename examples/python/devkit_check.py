@@ -4,7 +4,7 @@ tables, without the devkit's range and lidar-point filters, and prints the figur
 compare with `v2x-sim eval --match distance --format json` on the same files.
 
     pip install nuscenes-devkit
-    python devkit_check.py --dataroot ../shared/data/av2-log-nuscenes --version v1.0-av2log RESULTS.json
+    python devkit_check.py --dataroot DATAROOT --version VERSION RESULTS.json
 """
 
 import argparse

@@ -101,7 +101,7 @@ impl CsbaParams {
         consistency: None,
     };
     /// The improved variant `csba-wls+`: a scale-consistent gate, the wrapped orientation
-    /// score and the symmetric dimension score (README, "csba-wls+").
+    /// score and the symmetric dimension score (docs/results.md, "The method, and csba-wls+").
     pub const PLUS: CsbaParams = CsbaParams {
         weights: [0.2, 0.5, 0.3],
         gate: Gate::Mahalanobis {

@@ -1,6 +1,7 @@
-//! Prints the payload-size table of the README: bytes per frame and per object for this wire
-//! format, postcard of plain f32 fields, and JSON, on urban-like frames with uniform stds; then
-//! the same frames with a velocity on every box (what velocities cost on the wire).
+//! Prints the payload-size table of docs/guide.md ("Wire format and bandwidth"): bytes per frame
+//! and per object for this wire format, postcard of plain f32 fields, and JSON, on urban-like
+//! frames with uniform stds; then the same frames with a velocity on every box (what velocities
+//! cost on the wire).
 //!
 //! Run: `cargo run --release -p v2x-protocol --example wire_sizes`
 

@@ -58,7 +58,7 @@ impl Faults {
         drift_s: None,
     };
 
-    /// The `realistic` faults; the README ("Detector faults") gives the published figures
+    /// The `realistic` faults; docs/guide.md ("Detector faults") gives the published figures
     /// behind each value.
     pub const REALISTIC: Faults = Faults {
         detect: 0.95,

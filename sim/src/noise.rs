@@ -45,7 +45,8 @@ impl AgentNoise {
     }
 
     /// The `realistic` profile: a lidar detector's errors (0.2 m, 0.1 m, 6 degrees, 0.25 m/s,
-    /// confidence 0.8) with [`Faults::REALISTIC`]; the README gives the published figures.
+    /// confidence 0.8) with [`Faults::REALISTIC`]; docs/guide.md ("Detector faults") gives the
+    /// published figures.
     pub fn realistic() -> Self {
         AgentNoise {
             std: Uncertainty::uniform(0.2, 0.1, 6f64.to_radians()),

@@ -1,6 +1,6 @@
 //! Scenario files (TOML): the data, the agents with their kind, noise, sensing range and link,
 //! the fuser's method and window, the run's length and speed, and each role's Zenoh endpoints.
-//! `scenarios/` holds examples; the README documents every field.
+//! `scenarios/` holds examples; the guide (docs/guide.md, "Scenarios") documents every field.
 
 use crate::cli::DataArgs;
 use crate::faults::Faults;

@@ -52,7 +52,7 @@ use v2x_protocol::nuscenes_json::write_results;
 pub enum RunFormat {
     /// Human-readable tables.
     Table,
-    /// One JSON object (fields in the README).
+    /// One JSON object (fields in docs/guide.md).
     Json,
 }
 

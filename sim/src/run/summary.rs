@@ -1,5 +1,5 @@
 //! The summary of a run: metrics of the fused output and of each agent alone, bandwidth, frame
-//! counts and latencies, as one JSON object (fields in the README) or as tables.
+//! counts and latencies, as one JSON object (fields in docs/guide.md) or as tables.
 
 use super::roles::{agent_captures, agent_view, FuserOutcome};
 use super::schedule::Schedule;
