@@ -125,18 +125,22 @@ def to_tracks(scenes, gt):
     return tracks
 
 
-def evaluate(scenes):
+def tracking_config():
+    """The tracking_nips_2019 configuration, set up as TrackingEval sets it (this also sets the
+    tracking names the devkit's loader accepts)."""
     cfg = config_factory("tracking_nips_2019")
     TrackingMetricData.set_nelem(cfg.num_thresholds)
-    gt, pred = to_tracks(scenes, True), to_tracks(scenes, False)
+    return cfg
+
+
+def score(cfg, gt, pred):
+    """Every column of the devkit's tracking evaluation, overall and per class, from tracks as
+    create_tracks makes them (as TrackingEval.evaluate, step 2)."""
     metrics = TrackingMetrics(cfg)
-    for class_name in cfg.class_names:  # as TrackingEval.evaluate, step 2
+    for class_name in cfg.class_names:
         md = TrackingEvaluation(gt, pred, class_name, center_distance, cfg.dist_th_tp, cfg.min_recall,
                                 cfg.num_thresholds, cfg.metric_worst, verbose=False).accumulate()
-        if np.all(np.isnan(md.mota)):
-            best = None
-        else:
-            best = np.nanargmax(md.mota)
+        best = None if np.all(np.isnan(md.mota)) else np.nanargmax(md.mota)
         if best is not None:
             for name in MOT_METRIC_MAP.values():
                 if name:
@@ -149,10 +153,16 @@ def evaluate(scenes):
                 values[np.isnan(values)] = cfg.metric_worst[name]
                 value = float(np.nanmean(values))
             metrics.add_label_metric(name, class_name, value)
-    out = {m: metrics.compute_metric(m) for m in ["amota", "amotp", "mota", "motp", "ids", "frag", "tp", "fp", "fn"]}
-    out["classes"] = {c: {m: metrics.label_metrics[m][c] for m in ["amota", "amotp", "mota", "motp", "ids", "frag"]}
+    columns = ["amota", "amotp", "mota", "motp", "ids", "frag", "tp", "fp", "fn"]
+    out = {m: metrics.compute_metric(m) for m in columns}
+    out["classes"] = {c: {m: metrics.label_metrics[m][c] for m in columns[:6]}
                       for c in cfg.class_names if not np.isnan(metrics.label_metrics["amota"][c])}
     return out
+
+
+def evaluate(scenes):
+    cfg = tracking_config()
+    return score(cfg, to_tracks(scenes, True), to_tracks(scenes, False))
 
 
 def main():

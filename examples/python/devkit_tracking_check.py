@@ -14,18 +14,13 @@ from collections import defaultdict
 
 import numpy as np
 from nuscenes import NuScenes
-from nuscenes.eval.common.config import config_factory
 from nuscenes.eval.common.loaders import load_prediction
-from nuscenes.eval.common.utils import center_distance
-from nuscenes.eval.tracking.algo import TrackingEvaluation
-from nuscenes.eval.tracking.constants import AVG_METRIC_MAP, MOT_METRIC_MAP
-from nuscenes.eval.tracking.data_classes import TrackingBox, TrackingMetricData, TrackingMetrics
+from nuscenes.eval.tracking.data_classes import TrackingBox
 from nuscenes.eval.tracking.loaders import interpolate_tracks
 from nuscenes.eval.tracking.utils import category_to_tracking_name
 
 from devkit_check import tables
-
-COLUMNS = ["amota", "amotp", "mota", "motp", "ids", "frag", "tp", "fp", "fn"]
+from devkit_tracking_case import score, tracking_config
 
 
 def ground_truth(nusc):
@@ -77,31 +72,11 @@ def main():
     ap.add_argument("results")
     args = ap.parse_args()
     nusc = NuScenes(version=args.version, dataroot=tables(args.dataroot, args.version), verbose=False)
-    cfg = config_factory("tracking_nips_2019")  # as TrackingEval: this sets the tracking names
-    TrackingMetricData.set_nelem(cfg.num_thresholds)
+    cfg = tracking_config()  # before loading: it sets the tracking names the loader accepts
     pred, _ = load_prediction(args.results, 500, TrackingBox, verbose=False)  # the official loader
     gt = create_tracks(nusc, ground_truth(nusc), True)
     pred = create_tracks(nusc, {t: pred.boxes[t] for t in pred.sample_tokens}, False)
-    metrics = TrackingMetrics(cfg)
-    for class_name in cfg.class_names:  # as TrackingEval.evaluate, step 2
-        md = TrackingEvaluation(gt, pred, class_name, center_distance, cfg.dist_th_tp, cfg.min_recall,
-                                cfg.num_thresholds, cfg.metric_worst, verbose=False).accumulate()
-        best = None if np.all(np.isnan(md.mota)) else np.nanargmax(md.mota)
-        if best is not None:
-            for name in MOT_METRIC_MAP.values():
-                if name:
-                    metrics.add_label_metric(name, class_name, md.get_metric(name)[best])
-        for name in AVG_METRIC_MAP.keys():
-            values = np.array(md.get_metric(AVG_METRIC_MAP[name]))
-            if np.all(np.isnan(values)):
-                value = np.nan
-            else:
-                values[np.isnan(values)] = cfg.metric_worst[name]
-                value = float(np.nanmean(values))
-            metrics.add_label_metric(name, class_name, value)
-    out = {m: metrics.compute_metric(m) for m in COLUMNS}
-    out["classes"] = {c: {m: metrics.label_metrics[m][c] for m in COLUMNS}
-                      for c in cfg.class_names if not np.isnan(metrics.label_metrics["amota"][c])}
+    out = score(cfg, gt, pred)
     print(json.dumps(out, indent=1))
 
 

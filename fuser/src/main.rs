@@ -222,10 +222,14 @@ struct AlignArgs {
     /// With --align: time constant (s) with which an estimate fades to none without matches.
     #[arg(long, requires = "align", default_value_t = AlignParams::default().tau_s)]
     align_tau_s: f64,
-    /// With --align: the chi-square (3 degrees of freedom) an estimate must reach against no
-    /// correction to be applied (7.81: 95%; 0 applies every estimate).
+    /// With --align: the chi-square (2 degrees of freedom) an estimated shift must reach against
+    /// none to be applied (5.99: 95%; 0 applies every estimate).
     #[arg(long, requires = "align", default_value_t = AlignParams::default().chi2)]
     align_chi2: f64,
+    /// With --align: the chi-square (1 degree of freedom) an estimated turn must reach against
+    /// none to be applied (10.83: 99.9%; a turn moves far boxes by its lever arm).
+    #[arg(long, requires = "align", default_value_t = AlignParams::default().turn_chi2)]
+    align_turn_chi2: f64,
     /// With --align: largest centre distance (m) of a candidate match before any correction.
     #[arg(long, requires = "align", default_value_t = AlignParams::default().gate_m)]
     align_gate_m: f64,
@@ -241,6 +245,7 @@ impl AlignArgs {
             disagreement_m: self.align_disagreement_m,
             tau_s: self.align_tau_s,
             chi2: self.align_chi2,
+            turn_chi2: self.align_turn_chi2,
             gate_m: self.align_gate_m,
             ..Default::default()
         };
@@ -403,7 +408,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         r.std[0],
                         r.std[1],
                         r.turn_rad.to_degrees(),
-                        if r.applied { "applied" } else { "not applied" }
+                        match (r.applied, r.turn_applied) {
+                            (true, true) => "applied",
+                            (true, false) => "shift applied, turn not",
+                            (false, true) => "turn applied, shift not",
+                            (false, false) => "not applied",
+                        }
                     )
                 });
                 eprintln!(

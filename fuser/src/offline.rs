@@ -110,7 +110,9 @@ fn registration_json(names: &[&str], regs: &[Option<Registration>]) -> Option<Va
                     "pivot": r.pivot,
                     "matches": r.matches,
                     "chi2": r.chi2,
+                    "turn_chi2": r.turn_chi2,
                     "applied": r.applied,
+                    "turn_applied": r.turn_applied,
                 }),
             ))
         })
@@ -371,7 +373,9 @@ fn registration_summary(fused: &Results) -> Vec<(String, usize, usize, Option<Re
                 ],
                 matches: r["matches"].as_u64().unwrap_or(0) as usize,
                 chi2: num("chi2"),
+                turn_chi2: num("turn_chi2"),
                 applied: r["applied"].as_bool().unwrap_or(false),
+                turn_applied: r["turn_applied"].as_bool().unwrap_or(false),
             };
             e.0 += usize::from(reg.matches > 0);
             e.1 += usize::from(reg.applied);

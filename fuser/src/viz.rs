@@ -174,7 +174,7 @@ impl std::fmt::Debug for Viz {
 }
 
 /// The JSON schema of a `/stats` message.
-const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"},"registration":{"type":"object","additionalProperties":{"type":"object","properties":{"pivot":{"type":"array","items":{"type":"number"}},"shift_m":{"type":"array","items":{"type":"number"}},"turn_rad":{"type":"number"},"std":{"type":"array","items":{"type":"number"}},"matches":{"type":"integer"},"chi2":{"type":"number"},"applied":{"type":"boolean"}}}}}}"#;
+const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"},"registration":{"type":"object","additionalProperties":{"type":"object","properties":{"pivot":{"type":"array","items":{"type":"number"}},"shift_m":{"type":"array","items":{"type":"number"}},"turn_rad":{"type":"number"},"std":{"type":"array","items":{"type":"number"}},"matches":{"type":"integer"},"chi2":{"type":"number"},"turn_chi2":{"type":"number"},"applied":{"type":"boolean"},"turn_applied":{"type":"boolean"}}}}}}"#;
 
 impl Viz {
     /// Opens the MCAP file (`mcap`) and/or starts the live server on `live` (host, port); at

@@ -63,7 +63,9 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
                 std: [0.1, 0.1, 0.002],
                 matches: 4,
                 chi2: 40.0,
+                turn_chi2: 2.0,
                 applied: true,
+                turn_applied: false,
             },
         )]
         .into();

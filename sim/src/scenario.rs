@@ -114,8 +114,10 @@ pub struct RegistrationSpec {
     pub disagreement_m: f64,
     /// Time constant (s) with which an estimate fades to none without matches.
     pub tau_s: f64,
-    /// Chi-square (3 degrees of freedom) an estimate must reach to be applied.
+    /// Chi-square (2 degrees of freedom) an estimated shift must reach to be applied.
     pub chi2: f64,
+    /// Chi-square (1 degree of freedom) an estimated turn must reach to be applied.
+    pub turn_chi2: f64,
     /// Largest centre distance (m) of a candidate match before any correction.
     pub gate_m: f64,
 }
@@ -128,6 +130,7 @@ impl Default for RegistrationSpec {
             disagreement_m: p.disagreement_m,
             tau_s: p.tau_s,
             chi2: p.chi2,
+            turn_chi2: p.turn_chi2,
             gate_m: p.gate_m,
         }
     }
@@ -141,6 +144,7 @@ impl RegistrationSpec {
             disagreement_m: self.disagreement_m,
             tau_s: self.tau_s,
             chi2: self.chi2,
+            turn_chi2: self.turn_chi2,
             gate_m: self.gate_m,
             ..Default::default()
         }

@@ -55,38 +55,47 @@ fn the_metrics_equal_the_devkits() {
     }
     let m = eval.summary();
     let want = &case["devkit"];
-    let close = |got: f64, key: &str| {
-        let w = want[key].as_f64().unwrap();
-        assert!(
-            (got - w).abs() < 1e-9,
-            "{key}: {got} here, {w} in the devkit"
-        );
-    };
-    close(m.amota, "amota");
-    close(m.amotp, "amotp");
-    close(m.mota, "mota");
-    close(m.motp, "motp");
-    close(m.ids as f64, "ids");
-    close(m.frag as f64, "frag");
-    close(m.tp as f64, "tp");
-    close(m.fp as f64, "fp");
-    close(m.fn_ as f64, "fn");
+    close(
+        "overall",
+        want,
+        &[
+            ("amota", m.amota),
+            ("amotp", m.amotp),
+            ("mota", m.mota),
+            ("motp", m.motp),
+            ("ids", m.ids as f64),
+            ("frag", m.frag as f64),
+            ("tp", m.tp as f64),
+            ("fp", m.fp as f64),
+            ("fn", m.fn_ as f64),
+        ],
+    );
     let classes = want["classes"].as_object().unwrap();
     assert_eq!(m.classes.len(), classes.len());
     for (name, w) in classes {
         let got = &m.classes[name];
-        let close = |got: f64, key: &str| {
-            let w = w[key].as_f64().unwrap();
-            assert!(
-                (got - w).abs() < 1e-9,
-                "{name} {key}: {got} here, {w} in the devkit"
-            );
-        };
-        close(got.amota, "amota");
-        close(got.amotp, "amotp");
-        close(got.mota, "mota");
-        close(got.motp, "motp");
-        close(got.ids as f64, "ids");
-        close(got.frag as f64, "frag");
+        close(
+            name,
+            w,
+            &[
+                ("amota", got.amota),
+                ("amotp", got.amotp),
+                ("mota", got.mota),
+                ("motp", got.motp),
+                ("ids", got.ids as f64),
+                ("frag", got.frag as f64),
+            ],
+        );
+    }
+}
+
+/// Each figure equals the devkit's to 1e-9.
+fn close(what: &str, want: &serde_json::Value, got: &[(&str, f64)]) {
+    for (key, got) in got {
+        let w = want[key].as_f64().unwrap();
+        assert!(
+            (got - w).abs() < 1e-9,
+            "{what} {key}: {got} here, {w} in the devkit"
+        );
     }
 }
