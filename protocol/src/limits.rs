@@ -11,6 +11,10 @@ pub const MAX_WINDOW_AGENTS: usize = 1024;
 pub const MAX_AGENT_NAME: usize = 64;
 /// The largest payload a decoder looks at, in bytes (far above what `MAX_OBJECTS` objects take).
 pub const MAX_PAYLOAD: usize = 1 << 20;
+/// The largest message a Zenoh session of the project reassembles, in bytes: a frame of
+/// [`MAX_PAYLOAD`] with room for its key, attachment and headers. Larger messages are dropped
+/// by Zenoh before they take memory (its own default is 1 GiB).
+pub const MAX_MESSAGE: usize = 2 << 20;
 /// Smallest box size along any axis (m): one centimetre.
 pub const SIZE_MIN: f64 = 0.01;
 /// Largest box size along any axis (m).

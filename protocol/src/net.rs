@@ -92,8 +92,22 @@ pub fn config(args: &ZenohArgs) -> Result<zenoh::Config, SessionError> {
             .insert_json5(key, &value)
             .map_err(|e| SessionError(format!("Zenoh option {key} = {value}: {e}")))?;
     }
+    // Zenoh reassembles messages up to 1 GiB by default: bound it by the format's own limit,
+    // unless the configuration file chose a value.
+    let default = zenoh::Config::default()
+        .get_json(MAX_MESSAGE_KEY)
+        .unwrap_or_default();
+    if config.get_json(MAX_MESSAGE_KEY).unwrap_or_default() == default {
+        let value = crate::limits::MAX_MESSAGE.to_string();
+        config
+            .insert_json5(MAX_MESSAGE_KEY, &value)
+            .map_err(|e| SessionError(format!("Zenoh option {MAX_MESSAGE_KEY} = {value}: {e}")))?;
+    }
     Ok(config)
 }
+
+/// The Zenoh option that bounds the size of a reassembled message.
+pub const MAX_MESSAGE_KEY: &str = "transport/link/rx/max_message_size";
 
 /// Opens a Zenoh session with the given options (the config file first, then the flags).
 #[cfg(feature = "session")]
@@ -157,5 +171,26 @@ mod tests {
         assert!(p.contains(&("listen/endpoints", "[\"tcp/127.0.0.1:7001\"]".into())));
         assert!(p.contains(&("scouting/multicast/enabled", "false".into())));
         assert!(ZenohArgs::default().json5_pairs().is_empty());
+    }
+
+    #[cfg(feature = "session")]
+    #[test]
+    fn messages_are_bounded_by_the_format_unless_a_file_says_otherwise() {
+        let c = config(&ZenohArgs::default()).unwrap();
+        let want = crate::limits::MAX_MESSAGE.to_string();
+        assert_eq!(c.get_json(MAX_MESSAGE_KEY).unwrap(), want);
+        let dir = std::env::temp_dir().join(format!("v2x-net-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("z.json5");
+        std::fs::write(&file, "{transport: {link: {rx: {max_message_size: 4096}}}}").unwrap();
+        let args = ZenohArgs {
+            zenoh_config: Some(file),
+            ..Default::default()
+        };
+        assert_eq!(
+            config(&args).unwrap().get_json(MAX_MESSAGE_KEY).unwrap(),
+            "4096"
+        );
+        let _ = std::fs::remove_dir_all(dir);
     }
 }

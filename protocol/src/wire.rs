@@ -51,11 +51,23 @@ const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD | TAG_VEL | TAG_ID;
 /// Index meaning "the frame itself" in errors.
 const FRAME: usize = usize::MAX;
 
+/// Where an error lies, as its message says it: an object by index, or the frame itself.
+struct At(usize);
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            FRAME => f.write_str("frame"),
+            i => write!(f, "object {i}"),
+        }
+    }
+}
+
 /// Why a frame could not be encoded.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum EncodeError {
     /// A value is NaN or infinite.
-    #[error("object {index}: field '{field}' is not finite")]
+    #[error("{at}: field '{field}' is not finite", at = At(*.index))]
     NonFinite {
         /// Object index (or usize::MAX for the frame itself).
         index: usize,
@@ -63,7 +75,7 @@ pub enum EncodeError {
         field: &'static str,
     },
     /// A value is outside what the format represents.
-    #[error("object {index}: field '{field}' is out of range ({value})")]
+    #[error("{at}: field '{field}' is out of range ({value})", at = At(*.index))]
     OutOfRange {
         /// Object index (or usize::MAX for the frame itself).
         index: usize,
@@ -124,7 +136,7 @@ pub enum DecodeError {
         cm: i64,
     },
     /// A std code is zero or above the largest.
-    #[error("object {index}: std '{field}' has invalid code {code}")]
+    #[error("{at}: std '{field}' has invalid code {code}", at = At(*.index))]
     BadStdCode {
         /// Object index (usize::MAX for the frame default).
         index: usize,
@@ -134,7 +146,7 @@ pub enum DecodeError {
         code: u16,
     },
     /// A code is outside its range (class, kind, tag, score, coordinates).
-    #[error("object {index}: field '{field}' is out of range ({value})")]
+    #[error("{at}: field '{field}' is out of range ({value})", at = At(*.index))]
     OutOfRange {
         /// Object index (usize::MAX for the frame).
         index: usize,
@@ -197,11 +209,25 @@ impl Writer {
 struct Reader<'a>(&'a [u8]);
 
 impl Reader<'_> {
-    fn take<T: DeserializeOwned>(&mut self) -> Result<T, DecodeError> {
+    /// Reads one value, which must be in its shortest encoding (no padded varint): what the
+    /// decoder accepts, the encoder writes back byte for byte.
+    fn take<T: DeserializeOwned + Serialize>(&mut self) -> Result<T, DecodeError> {
         let (v, rest) = postcard::take_from_bytes(self.0).map_err(|e| match e {
             postcard::Error::DeserializeUnexpectedEnd => DecodeError::Truncated,
             other => DecodeError::Malformed(other.to_string()),
         })?;
+        let used = self.0.len() - rest.len();
+        let mut buf = [0u8; 128];
+        let canonical = match postcard::to_slice(&v, &mut buf) {
+            Ok(b) => b.len() == used,
+            // Longer than the buffer (a header with a long name): encode it in full.
+            Err(_) => postcard::to_allocvec(&v).is_ok_and(|b| b.len() == used),
+        };
+        if !canonical {
+            return Err(DecodeError::Malformed(
+                "a number is not in its shortest encoding (padded varint)".into(),
+            ));
+        }
         self.0 = rest;
         Ok(v)
     }
@@ -803,7 +829,8 @@ pub struct Fit {
     pub velocities_clamped: usize,
     /// Objects dropped because a value was not finite or lay too far from the others.
     pub objects_invalid: usize,
-    /// Objects dropped (the lowest scores) to stay within [`MAX_OBJECTS`].
+    /// Objects dropped to stay within [`MAX_OBJECTS`] (the lowest scores, shared fairly between
+    /// the agents of a fused frame).
     pub objects_capped: usize,
 }
 
@@ -817,7 +844,8 @@ impl Fit {
 /// Brings a computed frame (such as fused output) into the wire's domain so that [`encode`]
 /// succeeds: clamps stds, sizes and scores, sets the origin to the component-wise median of the
 /// centres, drops objects with non-finite values or out of reach of the origin, and keeps the
-/// [`MAX_OBJECTS`] highest-scoring objects. The agent name must already be valid.
+/// [`MAX_OBJECTS`] highest-scoring objects ([`fit_with`] shares them fairly between the
+/// agents of a fused frame). The agent name must already be valid.
 pub fn fit(frame: &mut Frame) -> Fit {
     fit_with(frame, None)
 }
@@ -836,6 +864,37 @@ fn retain_objects(frame: &mut Frame, sources: Option<&mut Vec<AgentSet>>, keep: 
             keep.get(i - 1).copied().unwrap_or(false)
         });
     }
+}
+
+/// Which of `dets` to keep so that at most `cap` remain, shared fairly between the agents that
+/// contributed them: each object ranks by its best place in the score order of one of its
+/// source agents' objects, and the lowest ranks stay (then the highest scores). So every agent
+/// keeps its best `cap / agents` objects at least, however many another agent sends. Without
+/// source sets (one per object), the highest-scoring objects stay.
+fn fair_share(dets: &[Detection], sources: Option<&[AgentSet]>, cap: usize) -> Vec<bool> {
+    let mut by_score: Vec<usize> = (0..dets.len()).collect();
+    by_score.sort_by(|&a, &b| dets[b].score.total_cmp(&dets[a].score).then(a.cmp(&b)));
+    let mut rank = vec![0usize; dets.len()];
+    if let Some(sources) = sources.filter(|s| s.len() == dets.len()) {
+        let mut seen: Vec<usize> = Vec::new();
+        for &i in &by_score {
+            rank[i] = usize::MAX;
+            for k in sources[i].iter() {
+                if seen.len() <= k {
+                    seen.resize(k + 1, 0);
+                }
+                rank[i] = rank[i].min(seen[k]);
+                seen[k] += 1;
+            }
+        }
+    }
+    // A stable sort keeps the score order within a rank.
+    by_score.sort_by_key(|&i| rank[i]);
+    let mut keep = vec![false; dets.len()];
+    for &i in by_score.iter().take(cap) {
+        keep[i] = true;
+    }
+    keep
 }
 
 /// [`fit`] for a fused frame: a dropped object's source set is dropped with it, so the
@@ -891,19 +950,10 @@ pub fn fit_with(frame: &mut Frame, mut provenance: Option<&mut Provenance>) -> F
         }
     }
     if frame.detections.len() > MAX_OBJECTS {
-        let mut order: Vec<usize> = (0..frame.detections.len()).collect();
-        order.sort_by(|&a, &b| {
-            frame.detections[b]
-                .score
-                .total_cmp(&frame.detections[a].score)
-                .then(a.cmp(&b))
-        });
-        let mut keep = vec![false; frame.detections.len()];
-        for &i in &order[..MAX_OBJECTS] {
-            keep[i] = true;
-        }
+        let sources = provenance.as_ref().map(|p| p.sources.as_slice());
+        let keep = fair_share(&frame.detections, sources, MAX_OBJECTS);
         retain_objects(frame, provenance.as_mut().map(|p| &mut p.sources), &keep);
-        fit.objects_capped = order.len() - MAX_OBJECTS;
+        fit.objects_capped = keep.iter().filter(|k| !**k).count();
     }
     // Origin: the median centre, so that one far-away object cannot push the others out of reach.
     if !frame.detections.is_empty() {

@@ -721,3 +721,79 @@ fn ids_take_four_bytes_and_none_takes_none() {
         })
     ));
 }
+
+#[test]
+fn a_padded_varint_is_refused() {
+    // 0 as one byte reads; the same 0 padded to three bytes (80 80 00) does not.
+    assert_eq!(Reader(&[0x00]).take::<u32>(), Ok(0));
+    assert_eq!(Reader(&[0x81, 0x01]).take::<u32>(), Ok(129));
+    for padded in [&[0x80, 0x80, 0x00][..], &[0x80, 0x00], &[0x81, 0x81, 0x00]] {
+        assert!(
+            matches!(Reader(padded).take::<u32>(), Err(DecodeError::Malformed(ref m)) if m.contains("shortest")),
+            "{padded:02x?}"
+        );
+    }
+    // In a whole payload: a frame of no objects ends with its object count, 00.
+    let mut f = sample_frame(0);
+    f.detections.clear();
+    let mut bytes = encode(&f).unwrap();
+    assert_eq!(bytes.last(), Some(&0x00));
+    assert_eq!(decode(&bytes).unwrap().detections.len(), 0);
+    bytes.pop();
+    bytes.extend([0x80, 0x80, 0x00]);
+    assert!(matches!(decode(&bytes), Err(DecodeError::Malformed(_))));
+}
+
+#[test]
+fn a_bad_frame_field_is_named_as_the_frames() {
+    let (mut h, o) = valid();
+    h.kind = 5;
+    let e = decode(&assemble(&h, None, &o)).unwrap_err();
+    assert_eq!(e.to_string(), "frame: field 'kind' is out of range (5)");
+    let (h, mut o) = valid();
+    o[1].tag = 12;
+    assert!(decode(&assemble(&h, None, &o))
+        .unwrap_err()
+        .to_string()
+        .starts_with("object 1: field"));
+}
+
+#[test]
+fn the_output_cap_is_shared_fairly_between_agents() {
+    // Agent 0 sends MAX_OBJECTS boxes of score 1.0; agents 1 and 2 send 24 boxes each of score
+    // 0.5, and 8 boxes are fused from agents 1 and 2 together.
+    let n0 = MAX_OBJECTS;
+    let (mut f, mut p) = fused_frame(n0 + 56);
+    let mut sources = Vec::new();
+    for (i, d) in f.detections.iter_mut().enumerate() {
+        let s: AgentSet = if i < n0 {
+            d.score = 1.0;
+            AgentSet::single(0)
+        } else if i < n0 + 24 {
+            d.score = 0.5;
+            AgentSet::single(1)
+        } else if i < n0 + 48 {
+            d.score = 0.5;
+            AgentSet::single(2)
+        } else {
+            d.score = 0.4;
+            [1, 2].into_iter().collect()
+        };
+        sources.push(s);
+    }
+    p.sources = sources;
+    let report = fit_with(&mut f, Some(&mut p));
+    assert_eq!(report.objects_capped, 56);
+    assert_eq!(f.detections.len(), MAX_OBJECTS);
+    // Every box of agents 1 and 2 stays; agent 0 keeps its MAX_OBJECTS - 56 best.
+    let of = |k: usize| p.sources.iter().filter(|s| s.contains(k)).count();
+    assert_eq!((of(0), of(1), of(2)), (MAX_OBJECTS - 56, 32, 32));
+    assert!(encode_with(&f, Some(&p)).is_ok());
+    // Without provenance the cap is by score alone: agent 0's boxes take every place.
+    let (mut f, _) = fused_frame(n0 + 56);
+    for (i, d) in f.detections.iter_mut().enumerate() {
+        d.score = if i < n0 { 1.0 } else { 0.5 };
+    }
+    fit(&mut f);
+    assert!(f.detections.iter().all(|d| d.score == 1.0));
+}
