@@ -98,6 +98,9 @@ impl Agent {
     ) -> anyhow::Result<Agent> {
         keys::validate_chunk("namespace", ns).map_err(|e| anyhow!(e))?;
         wire::check_agent_name(name).map_err(|e| anyhow!(e))?;
+        if v2x_protocol::acl::reserved(name) {
+            anyhow::bail!("agent name '{name}' belongs to another role (fuser, observer, router)");
+        }
         link.validate().map_err(|e| anyhow!("agent {name}: {e}"))?;
         let publisher = session
             .declare_publisher(keys::detections(ns, name))

@@ -22,12 +22,93 @@
 //!   made it had the window waited), makes the agent awaited again; a slower one does not. Late
 //!   frames count towards the frame period as well.
 //!
+//! - **Isolation.** What one agent sends costs the others nothing: its frames carry at most
+//!   `max_objects` boxes into a window (the highest-scoring; the rest are counted as
+//!   `over_budget`), boxes outside the fuser's area of interest ([`Area`]) are dropped and counted
+//!   as `outside`, so that no far box can push the others out of the fused frame's reach, and an
+//!   agent whose latest frame lies beyond a window is not awaited in it, so frames stamped ahead
+//!   hold open only their own window (they are counted as `ahead`). The names of the other
+//!   roles (`fuser`, `observer`, `router`) are refused, and a token re-declared without frames
+//!   is not awaited again.
+//!
 //! Every rejection is counted per agent and in totals by reason.
 
 use crate::window::Verdict;
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use v2x_protocol::{wire, Frame};
+
+/// Where the fuser stands: boxes whose centre lies outside are dropped at admission.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Area {
+    /// A disc of the map frame's xy plane, given in the configuration.
+    Given {
+        /// Its centre (x, y), m.
+        center: [f64; 2],
+        /// Its radius, m.
+        radius_m: f64,
+    },
+    /// A disc of this radius around where the agents are: each agent's position is the median
+    /// centre of its first boxes, and the area is centred on the positions of the largest group
+    /// of agents within the radius of one another (the earliest agent's on a tie), so that a
+    /// minority of agents far away cannot move it.
+    Learned {
+        /// Its radius, m.
+        radius_m: f64,
+    },
+}
+
+impl Area {
+    /// The default: learned, 10 km across every way from where the agents are.
+    pub const DEFAULT: Area = Area::Learned { radius_m: 10_000.0 };
+
+    /// The radius, m.
+    pub fn radius_m(&self) -> f64 {
+        match *self {
+            Area::Given { radius_m, .. } | Area::Learned { radius_m } => radius_m,
+        }
+    }
+
+    /// Parses `X,Y,RADIUS` (m, map frame) into a given area.
+    pub fn parse(s: &str) -> Result<Area, String> {
+        let v: Vec<f64> = s
+            .split(',')
+            .map(|p| p.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("area '{s}': expected X,Y,RADIUS in metres"))?;
+        match v[..] {
+            [x, y, r] => {
+                let a = Area::Given {
+                    center: [x, y],
+                    radius_m: r,
+                };
+                a.validate().map(|()| a)
+            }
+            _ => Err(format!("area '{s}': expected X,Y,RADIUS in metres")),
+        }
+    }
+
+    /// Checks the values: a finite centre and a finite radius > 0.
+    pub fn validate(&self) -> Result<(), String> {
+        let r = self.radius_m();
+        if !(r.is_finite() && r > 0.0) {
+            return Err(format!(
+                "the area's radius must be finite and > 0 (got {r})"
+            ));
+        }
+        if let Area::Given { center, .. } = self {
+            if !center
+                .iter()
+                .all(|c| v2x_protocol::limits::coord_in_range(*c))
+            {
+                return Err(format!(
+                    "the area's centre {center:?} is out of the map's range"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// Admission limits.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,7 +123,17 @@ pub struct IngestConfig {
     /// How long a window waits for an awaited agent (us): a late frame that arrived within this
     /// of its capture makes its agent awaited again.
     pub max_wait_us: u64,
+    /// Most boxes one agent's frame brings into a window (the highest-scoring stay).
+    pub max_objects: usize,
+    /// Where the fuser stands: boxes outside are dropped.
+    pub area: Area,
+    /// A frame stamped more than this ahead of the fuser's clock is counted as `ahead` (us).
+    pub ahead_us: u64,
 }
+
+/// The default budget of boxes per agent and window: the most a nuScenes detection result may
+/// hold per sample, far above what a detector sees in one sweep.
+pub const MAX_OBJECTS_PER_AGENT: usize = 500;
 
 impl Default for IngestConfig {
     fn default() -> Self {
@@ -51,6 +142,66 @@ impl Default for IngestConfig {
             max_agents: 256,
             forget_after_us: 60_000_000,
             max_wait_us: 150_000,
+            max_objects: MAX_OBJECTS_PER_AGENT,
+            area: Area::DEFAULT,
+            ahead_us: 50_000,
+        }
+    }
+}
+
+/// Something admitted with a change worth a (rate-limited) log line.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Note {
+    /// Boxes dropped beyond the agent's budget.
+    OverBudget {
+        /// The agent.
+        agent: String,
+        /// Boxes dropped.
+        dropped: usize,
+    },
+    /// Boxes dropped outside the area of interest.
+    Outside {
+        /// The agent.
+        agent: String,
+        /// Boxes dropped.
+        dropped: usize,
+    },
+    /// A frame stamped this many us ahead of the fuser's clock.
+    Ahead {
+        /// The agent.
+        agent: String,
+        /// How far ahead (us).
+        ahead_us: u64,
+    },
+}
+
+impl Note {
+    /// The counter name of the note.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            Note::OverBudget { .. } => "over_budget",
+            Note::Outside { .. } => "outside",
+            Note::Ahead { .. } => "ahead",
+        }
+    }
+}
+
+impl std::fmt::Display for Note {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Note::OverBudget { agent, dropped } => write!(
+                f,
+                "agent {agent}: {dropped} boxes beyond its budget per window dropped (the lowest scores)"
+            ),
+            Note::Outside { agent, dropped } => write!(
+                f,
+                "agent {agent}: {dropped} boxes outside the fuser's area of interest dropped"
+            ),
+            Note::Ahead { agent, ahead_us } => write!(
+                f,
+                "agent {agent}: frame stamped {:.3} s ahead of the fuser's clock (it holds only its own window)",
+                *ahead_us as f64 / 1e6
+            ),
         }
     }
 }
@@ -60,6 +211,8 @@ impl Default for IngestConfig {
 pub enum Rejection {
     /// The key's agent name is not a valid agent name.
     BadKey,
+    /// The name belongs to another role (`fuser`, `observer`, `router`).
+    ReservedName,
     /// The agent table is full of agents holding tokens.
     AgentCap,
     /// The payload does not decode or validate.
@@ -81,6 +234,7 @@ impl Rejection {
     pub fn reason(&self) -> &'static str {
         match self {
             Rejection::BadKey => "bad_key",
+            Rejection::ReservedName => "reserved_name",
             Rejection::AgentCap => "agent_cap",
             Rejection::Invalid(_) => "invalid",
             Rejection::WrongAgent(_) => "wrong_agent",
@@ -97,6 +251,12 @@ impl std::fmt::Display for Rejection {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Rejection::BadKey => write!(f, "the key's agent name is not valid"),
+            Rejection::ReservedName => {
+                write!(
+                    f,
+                    "the name belongs to another role (fuser, observer, router)"
+                )
+            }
             Rejection::AgentCap => write!(f, "too many agents tracked"),
             Rejection::Invalid(e) => write!(f, "invalid frame: {e}"),
             Rejection::WrongAgent(a) => write!(f, "the frame claims to be from '{a}'"),
@@ -143,6 +303,12 @@ pub struct AgentStats {
     pub payload_bytes: u64,
     /// Objects received in accepted frames.
     pub objects: u64,
+    /// Boxes dropped beyond the budget per window.
+    pub over_budget: u64,
+    /// Boxes dropped outside the area of interest.
+    pub outside: u64,
+    /// Frames stamped ahead of the fuser's clock (by more than the tolerance, within the skew).
+    pub ahead: u64,
     /// Median arrival minus capture time over recent frames (ms): latency plus clock offset.
     pub clock_lag_ms: Option<f64>,
     /// Whether the agent holds a liveliness token.
@@ -159,6 +325,10 @@ struct AgentState {
     /// Windows in a row the agent was expected in and missing.
     misses: u32,
     lags: VecDeque<i64>,
+    /// Where the agent is: the median centre (x, y) of its first boxes.
+    position: Option<[f64; 2]>,
+    /// When it was first heard (orders agents for the area's ties).
+    first_heard_us: u64,
 }
 
 impl AgentState {
@@ -181,10 +351,21 @@ impl AgentState {
         if self.misses >= MAX_MISSES {
             return false;
         }
+        // Its latest frame lies past this window already: it has nothing more for it (frames
+        // stamped ahead hold only their own window).
+        if self
+            .captures
+            .back()
+            .is_some_and(|&last| last > anchor_us.saturating_add(half_us))
+        {
+            return false;
+        }
         let (Some(&last), Some(p)) = (self.captures.back(), self.period_us()) else {
             return true;
         };
-        if anchor_us <= last {
+        // Its latest frame reaches this window (windows need not lie on its grid: another
+        // agent's frame may have opened it off the grid).
+        if anchor_us < last.saturating_add(half_us) {
             return true;
         }
         let k = ((anchor_us - last) as f64 / p as f64).round().max(1.0);
@@ -208,17 +389,28 @@ pub struct Ingest {
     rejected: BTreeMap<&'static str, u64>,
     forgotten: u64,
     evicted: Vec<String>,
+    notes: Vec<Note>,
+    /// Totals of the notes by reason: boxes over budget or outside, frames ahead.
+    noted: BTreeMap<&'static str, u64>,
+    /// The area's centre as learned (or given), once known.
+    center: Option<[f64; 2]>,
 }
 
 impl Ingest {
     /// Empty state with the given limits.
     pub fn new(cfg: IngestConfig) -> Self {
         Ingest {
-            cfg,
             agents: BTreeMap::new(),
             rejected: BTreeMap::new(),
             forgotten: 0,
             evicted: Vec::new(),
+            notes: Vec::new(),
+            noted: BTreeMap::new(),
+            center: match cfg.area {
+                Area::Given { center, .. } => Some(center),
+                Area::Learned { .. } => None,
+            },
+            cfg,
         }
     }
 
@@ -255,6 +447,7 @@ impl Ingest {
                 agent.to_string(),
                 AgentState {
                     last_heard_us: now_us,
+                    first_heard_us: now_us,
                     ..Default::default()
                 },
             );
@@ -267,7 +460,12 @@ impl Ingest {
         if wire::check_agent_name(agent).is_err() {
             return Err(self.reject(Rejection::BadKey));
         }
+        if v2x_protocol::acl::reserved(agent) {
+            return Err(self.reject(Rejection::ReservedName));
+        }
         let skew = self.cfg.max_clock_skew_us;
+        let ahead_tolerance = self.cfg.ahead_us;
+        let mut ahead = None;
         let Some(st) = self.entry(agent, now_us) else {
             return Err(self.reject(Rejection::AgentCap));
         };
@@ -297,11 +495,136 @@ impl Ingest {
                     if st.lags.len() > LAGS {
                         st.lags.pop_front();
                     }
+                    if f.capture_us > now_us.saturating_add(ahead_tolerance) {
+                        st.stats.ahead += 1;
+                        ahead = Some(f.capture_us - now_us);
+                    }
                     Ok(f)
                 }
             },
         };
-        result.map_err(|r| self.reject(r))
+        let mut frame = result.map_err(|r| self.reject(r))?;
+        if let Some(ahead_us) = ahead {
+            let agent = agent.to_string();
+            self.note(Note::Ahead { agent, ahead_us }, 1);
+        }
+        self.confine(agent, &mut frame);
+        Ok(frame)
+    }
+
+    /// Keeps the boxes of an admitted frame within the area of interest, then within the
+    /// agent's budget (the highest scores, in their order), counting what it drops.
+    fn confine(&mut self, agent: &str, frame: &mut Frame) {
+        if let Some(st) = self.agents.get_mut(agent) {
+            if st.position.is_none() && !frame.detections.is_empty() {
+                st.position = Some(median_xy(&frame.detections));
+                if matches!(self.cfg.area, Area::Learned { .. }) {
+                    self.center = self.learned_center();
+                }
+            }
+        }
+        let (Some(c), r) = (self.center, self.cfg.area.radius_m()) else {
+            return;
+        };
+        let before = frame.detections.len();
+        frame
+            .detections
+            .retain(|d| (d.center[0] - c[0]).hypot(d.center[1] - c[1]) <= r);
+        let outside = before - frame.detections.len();
+        let budget = self.cfg.max_objects;
+        let over = frame.detections.len().saturating_sub(budget);
+        if over > 0 {
+            let mut order: Vec<usize> = (0..frame.detections.len()).collect();
+            order.sort_by(|&a, &b| {
+                let (da, db) = (&frame.detections[a], &frame.detections[b]);
+                db.score.total_cmp(&da.score).then(a.cmp(&b))
+            });
+            let mut keep = vec![false; order.len()];
+            for &i in &order[..budget] {
+                keep[i] = true;
+            }
+            let mut i = 0;
+            frame.detections.retain(|_| {
+                i += 1;
+                keep[i - 1]
+            });
+        }
+        let Some(st) = self.agents.get_mut(agent) else {
+            return;
+        };
+        st.stats.outside += outside as u64;
+        st.stats.over_budget += over as u64;
+        if outside > 0 {
+            let agent = agent.to_string();
+            self.note(
+                Note::Outside {
+                    agent,
+                    dropped: outside,
+                },
+                outside as u64,
+            );
+        }
+        if over > 0 {
+            let agent = agent.to_string();
+            self.note(
+                Note::OverBudget {
+                    agent,
+                    dropped: over,
+                },
+                over as u64,
+            );
+        }
+    }
+
+    fn note(&mut self, n: Note, count: u64) {
+        *self.noted.entry(n.reason()).or_default() += count;
+        self.notes.push(n);
+    }
+
+    /// Totals of what admission dropped or flagged without rejecting a frame: boxes
+    /// `over_budget` and `outside`, frames `ahead`.
+    pub fn noted(&self) -> &BTreeMap<&'static str, u64> {
+        &self.noted
+    }
+
+    /// The learned area's centre: the median position of the largest group of agents within the
+    /// radius of one agent (the earliest heard on a tie).
+    fn learned_center(&self) -> Option<[f64; 2]> {
+        let r = self.cfg.area.radius_m();
+        let mut placed: Vec<(u64, [f64; 2])> = self
+            .agents
+            .values()
+            .filter_map(|s| s.position.map(|p| (s.first_heard_us, p)))
+            .collect();
+        placed.sort_by_key(|(t, _)| *t);
+        let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]) <= r;
+        let best = placed
+            .iter()
+            .map(|(_, p)| placed.iter().filter(|(_, q)| near(*p, *q)).count())
+            .enumerate()
+            // the most neighbours; of equals, the first (earliest heard)
+            .max_by(|(i, a), (j, b)| a.cmp(b).then(j.cmp(i)))
+            .map(|(i, _)| placed[i].1)?;
+        let group: Vec<[f64; 2]> = placed
+            .iter()
+            .map(|(_, q)| *q)
+            .filter(|q| near(best, *q))
+            .collect();
+        Some([0, 1].map(|k| {
+            let mut v: Vec<f64> = group.iter().map(|p| p[k]).collect();
+            v.sort_by(f64::total_cmp);
+            v[(v.len() - 1) / 2]
+        }))
+    }
+
+    /// The area of interest's centre, once given or learned.
+    pub fn area_center(&self) -> Option<[f64; 2]> {
+        self.center
+    }
+
+    /// The notes of admitted frames since the last call.
+    pub fn take_notes(&mut self) -> Vec<Note> {
+        std::mem::take(&mut self.notes)
     }
 
     /// Records what the window did with an admitted frame of `agent` captured at `capture_us`.
@@ -367,6 +690,13 @@ impl Ingest {
             *self.rejected.entry(Rejection::BadKey.reason()).or_default() += 1;
             return false;
         }
+        if v2x_protocol::acl::reserved(agent) {
+            *self
+                .rejected
+                .entry(Rejection::ReservedName.reason())
+                .or_default() += 1;
+            return false;
+        }
         if !live && !self.agents.contains_key(agent) {
             return true;
         }
@@ -380,9 +710,10 @@ impl Ingest {
         st.token = live;
         st.last_heard_us = now_us;
         if live {
-            // A new token is a new life: awaited again, its frame period learnt again.
+            // A new token is a new life: its frame period is learnt again. It is awaited again
+            // only once it sends (a frame resets its misses), so a token re-declared over and
+            // over without frames costs no more windows than one token.
             st.captures.clear();
-            st.misses = 0;
         }
         true
     }
@@ -471,6 +802,15 @@ impl Ingest {
             })
             .collect()
     }
+}
+
+/// The component-wise median of the boxes' centres (x, y); the boxes must not be empty.
+fn median_xy(dets: &[v2x_protocol::Detection]) -> [f64; 2] {
+    [0, 1].map(|k| {
+        let mut v: Vec<f64> = dets.iter().map(|d| d.center[k]).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    })
 }
 
 fn median(v: &VecDeque<i64>) -> Option<f64> {
@@ -710,5 +1050,194 @@ mod tests {
             i.window_closed(anchor, H, &[]);
         }
         assert!(!i.awaited(last + 4 * S, H).contains("slow"));
+    }
+
+    /// A frame of `agent` with boxes at the given (x, score).
+    fn boxes(agent: &str, capture_us: u64, at: &[(f64, f64)]) -> Vec<u8> {
+        let detections = at
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, score))| Detection {
+                center: [x, 5.0, 0.0],
+                score,
+                id: k as u32,
+                ..Detection::default()
+            })
+            .collect();
+        wire::encode(&Frame {
+            agent: agent.into(),
+            kind: AgentKind::Vehicle,
+            seq: 0,
+            capture_us,
+            origin: [at.first().map_or(0.0, |b| b.0), 0.0, 0.0],
+            detections,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn an_agent_brings_at_most_its_budget_of_boxes_the_highest_scoring() {
+        let mut i = Ingest::new(IngestConfig {
+            max_objects: 3,
+            ..IngestConfig::default()
+        });
+        let at = [(1.0, 0.2), (2.0, 0.9), (3.0, 0.5), (4.0, 0.9), (5.0, 0.1)];
+        let f = i.offer("a", &boxes("a", NOW, &at), NOW).unwrap();
+        // The three best, in their order (of two equal scores, the first).
+        let xs: Vec<f64> = f.detections.iter().map(|d| d.center[0]).collect();
+        assert_eq!(xs, [2.0, 3.0, 4.0]);
+        assert_eq!(i.agent_stats()["a"].over_budget, 2);
+        assert_eq!(i.noted()["over_budget"], 2);
+        assert_eq!(
+            i.take_notes(),
+            vec![Note::OverBudget {
+                agent: "a".into(),
+                dropped: 2
+            }]
+        );
+        // Within the budget nothing changes.
+        let f = i.offer("b", &boxes("b", NOW, &at[..3]), NOW).unwrap();
+        assert_eq!(f.detections.len(), 3);
+        assert!(i.take_notes().is_empty());
+    }
+
+    #[test]
+    fn far_agents_cannot_move_the_learned_area() {
+        let mut i = Ingest::new(IngestConfig {
+            area: Area::Learned { radius_m: 1000.0 },
+            ..IngestConfig::default()
+        });
+        // The far agent comes first: the area is its own until others come.
+        let far = [(1e9 - 1.0, 1.0), (1e9, 1.0)];
+        assert_eq!(
+            i.offer("far", &boxes("far", NOW, &far), NOW)
+                .unwrap()
+                .detections
+                .len(),
+            2
+        );
+        assert_eq!(i.area_center(), Some([1e9, 5.0]));
+        let honest = [(10.0, 0.5), (30.0, 0.5), (20.0, 0.5)];
+        // One honest agent ties with it: the earliest stays.
+        assert!(i
+            .offer("a", &boxes("a", NOW, &honest), NOW + 1)
+            .unwrap()
+            .detections
+            .is_empty());
+        // Two honest agents outnumber it: the area moves to them, centred on their median.
+        let f = i
+            .offer("b", &boxes("b", NOW, &[(40.0, 0.5)]), NOW + 2)
+            .unwrap();
+        assert_eq!(f.detections.len(), 1);
+        assert_eq!(i.area_center(), Some([20.0, 5.0]));
+        assert_eq!(
+            i.offer("a", &boxes("a", NOW, &honest), NOW + 3)
+                .unwrap()
+                .detections
+                .len(),
+            3
+        );
+        // The far agent's boxes are now dropped, and the honest ones kept.
+        assert!(i
+            .offer("far", &boxes("far", NOW, &far), NOW + 4)
+            .unwrap()
+            .detections
+            .is_empty());
+        assert_eq!(i.agent_stats()["far"].outside, 2);
+        assert_eq!(i.agent_stats()["a"].outside, 3);
+        assert_eq!(i.noted()["outside"], 5);
+        // A box at the area's edge stays, one just beyond goes.
+        let edge = [(1020.0, 0.5), (1020.1, 0.5)];
+        let f = i.offer("b", &boxes("b", NOW, &edge), NOW + 5).unwrap();
+        assert_eq!(f.detections.len(), 1);
+    }
+
+    #[test]
+    fn a_given_area_holds_from_the_first_frame() {
+        let area = Area::parse("100,-50,10").unwrap();
+        assert_eq!(
+            area,
+            Area::Given {
+                center: [100.0, -50.0],
+                radius_m: 10.0
+            }
+        );
+        for bad in ["1,2", "1,2,0", "a,b,c", "1,2,inf", "1e10,0,5"] {
+            assert!(Area::parse(bad).is_err(), "{bad}");
+        }
+        let mut i = Ingest::new(IngestConfig {
+            area,
+            ..IngestConfig::default()
+        });
+        let f = i
+            .offer("a", &boxes("a", NOW, &[(95.0, 0.5), (120.0, 0.5)]), NOW)
+            .unwrap();
+        // (95, 5) is 55 m from (100, -50): outside; the frame is admitted empty.
+        assert!(f.detections.is_empty());
+        assert_eq!(i.area_center(), Some([100.0, -50.0]));
+    }
+
+    #[test]
+    fn frames_stamped_ahead_hold_only_their_own_window() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.token("a", true, NOW);
+        i.token("early", true, NOW);
+        send(&mut i, "a", NOW);
+        // "early" stamps its frames 0.2-0.9 s ahead, off any grid.
+        for (k, ahead) in [200_000u64, 900_000, 450_000].into_iter().enumerate() {
+            let now = NOW + k as u64 * 100_000;
+            i.offer("early", &payload("early", now + ahead), now)
+                .unwrap();
+            i.record("early", Verdict::Accepted, 1, now + ahead);
+        }
+        assert_eq!(i.agent_stats()["early"].ahead, 3);
+        assert_eq!(i.noted()["ahead"], 3);
+        // Honest windows before its latest stamp (1.0 s ahead) do not wait for it; its own does.
+        for k in 0..10 {
+            let anchor = NOW + k * 100_000;
+            assert!(!i.awaited(anchor, H).contains("early"), "window {k}");
+        }
+        assert!(i.awaited(NOW + 1_000_000, H).contains("early"));
+        // 30 ms ahead is within the tolerance: not counted.
+        i.offer("a", &payload("a", NOW + 130_000), NOW + 100_000)
+            .unwrap();
+        assert_eq!(i.agent_stats()["a"].ahead, 0);
+    }
+
+    #[test]
+    fn a_token_declared_again_and_again_costs_its_three_windows_once() {
+        let mut i = Ingest::new(IngestConfig::default());
+        i.token("a", true, NOW);
+        i.token("flap", true, NOW);
+        let a = "a".to_string();
+        let mut missing = 0;
+        for k in 0..20 {
+            let t = NOW + k * 100_000;
+            if k % 5 == 0 {
+                i.token("flap", false, t);
+                i.token("flap", true, t);
+            }
+            send(&mut i, "a", t);
+            missing += i.awaited(t, H).contains("flap") as u32;
+            i.window_closed(t, H, &[&a]);
+        }
+        assert_eq!(missing, MAX_MISSES);
+        // Once it sends, it is awaited again.
+        send(&mut i, "flap", NOW + 2_000_000);
+        assert!(i.awaited(NOW + 2_100_000, H).contains("flap"));
+    }
+
+    #[test]
+    fn the_names_of_other_roles_are_refused() {
+        let mut i = Ingest::new(IngestConfig::default());
+        for name in ["fuser", "observer", "router"] {
+            assert_eq!(
+                i.offer(name, &payload(name, NOW), NOW),
+                Err(Rejection::ReservedName)
+            );
+            assert!(!i.token(name, true, NOW));
+        }
+        assert_eq!(i.rejected()["reserved_name"], 6);
+        assert_eq!(i.tracked(), 0);
     }
 }

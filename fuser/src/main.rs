@@ -111,7 +111,7 @@ enum Command {
         #[arg(long, default_value_t = 150.0)]
         max_wait_ms: f64,
         #[command(flatten)]
-        limits: IngestArgs,
+        limits: Box<IngestArgs>,
         #[command(flatten)]
         motion: MotionArgs,
         #[command(flatten)]
@@ -309,6 +309,18 @@ struct IngestArgs {
     /// Interval of the rate-limited warning summaries (s).
     #[arg(long, default_value_t = 10.0)]
     log_interval_s: f64,
+    /// Most boxes one agent brings into a window; beyond, its lowest-scoring boxes are dropped
+    /// and counted (`over_budget`), so no agent can crowd the others out of the fused frame.
+    #[arg(long, default_value_t = v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT)]
+    max_objects_per_agent: usize,
+    /// The area of interest, X,Y,RADIUS in metres of the map frame: boxes outside it are
+    /// dropped and counted (`outside`). Default: a disc of --area-radius-m around where most
+    /// agents are, learned from their first boxes.
+    #[arg(long, value_name = "X,Y,RADIUS", value_parser = v2x_fuser::ingest::Area::parse, allow_hyphen_values = true)]
+    area: Option<v2x_fuser::ingest::Area>,
+    /// The radius of the learned area of interest (m), without --area.
+    #[arg(long, default_value_t = 10_000.0, conflicts_with = "area")]
+    area_radius_m: f64,
 }
 
 impl IngestArgs {
@@ -319,9 +331,16 @@ impl IngestArgs {
         if !(self.forget_after_s > 0.0 && self.forget_after_s.is_finite()) {
             anyhow::bail!("--forget-after-s must be > 0");
         }
-        if self.max_agents == 0 || self.fusion_queue == 0 {
-            anyhow::bail!("--max-agents and --fusion-queue must be at least 1");
+        if self.max_agents == 0 || self.fusion_queue == 0 || self.max_objects_per_agent == 0 {
+            anyhow::bail!(
+                "--max-agents, --fusion-queue and --max-objects-per-agent must be at least 1"
+            );
         }
+        let area = self.area.unwrap_or(v2x_fuser::ingest::Area::Learned {
+            radius_m: self.area_radius_m,
+        });
+        area.validate()
+            .map_err(|e| anyhow::anyhow!("--area / --area-radius-m: {e}"))?;
         if self.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
             anyhow::bail!(
                 "--max-agents may be at most {} (the most agents a fused frame can name)",
@@ -331,6 +350,8 @@ impl IngestArgs {
         cfg.ingest.max_clock_skew_us =
             (self.max_clock_skew_ms > 0.0).then_some((self.max_clock_skew_ms * 1000.0) as u64);
         cfg.ingest.max_agents = self.max_agents;
+        cfg.ingest.max_objects = self.max_objects_per_agent;
+        cfg.ingest.area = area;
         cfg.ingest.forget_after_us = (self.forget_after_s * 1e6) as u64;
         cfg.queue = self.fusion_queue;
         cfg.log_interval_s = self.log_interval_s;

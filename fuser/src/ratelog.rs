@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 #[derive(Debug, Default)]
 struct Tally {
-    told: bool,
+    told: u64,
     suppressed: u64,
 }
 
@@ -30,13 +30,20 @@ impl RateLog {
 
     /// Notes an event; returns the line to log now, if any.
     pub fn note(&mut self, reason: &'static str, detail: &str) -> Option<String> {
+        self.note_up_to(reason, detail, 1)
+            .map(|line| format!("{reason}: {line}"))
+    }
+
+    /// Notes an event of which the first `n` in an interval are told as they are (the line
+    /// is `detail` itself); returns the line to log now, if any.
+    pub fn note_up_to(&mut self, reason: &'static str, detail: &str, n: u64) -> Option<String> {
         let t = self.tallies.entry(reason).or_default();
-        if t.told {
+        if t.told >= n {
             t.suppressed += 1;
             None
         } else {
-            t.told = true;
-            Some(format!("{reason}: {detail}"))
+            t.told += 1;
+            Some(detail.to_string())
         }
     }
 
@@ -84,5 +91,19 @@ mod tests {
         // a new interval: the next event is told again
         assert!(log.note("invalid", "x").is_some());
         assert!(log.tick(15_000_000).is_empty());
+    }
+
+    #[test]
+    fn the_first_n_are_told_as_they_are() {
+        let mut log = RateLog::new(10_000_000, 0);
+        let told: Vec<_> = (0..400)
+            .filter_map(|k| log.note_up_to("agents", &format!("agent a{k} is live"), 16))
+            .collect();
+        assert_eq!(told.len(), 16);
+        assert_eq!(told[15], "agent a15 is live");
+        assert_eq!(
+            log.tick(10_000_000),
+            vec!["agents: 384 more in the last 10 s".to_string()]
+        );
     }
 }

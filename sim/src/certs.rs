@@ -14,7 +14,7 @@ use serde_json::{json, Value};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use time::{Duration, OffsetDateTime};
-use v2x_protocol::{acl, keys, wire};
+use v2x_protocol::{acl, keys, limits, wire};
 
 /// What to issue.
 #[derive(Clone, Debug)]
@@ -158,7 +158,9 @@ pub fn client_config(ca: &Path, cert: &Path, key: &Path, connect: &[String]) -> 
             "connect_private_key": key,
             "enable_mtls": true,
             "verify_name_on_connect": true,
-        } } },
+        },
+            "rx": { "max_message_size": limits::MAX_MESSAGE },
+        } },
     })
 }
 
@@ -179,7 +181,9 @@ pub fn router_config(
             "listen_certificate": cert,
             "listen_private_key": key,
             "enable_mtls": true,
-        } } },
+        },
+            "rx": { "max_message_size": limits::MAX_MESSAGE },
+        } },
         "access_control": policy,
     })
 }
@@ -288,6 +292,10 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(&issued.router).unwrap()).unwrap();
         assert_eq!(router["access_control"]["default_permission"], "deny");
         assert_eq!(router["transport"]["link"]["tls"]["enable_mtls"], true);
+        assert_eq!(
+            router["transport"]["link"]["rx"]["max_message_size"],
+            limits::MAX_MESSAGE
+        );
         let veh: Value =
             serde_json::from_str(&std::fs::read_to_string(&issued.agents["veh"]).unwrap()).unwrap();
         assert_eq!(veh["connect"]["endpoints"][0], "tls/10.1.2.3:7447");

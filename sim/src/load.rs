@@ -164,6 +164,8 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
     let mut cfg = NodeConfig::new(ns, args.method);
     cfg.window_ms = 1000.0 / args.hz;
     cfg.max_wait_ms = 100.0;
+    // The load is the point: every agent's boxes are fused, however many.
+    cfg.ingest.max_objects = cfg.ingest.max_objects.max(args.objects);
     let layout = Layout {
         fusers: vec![cfg],
         tiling: None,
@@ -246,6 +248,7 @@ pub async fn run_regions(args: &LoadArgs) -> anyhow::Result<Vec<RegionRow>> {
                 let mut cfg = NodeConfig::new(&ns, args.method);
                 cfg.window_ms = 1000.0 / args.hz;
                 cfg.max_wait_ms = 100.0;
+                cfg.ingest.max_objects = cfg.ingest.max_objects.max(args.objects);
                 cfg.region = Some(Region {
                     tiling,
                     tile,

@@ -84,8 +84,26 @@ pub struct FuserSpec {
     /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
     /// (`v2x-fuser node --track`).
     pub track: bool,
+    /// Most boxes one agent brings into a window (`v2x-fuser node --max-objects-per-agent`).
+    pub max_objects_per_agent: usize,
+    /// The area of interest `[x, y, radius]` (m, map frame); unset: learned from the agents
+    /// (`v2x-fuser node --area`).
+    pub area: Option<[f64; 3]>,
     /// The fuser's Zenoh options (used when roles run on separate hosts).
     pub zenoh: ZenohArgs,
+}
+
+impl FuserSpec {
+    /// The area of interest the node admits boxes in.
+    pub fn area(&self) -> v2x_fuser::ingest::Area {
+        match self.area {
+            Some([x, y, r]) => v2x_fuser::ingest::Area::Given {
+                center: [x, y],
+                radius_m: r,
+            },
+            None => v2x_fuser::ingest::Area::DEFAULT,
+        }
+    }
 }
 
 impl Default for FuserSpec {
@@ -98,6 +116,8 @@ impl Default for FuserSpec {
             align: false,
             registration: RegistrationSpec::default(),
             track: false,
+            max_objects_per_agent: v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT,
+            area: None,
             zenoh: ZenohArgs::default(),
         }
     }
@@ -437,6 +457,13 @@ impl Scenario {
             .method
             .parse::<Method>()
             .map_err(|e| format!("fuser.method: {e}"))?;
+        if self.fuser.max_objects_per_agent == 0 {
+            return Err("fuser.max_objects_per_agent must be at least 1".into());
+        }
+        self.fuser
+            .area()
+            .validate()
+            .map_err(|e| format!("fuser.area: {e}"))?;
         if !(self.fuser.window_ms > 0.0) || !(self.fuser.max_wait_ms >= 0.0) {
             return Err("fuser.window_ms must be > 0 and fuser.max_wait_ms >= 0".into());
         }
@@ -583,6 +610,24 @@ mod tests {
         assert_eq!((p.chi2, p.min_matches), (30.0, 5));
         assert_eq!(p.tau_s, v2x_fuser::align::AlignParams::default().tau_s);
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
+        let agent = "[[agents]]\nname = \"a\"\nnoise = \"mild\"";
+        assert!(bad(&format!("[fuser]\narea = [0, 0, 0]\n{agent}"))
+            .contains("fuser.area: the area's radius must be finite and > 0"));
+        assert!(bad(&format!("[fuser]\nmax_objects_per_agent = 0\n{agent}"))
+            .contains("fuser.max_objects_per_agent"));
+        let s = Scenario::parse(
+            &format!("[fuser]\narea = [5, 6, 70]\n{agent}"),
+            "x.toml",
+            None,
+        )
+        .unwrap();
+        assert_eq!(
+            s.fuser.area(),
+            v2x_fuser::ingest::Area::Given {
+                center: [5.0, 6.0],
+                radius_m: 70.0
+            }
+        );
         assert!(
             bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\nfaults = \"flip=3\"")
                 .contains("agent a: faults: invalid faults 'flip=3': flip must be a probability")

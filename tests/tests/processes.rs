@@ -266,3 +266,141 @@ fn sigterm_makes_a_scenario_run_write_its_recording_and_summary() {
         serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();
     assert_eq!(rec["results"].as_object().unwrap().len() as u64, windows);
 }
+
+/// The resident memory of a process (MiB).
+fn rss_of(pid: u32) -> f64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("VmRSS:"))?.to_string();
+            line.split_whitespace().nth(1)?.parse::<f64>().ok()
+        })
+        .map_or(0.0, |kib| kib / 1024.0)
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn memory_an_attacker_takes_from_the_fuser_comes_back() {
+    use v2x_agent::{Agent, Link};
+    use v2x_protocol::net::{open_session, ZenohArgs};
+    use v2x_protocol::{keys, wire, AgentKind};
+    use v2x_tests::fuser::{endpoint, frame, next_t, wait_live};
+    use v2x_tests::within;
+
+    let ns = "memory";
+    let port = free_port().unwrap();
+    let mut fuser = Command::new(bin("v2x-fuser"))
+        .args(["node", "--ns", ns, "--no-multicast-scouting", "-l"])
+        .arg(endpoint(port))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = fuser.id();
+    let session = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let fused = session.declare_subscriber(keys::fused(ns)).await.unwrap();
+    let mut a = Agent::start(&session, ns, "a", AgentKind::Vehicle, Link::default(), 1)
+        .await
+        .unwrap();
+    a.wait_for_subscriber(Duration::from_secs(20))
+        .await
+        .unwrap();
+    wait_live(&session, ns, &["a"]).await;
+    let mut last = 0;
+    let mut round = |a: &mut Agent| a.send(frame(next_t(&mut last))).unwrap();
+    let next = || async {
+        let s = within(20, "a fused window", fused.recv_async())
+            .await
+            .unwrap();
+        wire::decode(&s.payload().to_bytes()).unwrap()
+    };
+    for _ in 0..5 {
+        round(&mut a);
+        next().await;
+    }
+    let before = rss_of(pid);
+
+    let attacker = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
+        .await
+        .unwrap();
+    let stats = |what: &'static str, cond: fn(&serde_json::Value) -> bool| {
+        let session = session.clone();
+        async move {
+            within(60, what, async {
+                loop {
+                    if let Ok(v) =
+                        v2x_fuser::node::query_stats(&session, ns, Duration::from_secs(2)).await
+                    {
+                        if cond(&v) {
+                            return v;
+                        }
+                    }
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+            })
+            .await
+        }
+    };
+    let block = zenoh::qos::CongestionControl::Block;
+    // One payload of 256 MiB, then a small frame of another name on the same session: the small
+    // one arrives, the large one never reaches the fuser (Zenoh drops it before it is put
+    // together, else it would be counted as an invalid frame of "big").
+    attacker
+        .put(keys::detections(ns, "big"), vec![3u8; 256 << 20])
+        .congestion_control(block)
+        .await
+        .unwrap();
+    let mut f = frame(now());
+    f.agent = "small".into();
+    attacker
+        .put(keys::detections(ns, "small"), wire::encode(&f).unwrap())
+        .congestion_control(block)
+        .await
+        .unwrap();
+    let v = stats("the small frame", |v| v["agents"].get("small").is_some()).await;
+    assert!(v["agents"].get("big").is_none(), "{}", v["agents"]);
+    // 10,000 agent names, each through a publisher of its own.
+    for k in 0..10_000 {
+        let name = format!("spam{k}");
+        let p = attacker
+            .declare_publisher(keys::detections(ns, &name))
+            .congestion_control(block)
+            .await
+            .unwrap();
+        let mut f = f.clone();
+        f.agent = name;
+        p.put(wire::encode(&f).unwrap()).await.unwrap();
+    }
+    stats("the names processed", |v| {
+        v["agents_forgotten"].as_u64().unwrap_or(0) >= 10_000 - 256
+    })
+    .await;
+    let during = rss_of(pid);
+    attacker.close().await.unwrap();
+    drop(attacker);
+    // Within 10 s of the attacker leaving, the fuser is back within 25 MiB of where it was.
+    let back = within(10, "the fuser's memory back", async {
+        loop {
+            let now = rss_of(pid);
+            if now <= before + 25.0 {
+                return now;
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    })
+    .await;
+    eprintln!(
+        "fuser RSS: {before:.1} MiB before, {during:.1} MiB during the attack, {back:.1} MiB after"
+    );
+    // And the honest agent is still fused.
+    round(&mut a);
+    let f = next().await;
+    assert_eq!(f.detections.len(), 2);
+    let _ = fuser.kill();
+    let _ = fuser.wait();
+}
+
+fn now() -> u64 {
+    v2x_agent::now_us()
+}

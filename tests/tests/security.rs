@@ -427,3 +427,98 @@ async fn a_regional_fuser_is_held_to_the_same_policy() {
     let st = within(30, "fuser shutdown", fuser.2).await.unwrap();
     assert_eq!(st.windows, 4);
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn an_authenticated_agent_on_its_own_key_cannot_take_the_others_output() {
+    let ns = "sec-isolation";
+    let port = free_port().unwrap();
+    let endpoint = format!("tls/127.0.0.1:{port}");
+    let issued = issue(&CertsConfig {
+        out: tempdir(ns),
+        ns: ns.into(),
+        agents: vec!["a".into(), "b".into(), "c".into()],
+        listen: vec![endpoint.clone()],
+        connect: vec![endpoint],
+        days: 1,
+    })
+    .unwrap();
+    let _router = router(&issued).await;
+    let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
+    cfg.max_wait_ms = 1000.0;
+    let mut fuser = spawn_fuser_with(open(&issued.fuser).await, cfg);
+    let mut honest = Vec::new();
+    for (name, kind, seed) in [
+        ("a", AgentKind::Vehicle, 1),
+        ("b", AgentKind::Infrastructure, 2),
+    ] {
+        let s = open(&issued.agents[name]).await;
+        let agent = Agent::start(&s, ns, name, kind, Link::default(), seed)
+            .await
+            .unwrap();
+        agent
+            .wait_for_subscriber(Duration::from_secs(10))
+            .await
+            .unwrap();
+        honest.push((s, agent));
+    }
+    // c holds its own certificate and writes only on its own key, with a token.
+    let c = open(&issued.agents["c"]).await;
+    let _token = c
+        .liveliness()
+        .declare_token(keys::alive(ns, "c"))
+        .await
+        .unwrap();
+    let observer = open(&issued.observer).await;
+    wait_live(&observer, ns, &["a", "b", "c"]).await;
+    let put = |capture: u64, detections: Vec<v2x_protocol::Detection>| {
+        let f = Frame {
+            agent: "c".into(),
+            origin: detections.first().map_or([0.0; 3], |d| d.center),
+            detections,
+            ..frame(capture)
+        };
+        c.put(keys::detections(ns, "c"), wire::encode(&f).unwrap())
+    };
+    let pile: Vec<_> = (0..v2x_protocol::limits::MAX_OBJECTS)
+        .map(|i| {
+            let mut d = det(1000.0 + 0.5 * (i % 64) as f64, i as u32);
+            d.center[1] = 0.5 * (i / 64) as f64;
+            d.score = 1.0;
+            d
+        })
+        .collect();
+    let far: Vec<_> = (0..25).map(|i| det(1e9 - i as f64, i)).collect();
+    let mut last = 0;
+    for round in 0..6 {
+        let t = next_t(&mut last);
+        match round % 3 {
+            0 => put(t, pile.clone()).await.unwrap(),
+            1 => put(t, far.clone()).await.unwrap(),
+            // stamped half a second ahead, off the grid
+            _ => put(now_us() + 513_000, vec![det(70.0, 1)]).await.unwrap(),
+        }
+        for (_, agent) in &mut honest {
+            agent.send(frame(t)).unwrap();
+        }
+        let f = next_fused(&mut fuser.1).await;
+        assert!(f.provenance.complete, "round {round}");
+        let both: Vec<f64> = f
+            .frame
+            .detections
+            .iter()
+            .zip(&f.provenance.sources)
+            .filter(|(_, s)| f.provenance.names(s).collect::<Vec<_>>() == ["a", "b"])
+            .map(|(d, _)| d.center[0].round())
+            .collect();
+        assert_eq!(both, [10.0, 30.0], "round {round}");
+    }
+    fuser.0.send(()).unwrap();
+    let st = within(30, "fuser shutdown", fuser.2).await.unwrap();
+    assert_eq!(st.agents["c"].over_budget, 2 * (4096 - 500));
+    assert_eq!(st.agents["c"].outside, 2 * 25);
+    assert!(
+        st.agents["c"].ahead >= 2,
+        "the frames stamped half a second ahead"
+    );
+    assert_eq!((st.fit.objects_invalid, st.fit.objects_capped), (0, 0));
+}

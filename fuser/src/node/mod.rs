@@ -47,7 +47,7 @@ pub struct NodeConfig {
     pub window_ms: f64,
     /// Longest wait for missing agents after a window's first frame (ms).
     pub max_wait_ms: f64,
-    /// Admission limits: clock tolerance, agent table.
+    /// Admission limits: clock tolerance, agent table, boxes per agent, area of interest.
     pub ingest: IngestConfig,
     /// Closed windows that may wait for fusion; beyond, windows are dropped and counted.
     pub queue: usize,
@@ -147,8 +147,12 @@ struct State {
     viz: Option<Arc<crate::viz::Viz>>,
     region: Option<Region>,
     parts: Parts,
+    /// The association's bounds applied in this process before the node started.
+    bounds_at_start: (u64, u64),
 }
 
+/// Agents' live and left lines told per log interval; beyond, they are counted.
+const LIVE_LINES: u64 = 16;
 /// Most captures a regional fuser puts together at once, per agent it may track.
 const PENDING_PER_AGENT: usize = 4;
 /// Samples a regional fuser's subscriptions may queue for its loop; beyond, they are dropped
@@ -192,11 +196,39 @@ impl State {
             .iter()
             .map(|(k, v)| (k.to_string(), *v))
             .collect();
+        s.dropped = self
+            .ingest
+            .noted()
+            .iter()
+            .map(|(k, v)| (k.to_string(), *v))
+            .collect();
+        s.area = self.ingest.area_center().map(|center| stats::AreaReport {
+            center,
+            radius_m: self.ingest.config().area.radius_m(),
+            learned: matches!(
+                self.ingest.config().area,
+                crate::ingest::Area::Learned { .. }
+            ),
+        });
+        let (capped, greedy) = crate::association::bounds_applied();
+        s.degraded = stats::Degraded {
+            candidates_capped: capped - self.bounds_at_start.0,
+            components_greedy: greedy - self.bounds_at_start.1,
+        };
         s.open_windows = self.windows.open_windows();
         s.fusion_queue = self.queued;
         s.e2e_latency_ms = self.e2e.latency();
         s.fusion_latency_ms = self.fusion_hist.latency();
         s
+    }
+
+    /// Logs what admission dropped or flagged, at a bounded rate.
+    fn log_notes(&mut self) {
+        for n in self.ingest.take_notes() {
+            if let Some(line) = self.log.note(n.reason(), &n.to_string()) {
+                tracing::warn!("{line}");
+            }
+        }
     }
 
     fn warn(&mut self, r: &Rejection, key: &str) {
@@ -213,6 +245,7 @@ impl State {
                 let now = self.clock.now_us();
                 let result = self.ingest.offer(&agent, &payload, now);
                 self.drop_evicted();
+                self.log_notes();
                 match result {
                     Ok(frame) => self.admit(&agent, frame, now),
                     Err(r) => self.warn(&r, key),
@@ -237,6 +270,7 @@ impl State {
         let now = self.clock.now_us();
         let result = self.ingest.offer(&agent, &payload, now);
         self.drop_evicted();
+        self.log_notes();
         let frame = match result {
             Ok(f) => f,
             Err(r) => return self.warn(&r, key),
@@ -301,7 +335,14 @@ impl State {
         let tracked = self.ingest.token(agent, live, now);
         self.drop_evicted();
         if tracked {
-            tracing::info!("agent {agent} {}", if live { "is live" } else { "left" });
+            // Agents coming and going are told one by one, up to a few an interval.
+            let line = format!("agent {agent} {}", if live { "is live" } else { "left" });
+            if let Some(line) = self
+                .log
+                .note_up_to("agents_live_or_left", &line, LIVE_LINES)
+            {
+                tracing::info!("{line}");
+            }
         } else {
             let r = Rejection::AgentCap;
             if let Some(line) = self
@@ -441,9 +482,12 @@ pub async fn run(
     if !window_ok || !wait_ok {
         anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
     }
-    if cfg.ingest.max_agents == 0 || cfg.queue == 0 {
-        anyhow::bail!("the agent table and the fusion queue must hold at least one entry");
+    if cfg.ingest.max_agents == 0 || cfg.queue == 0 || cfg.ingest.max_objects == 0 {
+        anyhow::bail!(
+            "the agent table, the fusion queue and the budget of boxes per agent must hold at least one entry"
+        );
     }
+    cfg.ingest.area.validate().map_err(|e| anyhow!(e))?;
     if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
         anyhow::bail!(
             "the agent table may hold at most {} agents (the most a fused frame can name)",
@@ -535,6 +579,7 @@ pub async fn run(
         clock,
         ingest: Ingest::new(IngestConfig {
             max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
+            ahead_us: (cfg.window_ms * 500.0) as u64,
             ..cfg.ingest.clone()
         }),
         windows: Windows::new(
@@ -561,6 +606,7 @@ pub async fn run(
             (cfg.max_wait_ms * 500.0) as u64,
             cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
         ),
+        bounds_at_start: crate::association::bounds_applied(),
     };
     match &cfg.region {
         None => tracing::info!(

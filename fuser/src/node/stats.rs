@@ -101,6 +101,27 @@ impl FitStats {
     }
 }
 
+/// The area of interest the node admits boxes in.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct AreaReport {
+    /// Its centre (x, y) in the map frame, m.
+    pub center: [f64; 2],
+    /// Its radius, m.
+    pub radius_m: f64,
+    /// Whether it was learned from the agents (else given).
+    pub learned: bool,
+}
+
+/// How often the association's work bounds applied since the node started (in this process):
+/// the fusion of such windows is no longer exact, but it stays within its time.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Degraded {
+    /// Boxes whose candidate partners were capped to the cheapest.
+    pub candidates_capped: u64,
+    /// Groups of boxes too large to solve exactly, matched greedily.
+    pub components_greedy: u64,
+}
+
 /// What the node reports (`v2x/NS/fuser/stats`, and at the end of a run).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct NodeStats {
@@ -126,6 +147,13 @@ pub struct NodeStats {
     pub agents_forgotten: u64,
     /// Frames (and tokens) not admitted, by reason, over the whole run and every agent.
     pub rejected: BTreeMap<String, u64>,
+    /// What admission dropped or flagged without refusing a frame, over the whole run: boxes
+    /// `over_budget` and `outside` the area, frames stamped `ahead` of the fuser's clock.
+    pub dropped: BTreeMap<String, u64>,
+    /// The area of interest, once given or learned.
+    pub area: Option<AreaReport>,
+    /// Where the association's work bounds made fusion inexact.
+    pub degraded: Degraded,
     /// Windows fused and published.
     pub windows: u64,
     /// Of those, windows closed by their deadline with an awaited agent missing.

@@ -231,6 +231,8 @@ pub async fn regional_fuser_role(
         });
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
+    cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;
+    cfg.ingest.area = scenario.fuser.area();
     let answer = match serves_epoch {
         true => Some(serve_epoch(session, &scenario.namespace, epoch_us).await?),
         false => None,
