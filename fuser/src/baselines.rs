@@ -23,8 +23,8 @@
 //! independent members, sqrt(sum sigma^2) / n; the methods themselves ignore stds.
 
 use crate::fusion::fuse_group;
+use crate::fusion::Sourced;
 use crate::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
-use crate::method::Sourced;
 use std::collections::BTreeMap;
 use v2x_protocol::{wrap_angle, AgentSet, Detection, Uncertainty, Velocity, NO_ID};
 

@@ -14,7 +14,16 @@
 //! variances; ties go to the earliest member).
 
 use nalgebra::{Matrix3, Vector3};
-use v2x_protocol::{wrap_angle, Detection, Uncertainty, Velocity};
+use v2x_protocol::{wrap_angle, AgentSet, Detection, Uncertainty, Velocity};
+
+/// A fused box and the agents (indices into the method's input lists) whose boxes went into it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sourced {
+    /// The fused box.
+    pub det: Detection,
+    /// The contributing agents.
+    pub sources: AgentSet,
+}
 
 /// Weighted mean and fused variance of scalars y_n with variances r_n:
 /// z = (sum 1/r_n)^-1 sum y_n / r_n, P = (sum 1/r_n)^-1.

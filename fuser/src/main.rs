@@ -1,5 +1,6 @@
-//! `v2x-fuser`: the roadside fuser. `fuse` fuses nuScenes results files offline; `node` runs the
-//! fuser on the network.
+//! `v2x-fuser`: the roadside fuser. `fuse` fuses nuScenes results files offline and `track`
+//! tracks a fused one; `node` runs the fuser on the network, `router` a Zenoh router for the
+//! secure mode, and `stats` asks a running node for its statistics.
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};

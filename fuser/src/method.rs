@@ -9,14 +9,7 @@ use std::fmt;
 use std::str::FromStr;
 use v2x_protocol::{AgentSet, Detection};
 
-/// A fused box and the agents (indices into the method's input lists) whose boxes went into it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Sourced {
-    /// The fused box.
-    pub det: Detection,
-    /// The contributing agents.
-    pub sources: AgentSet,
-}
+pub use crate::fusion::Sourced;
 
 impl Sourced {
     /// Pairs boxes with their source sets, in order.

@@ -31,11 +31,6 @@ pub fn reserved(name: &str) -> bool {
     [FUSER, OBSERVER, ROUTER].contains(&name)
 }
 
-/// The key of the simulator's shared start: `v2x/NS/sim/epoch`.
-pub fn sim_epoch(ns: &str) -> String {
-    format!("{}/{ns}/sim/epoch", keys::ROOT)
-}
-
 fn rule(id: &str, flow: &str, messages: &[&str], key_exprs: &[&str]) -> Value {
     json!({
         "id": id,
@@ -53,7 +48,7 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
     let mut subjects = Vec::new();
     let mut policies = Vec::new();
     let (det, tiled) = (keys::all_detections(ns), keys::all_tiled_detections(ns));
-    let epoch_key = sim_epoch(ns);
+    let epoch_key = keys::sim_epoch(ns);
     let epoch = [epoch_key.as_str()];
     for a in agents {
         let id = format!("agent-{a}");

@@ -60,6 +60,11 @@ pub fn all_alive(ns: &str) -> String {
     format!("{ROOT}/{ns}/alive/*")
 }
 
+/// The simulator's shared start of a run across hosts: `v2x/NS/sim/epoch`.
+pub fn sim_epoch(ns: &str) -> String {
+    format!("{ROOT}/{ns}/sim/epoch")
+}
+
 /// The fuser's statistics queryable: `v2x/NS/fuser/stats`.
 pub fn fuser_stats(ns: &str) -> String {
     format!("{ROOT}/{ns}/fuser/stats")

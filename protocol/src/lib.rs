@@ -3,8 +3,10 @@
 //! Everything that crosses a process boundary is defined here, once: the domain types
 //! ([`Class`], [`Detection`], [`Uncertainty`], [`Frame`]), the compact quantized wire encoding of a
 //! frame ([`wire`]), the Zenoh key expressions ([`keys`]) and the nuScenes detection-results JSON
-//! files with their uncertainty extension fields ([`nuscenes_json`]). This crate has no network,
-//! clock or file dependencies beyond reading and writing JSON files.
+//! files with their uncertainty extension fields ([`nuscenes_json`]), the validity domain
+//! ([`limits`]), the access-control policy ([`acl`]) and the Zenoh session options ([`net`]).
+//! Without the `session` feature this crate has no network or clock dependencies, and it touches
+//! files only to read and write JSON; with it, [`net`] opens Zenoh sessions.
 
 pub mod acl;
 pub mod fuzzing;

@@ -69,8 +69,14 @@ pub enum Motion {
     /// position and size, shortest-arc yaw, velocity linear between the annotations'. An object
     /// exists only between its first and last annotation.
     Tracks(Vec<BTreeMap<u32, Vec<TrackPoint>>>),
-    /// The synthetic town's actors, which move continuously.
-    Town(Vec<crate::town::TownScene>),
+    /// Per scene, objects that move continuously (the synthetic town's actors).
+    Continuous(Vec<std::sync::Arc<dyn Continuous>>),
+}
+
+/// A scene whose objects are known at any time, not only at its frames.
+pub trait Continuous: std::fmt::Debug + Send + Sync {
+    /// Every object of the scene at `t_us`, with its velocity.
+    fn objects_at(&self, t_us: u64) -> Vec<GtObject>;
 }
 
 /// All objects at one time step.
@@ -163,7 +169,7 @@ impl GroundTruth {
             }
         }
         match &self.motion {
-            Motion::Town(scenes) => scenes
+            Motion::Continuous(scenes) => scenes
                 .get(scene)
                 .map_or_else(Vec::new, |s| s.objects_at(t_us)),
             Motion::Tracks(scenes) => scenes.get(scene).map_or_else(Vec::new, |tracks| {
@@ -184,7 +190,7 @@ impl GroundTruth {
     pub fn tracked_across_frames(&self) -> bool {
         match &self.motion {
             Motion::Frames => false,
-            Motion::Town(_) => true,
+            Motion::Continuous(_) => true,
             Motion::Tracks(scenes) => scenes.iter().flat_map(|s| s.values()).any(|t| t.len() > 1),
         }
     }

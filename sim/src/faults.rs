@@ -5,7 +5,7 @@
 //! such as `detect=0.95,half_range=60,fp=1,flip=0.03` or the name `realistic`; `noise.rs` draws
 //! them from a random stream of their own, so the Gaussian noise is the same with or without.
 
-use crate::noise::mix;
+use crate::seed::mix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

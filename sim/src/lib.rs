@@ -1,9 +1,16 @@
 //! The v2x-fusion simulator.
 //!
-//! Sans-IO cores: [`dataset`] (ground truth: nuScenes tables or the synthetic [`town`]),
-//! [`noise`] (agents' noisy detections), [`metrics`] (`docs/method.md` §6) and [`bench`] (the paper's
-//! Table 2). [`plot`] draws a bird's-eye view; [`scenario`] and [`run`] drive whole scenarios
-//! over Zenoh.
+//! - Ground truth: [`dataset`] (nuScenes tables read from files, and the types every other module
+//!   shares) and the synthetic [`town`].
+//! - Synthetic agents, sans-IO: [`noise`], [`faults`] and [`seed`] (their random streams); [`gen`]
+//!   writes their results files.
+//! - Evaluation, sans-IO: [`metrics`] (`docs/method.md` §6), [`detection_eval`] and
+//!   [`tracking_eval`] (the nuScenes devkit's protocols); [`cli`] reads files into them.
+//! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents)
+//!   and [`plot`] (a bird's-eye view).
+//! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
+//!   [`run`] (whole scenarios), [`load`] (the fuser under load) and [`certs`] (certificates and
+//!   the access-control policy for the secure mode).
 
 pub mod asyncbench;
 pub mod bench;
@@ -19,6 +26,7 @@ pub mod noise;
 pub mod plot;
 pub mod run;
 pub mod scenario;
+pub mod seed;
 pub mod timeline;
 pub mod town;
 pub mod tracking_eval;

@@ -7,8 +7,8 @@
 //! `--regions K` spreads the same total load over 1, 2, ... K regional fusers behind a router
 //! ([`run_regions`]); `--max-load` finds the largest load one fuser holds ([`run_max_load`]).
 
-use crate::noise::mix;
 use crate::run::free_port;
+use crate::seed::mix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

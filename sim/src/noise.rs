@@ -10,6 +10,7 @@
 use crate::dataset::{GtFrame, GtObject};
 use crate::faults::{false_positive_class, hidden, look_alike, Faults};
 use crate::faults::{FALSE_POSITIVE_RADIUS, FALSE_POSITIVE_SCORE_DROP};
+pub use crate::seed::mix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
@@ -240,18 +241,6 @@ pub fn place_agents(frame: &GtFrame, n_agents: usize, seed: u64) -> Vec<Placemen
         out.push(Placement { kind, position });
     }
     out
-}
-
-/// Mixes seed parts into one 64-bit seed (splitmix64 steps).
-pub fn mix(a: u64, b: u64, c: u64) -> u64 {
-    let mut z = a ^ b.rotate_left(21) ^ c.rotate_left(42);
-    for _ in 0..2 {
-        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-    }
-    z
 }
 
 /// One capture of an agent: which draw it is and when.

@@ -356,6 +356,19 @@ pub struct AgentSpec {
 }
 
 impl AgentSpec {
+    /// The agent's timeline: its scripted events, from its own link and noise.
+    pub fn timeline(
+        &self,
+        events: &[crate::timeline::EventSpec],
+    ) -> crate::timeline::AgentTimeline {
+        crate::timeline::AgentTimeline::new(
+            &self.name,
+            self.link.clone(),
+            self.agent_noise(),
+            events,
+        )
+    }
+
     /// The agent's noise with its faults (checked when the scenario loaded).
     pub fn agent_noise(&self) -> AgentNoise {
         let mut n: AgentNoise = self
@@ -539,7 +552,8 @@ impl Scenario {
                 ));
             }
         }
-        crate::timeline::check(&self.events, &self.agents, self.duration_s)
+        let names: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
+        crate::timeline::check(&self.events, &names, self.duration_s)
     }
 
     /// The noise setting of the agents, in order.

@@ -10,7 +10,6 @@
 
 use crate::faults::Faults;
 use crate::noise::AgentNoise;
-use crate::scenario::AgentSpec;
 use serde::Deserialize;
 use v2x_agent::Link;
 
@@ -93,7 +92,7 @@ impl EventSpec {
 }
 
 /// Checks every event against the scenario's agents and length; errors name the event.
-pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Result<(), String> {
+pub fn check(events: &[EventSpec], agents: &[&str], duration_s: f64) -> Result<(), String> {
     // per agent, whether it is present, in time order
     let mut order: Vec<usize> = (0..events.len()).collect();
     order.sort_by(|&a, &b| events[a].at_s.total_cmp(&events[b].at_s).then(a.cmp(&b)));
@@ -124,8 +123,8 @@ pub fn check(events: &[EventSpec], agents: &[AgentSpec], duration_s: f64) -> Res
             }
             continue;
         }
-        let Some(a) = agents.iter().position(|a| a.name == e.target) else {
-            let names: Vec<&str> = agents.iter().map(|a| a.name.as_str()).collect();
+        let Some(a) = agents.iter().position(|a| *a == e.target) else {
+            let names = agents;
             return Err(at(format!(
                 "no agent of that name (agents: {})",
                 names.join(", ")
@@ -223,11 +222,12 @@ pub struct AgentTimeline {
 }
 
 impl AgentTimeline {
-    /// The events of `agent` (checked with [`check`]), at microseconds from the run's start.
-    pub fn new(agent: &AgentSpec, events: &[EventSpec]) -> Self {
+    /// The events of agent `name` (checked with [`check`]), at microseconds from the run's
+    /// start, beginning with its link and noise.
+    pub fn new(name: &str, link: Link, noise: AgentNoise, events: &[EventSpec]) -> Self {
         let mut mine: Vec<(u64, EventSpec)> = events
             .iter()
-            .filter(|e| e.target == agent.name)
+            .filter(|e| e.target == name)
             .map(|e| ((e.at_s * 1e6).round() as u64, e.clone()))
             .collect();
         mine.sort_by_key(|(t, _)| *t);
@@ -235,8 +235,8 @@ impl AgentTimeline {
             events: mine,
             next: 0,
             present: true,
-            link: agent.link.clone(),
-            noise: agent.agent_noise(),
+            link,
+            noise,
             burst_until_us: None,
         }
     }

@@ -9,7 +9,7 @@
 //! class mix follows nuScenes. [`TownConfig::validation`] matches the nuScenes validation split's
 //! size: 150 scenes of 20 s at 2 Hz, 6,000 frames, about 145,000 boxes.
 
-use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion};
+use crate::dataset::{Continuous, GroundTruth, GtFrame, GtObject, Motion};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -339,9 +339,9 @@ pub struct TownScene {
     start_us: u64,
 }
 
-impl TownScene {
+impl Continuous for TownScene {
     /// Every object of the scene at `t_us`, with its velocity.
-    pub fn objects_at(&self, t_us: u64) -> Vec<GtObject> {
+    fn objects_at(&self, t_us: u64) -> Vec<GtObject> {
         let t = (t_us as f64 - self.start_us as f64) / 1e6;
         self.actors
             .iter()
@@ -446,7 +446,12 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
         frames,
         tokens,
         skipped: Default::default(),
-        motion: Motion::Town(town_scenes),
+        motion: Motion::Continuous(
+            town_scenes
+                .into_iter()
+                .map(|s| std::sync::Arc::new(s) as std::sync::Arc<dyn Continuous>)
+                .collect(),
+        ),
     }
 }
 
@@ -511,7 +516,7 @@ mod tests {
             hz: 10.0,
             seed: 7,
         });
-        let Motion::Town(scenes) = &g.motion else {
+        let Motion::Continuous(scenes) = &g.motion else {
             panic!("the town moves continuously")
         };
         let t0 = g.frames[0].timestamp_us;

@@ -7,12 +7,11 @@
 
 use super::meter;
 use super::roles::{absorb, agent_role, agent_view, regional_fuser_role, FuserOutcome};
-use super::summary::{summarize, AgentSide, Summary};
+use super::summary::{summarize, AgentSide, RegionReport, Summary};
 use super::{free_port, stopped, Schedule};
 use crate::dataset::GroundTruth;
 use crate::scenario::{RegionsSpec, Scenario};
 use anyhow::Context;
-use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
@@ -20,49 +19,6 @@ use v2x_agent::now_us;
 use v2x_fuser::node::Latency;
 use v2x_protocol::keys::FuserKeys;
 use v2x_protocol::net::{open_session, ZenohArgs};
-
-/// One region's own figures.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct RegionReport {
-    /// Its tile.
-    pub tile: String,
-    /// The router its fuser is a client of.
-    pub router: String,
-    /// Windows fused.
-    pub windows: u64,
-    /// Of those, closed with an awaited agent missing.
-    pub windows_incomplete: u64,
-    /// Captures fused without every part.
-    pub captures_incomplete: u64,
-    /// Fused boxes it published (those whose centre lies in its tile).
-    pub fused_objects: u64,
-    /// Agents that sent it parts.
-    pub agents_heard: Vec<String>,
-    /// Window close to publish.
-    pub fusion_latency_ms: Latency,
-}
-
-impl RegionReport {
-    /// The report of one regional fuser's outcome.
-    pub fn of(tile: &str, router: &str, o: &FuserOutcome) -> Self {
-        RegionReport {
-            tile: tile.to_string(),
-            router: router.to_string(),
-            windows: o.stats.windows,
-            windows_incomplete: o.stats.windows_incomplete,
-            captures_incomplete: o.stats.captures_incomplete,
-            fused_objects: o.stats.fused_objects,
-            agents_heard: o
-                .stats
-                .agents
-                .iter()
-                .filter(|(_, a)| a.frames_in > 0)
-                .map(|(n, _)| n.clone())
-                .collect(),
-            fusion_latency_ms: o.stats.fusion_latency_ms.clone(),
-        }
-    }
-}
 
 /// The router each agent is a client of: the router of the fuser of the tile it starts in, or
 /// the first router.

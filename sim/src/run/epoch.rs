@@ -4,17 +4,13 @@
 use anyhow::{anyhow, bail};
 use std::time::Duration;
 
-fn epoch_key(ns: &str) -> String {
-    format!("v2x/{ns}/sim/epoch")
-}
-
 /// Answers `v2x/NS/sim/epoch` with `epoch_us` until the returned task is aborted.
 pub async fn serve_epoch(
     session: &zenoh::Session,
     ns: &str,
     epoch_us: u64,
 ) -> anyhow::Result<tokio::task::JoinHandle<()>> {
-    let key = epoch_key(ns);
+    let key = v2x_protocol::keys::sim_epoch(ns);
     let queryable = session
         .declare_queryable(&key)
         .await
@@ -38,7 +34,7 @@ pub async fn query_epoch(
     let deadline = tokio::time::Instant::now() + timeout;
     loop {
         if let Ok(replies) = session
-            .get(epoch_key(ns))
+            .get(v2x_protocol::keys::sim_epoch(ns))
             .timeout(Duration::from_secs(1))
             .await
         {
@@ -53,7 +49,7 @@ pub async fn query_epoch(
         if tokio::time::Instant::now() > deadline {
             bail!(
                 "no fuser answered {} within {timeout:?}: is the fuser role running and reachable?",
-                epoch_key(ns)
+                v2x_protocol::keys::sim_epoch(ns)
             );
         }
         tokio::time::sleep(Duration::from_millis(200)).await;

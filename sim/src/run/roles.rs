@@ -7,7 +7,7 @@ use crate::dataset::GroundTruth;
 use crate::noise::AgentNoise;
 use crate::noise::{detect, place_agents, Capture};
 use crate::scenario::Scenario;
-use crate::timeline::{fuser_restarts, AgentTimeline};
+use crate::timeline::fuser_restarts;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
@@ -98,7 +98,7 @@ pub async fn agent_role(
             }
         }
     }
-    let mut timeline = AgentTimeline::new(spec, &scenario.events);
+    let mut timeline = spec.timeline(&scenario.events);
     let mut state = timeline.at(0);
     for (j, t) in agent_captures(scenario, schedule, idx)
         .into_iter()

@@ -6,7 +6,6 @@ use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
 use crate::scenario::Scenario;
-use crate::timeline::AgentTimeline;
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -227,7 +226,7 @@ pub struct Summary {
     pub security: SecurityReport,
     /// A city's regions, each with its own figures (absent for one fuser).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub regions: Vec<super::city::RegionReport>,
+    pub regions: Vec<RegionReport>,
 }
 
 /// The security mode of a run and what it cost to connect.
@@ -299,7 +298,7 @@ pub fn summarize(
     // Each agent alone, at its own capture times.
     let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
     for (idx, acc) in agent_acc.iter_mut().enumerate() {
-        let mut timeline = AgentTimeline::new(&scenario.agents[idx], &scenario.events);
+        let mut timeline = scenario.agents[idx].timeline(&scenario.events);
         for (j, t) in agent_captures(scenario, schedule, idx)
             .into_iter()
             .enumerate()
@@ -446,9 +445,52 @@ pub fn print_agent_table(r: &AgentReport) {
     }
 }
 
+/// One region's own figures.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct RegionReport {
+    /// Its tile.
+    pub tile: String,
+    /// The router its fuser is a client of.
+    pub router: String,
+    /// Windows fused.
+    pub windows: u64,
+    /// Of those, closed with an awaited agent missing.
+    pub windows_incomplete: u64,
+    /// Captures fused without every part.
+    pub captures_incomplete: u64,
+    /// Fused boxes it published (those whose centre lies in its tile).
+    pub fused_objects: u64,
+    /// Agents that sent it parts.
+    pub agents_heard: Vec<String>,
+    /// Window close to publish.
+    pub fusion_latency_ms: Latency,
+}
+
+impl RegionReport {
+    /// The report of one regional fuser's outcome.
+    pub fn of(tile: &str, router: &str, o: &FuserOutcome) -> Self {
+        RegionReport {
+            tile: tile.to_string(),
+            router: router.to_string(),
+            windows: o.stats.windows,
+            windows_incomplete: o.stats.windows_incomplete,
+            captures_incomplete: o.stats.captures_incomplete,
+            fused_objects: o.stats.fused_objects,
+            agents_heard: o
+                .stats
+                .agents
+                .iter()
+                .filter(|(_, a)| a.frames_in > 0)
+                .map(|(n, _)| n.clone())
+                .collect(),
+            fusion_latency_ms: o.stats.fusion_latency_ms.clone(),
+        }
+    }
+}
+
 /// Prints the summary as tables.
 /// Prints a city's regions, one row each.
-pub fn print_regions(regions: &[super::city::RegionReport]) {
+pub fn print_regions(regions: &[RegionReport]) {
     println!("| region | router | windows (incomplete) | captures incomplete | fused boxes | agents heard | fusion p50 / p99 (ms) |\n|---|---|---|---|---|---|---|");
     for r in regions {
         println!(

@@ -122,7 +122,7 @@ action = "leave"
 "#,
     )
     .unwrap();
-    let mut t = AgentTimeline::new(&s.agents[0], &s.events);
+    let mut t = s.agents[0].timeline(&s.events);
     let s_ = |x: f64| (x * 1e6) as u64;
     let st = t.at(s_(1.9));
     assert!(st.present);
@@ -156,7 +156,7 @@ action = "leave"
             .unwrap()
     );
     // the other agent only sees its own events
-    let mut rsu = AgentTimeline::new(&s.agents[1], &s.events);
+    let mut rsu = s.agents[1].timeline(&s.events);
     assert!(rsu.at(s_(0.5)).present);
     assert!(!rsu.at(s_(19.0)).present);
 }
@@ -185,6 +185,6 @@ fn the_fuser_can_only_restart() {
     let e = err("[[events]]\nat_s = 3.0\ntarget = \"fuser\"\naction = \"restart\"\njump_ms = 1.0");
     assert!(e.contains("jump_ms does not apply to Restart"), "{e}");
     // an agent's timeline ignores the fuser's events
-    let mut t = AgentTimeline::new(&s.agents[0], &s.events);
+    let mut t = s.agents[0].timeline(&s.events);
     assert!(t.at(10_000_000).present);
 }
