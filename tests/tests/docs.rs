@@ -1,6 +1,7 @@
-//! The documents' links resolve: every relative link of README.md, CONTRIBUTING.md and docs/*.md
-//! names a file of the repository and, with `#anchor`, a heading of that file; and none of them
-//! names a path outside the repository.
+//! The repository's shape: the documents' links resolve (every relative link of README.md,
+//! CONTRIBUTING.md and docs/*.md names a file of the repository and, with `#anchor`, a heading of
+//! that file), none of them names a path outside the repository, and no two source files of a
+//! crate import each other, directly or round a longer loop.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -156,4 +157,118 @@ fn slugs_as_github_makes_them() {
         links("see [a](b.md#c) and [d](https://x)"),
         ["b.md#c", "https://x"]
     );
+}
+
+/// A crate's modules (by path, `a/b` for `a::b`) and the modules each one's code names through
+/// `crate::` or `super::` (comments and `#[cfg(test)]` modules left out).
+fn module_imports(krate: &str) -> std::collections::BTreeMap<String, BTreeSet<String>> {
+    let src = root().join(krate).join("src");
+    let mut files = Vec::new();
+    let mut dirs = vec![src.clone()];
+    while let Some(d) = dirs.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                dirs.push(p);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                files.push(p);
+            }
+        }
+    }
+    let mut code = std::collections::BTreeMap::new();
+    for p in files {
+        let rel = p.strip_prefix(&src).unwrap().with_extension("");
+        let mut m = rel.to_string_lossy().replace('\\', "/");
+        if let Some(parent) = m.strip_suffix("/mod") {
+            m = parent.to_string();
+        }
+        if m == "tests" || m.ends_with("/tests") || m == "lib" || m == "main" {
+            continue;
+        }
+        let text = std::fs::read_to_string(&p).unwrap();
+        let text = text.split("#[cfg(test)]\nmod tests").next().unwrap_or("");
+        let lines: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect();
+        code.insert(m, lines.join("\n"));
+    }
+    let modules: BTreeSet<String> = code.keys().cloned().collect();
+    let mut graph = std::collections::BTreeMap::new();
+    for (m, text) in &code {
+        let parent = m.rsplit_once('/').map_or("", |(p, _)| p);
+        let mut uses = BTreeSet::new();
+        for (prefix, base) in [("crate::", String::new()), ("super::", parent.to_string())] {
+            for (i, _) in text.match_indices(prefix) {
+                let path: Vec<&str> = text[i + prefix.len()..]
+                    .split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+                    .next()
+                    .unwrap_or("")
+                    .split("::")
+                    .collect();
+                // the longest prefix of the path that names a module
+                for k in (1..=path.len()).rev() {
+                    let name = path[..k].join("/");
+                    let full = if base.is_empty() {
+                        name
+                    } else {
+                        format!("{base}/{name}")
+                    };
+                    if modules.contains(&full) {
+                        if &full != m && !m.starts_with(&format!("{full}/")) {
+                            uses.insert(full);
+                        }
+                        break;
+                    }
+                }
+            }
+        }
+        graph.insert(m.clone(), uses);
+    }
+    graph
+}
+
+#[test]
+fn no_import_cycle_between_files() {
+    for krate in ["protocol", "fuser", "sim"] {
+        let g = module_imports(krate);
+        // Depth-first search for a back edge.
+        fn visit(
+            m: &str,
+            g: &std::collections::BTreeMap<String, BTreeSet<String>>,
+            state: &mut std::collections::BTreeMap<String, u8>,
+            path: &mut Vec<String>,
+        ) -> Option<Vec<String>> {
+            state.insert(m.to_string(), 1);
+            path.push(m.to_string());
+            for n in g.get(m).into_iter().flatten() {
+                match state.get(n.as_str()).copied().unwrap_or(0) {
+                    1 => {
+                        let at = path.iter().position(|p| p == n).unwrap();
+                        let mut cycle = path[at..].to_vec();
+                        cycle.push(n.clone());
+                        return Some(cycle);
+                    }
+                    0 => {
+                        if let Some(c) = visit(n, g, state, path) {
+                            return Some(c);
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            path.pop();
+            state.insert(m.to_string(), 2);
+            None
+        }
+        let mut state = std::collections::BTreeMap::new();
+        for m in g.keys() {
+            if state.get(m.as_str()).copied().unwrap_or(0) == 0 {
+                if let Some(c) = visit(m, &g, &mut state, &mut Vec::new()) {
+                    panic!("{krate}: files import each other: {}", c.join(" -> "));
+                }
+            }
+        }
+        assert!(g.len() > 3, "{krate}: {} modules found", g.len());
+    }
 }
