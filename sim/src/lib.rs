@@ -1,11 +1,9 @@
-//! The v2x-fusion simulator.
+//! The v2x-fusion simulator: orchestration around the data and evaluation crates.
 //!
-//! - Ground truth: [`dataset`] (nuScenes tables read from files, and the types every other module
-//!   shares) and the synthetic [`town`].
-//! - Synthetic agents, sans-IO: [`noise`], [`faults`] and [`seed`] (their random streams); [`gen`]
-//!   writes their results files.
-//! - Evaluation, sans-IO: [`metrics`] (`docs/method.md` §6), [`detection_eval`] and
-//!   [`tracking_eval`] (the nuScenes devkit's protocols); [`cli`] reads files into them.
+//! - Re-exported from `v2x-data`: the ground truth ([`dataset`], [`town`]) and synthetic agents
+//!   ([`noise`], [`faults`], [`seed`]); [`gen`] writes agents' results files.
+//! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`] and [`tracking_eval`]; [`cli`]
+//!   reads files into them.
 //! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents)
 //!   and [`plot`] (a bird's-eye view).
 //! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
@@ -16,17 +14,12 @@ pub mod asyncbench;
 pub mod bench;
 pub mod certs;
 pub mod cli;
-pub mod dataset;
-pub mod detection_eval;
-pub mod faults;
 pub mod gen;
 pub mod load;
-pub mod metrics;
-pub mod noise;
 pub mod plot;
 pub mod run;
 pub mod scenario;
-pub mod seed;
 pub mod timeline;
-pub mod town;
-pub mod tracking_eval;
+
+pub use v2x_data::{dataset, faults, noise, seed, town};
+pub use v2x_eval::{detection_eval, metrics, tracking_eval};

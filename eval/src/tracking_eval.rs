@@ -30,10 +30,10 @@
 //! ground truth, counts summed. Only the seven tracking classes count (no barrier, traffic cone
 //! or construction vehicle); the devkit's range filter around the ego vehicle is not applied.
 
-use crate::dataset::GtObject;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
+use v2x_data::dataset::GtObject;
 use v2x_fuser::association::{assign, Edge};
 use v2x_protocol::Class;
 

@@ -11,9 +11,9 @@
 //! ATE: 2D centre distance (m); ASE: Euclidean distance of (l, w, h) (m); AOE: |yaw difference|
 //! in degrees, with period pi for barriers and 2 pi otherwise.
 
-use crate::dataset::GtObject;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
+use v2x_data::dataset::GtObject;
 use v2x_protocol::{wrap_angle, Class, Detection};
 
 /// The errors of one prediction against its ground truth.

@@ -23,9 +23,9 @@
 //! boxes without lidar points (the evaluation has no ego pose; the simulated agents' own range
 //! plays that part). Predictions carry no attribute, so AAE is 1 wherever it is defined.
 
-use crate::dataset::GtObject;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use v2x_data::dataset::GtObject;
 use v2x_protocol::{Class, Detection};
 
 /// Centre-distance thresholds of the AP (m).

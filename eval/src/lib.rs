@@ -1,0 +1,11 @@
+//! Evaluation for v2x-fusion, without the network: no Zenoh, tokio or clock (results files are
+//! read as JSON where the protocol needs them).
+//!
+//! - [`metrics`]: precision, recall and matched-pair errors against the ground truth
+//!   (`docs/method.md` §6).
+//! - [`detection_eval`]: the nuScenes detection protocol (mAP, TP errors, NDS).
+//! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
+
+pub mod detection_eval;
+pub mod metrics;
+pub mod tracking_eval;
