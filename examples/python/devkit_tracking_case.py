@@ -1,6 +1,6 @@
 """Makes sim/tests/data/tracking_devkit_case.json: a random tracking case (each frame's objects in
 shuffled order), a crafted scene where two objects compete for one track, and the figures the
-nuScenes devkit's tracking evaluation gives for it (the Rust test sim/tests/tracking_devkit.rs
+nuScenes devkit's tracking evaluation gives for it (the Rust test sim/tests/sim/tracking_devkit.rs
 checks v2x-sim's metrics against them, every column).
 
     python -m venv venv && venv/bin/pip install nuscenes-devkit motmetrics pandas scikit-learn

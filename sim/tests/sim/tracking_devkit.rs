@@ -18,7 +18,7 @@ fn class(v: &serde_json::Value) -> Class {
 
 #[test]
 fn the_metrics_equal_the_devkits() {
-    let text = include_str!("data/tracking_devkit_case.json");
+    let text = include_str!("../data/tracking_devkit_case.json");
     let case: serde_json::Value = serde_json::from_str(text).unwrap();
     let mut eval = TrackingEval::new();
     for (s, frames) in case["scenes"].as_array().unwrap().iter().enumerate() {
