@@ -25,8 +25,8 @@
 
 use serde::Serialize;
 use std::collections::BTreeMap;
-use v2x_data::dataset::GtObject;
 use v2x_protocol::{Class, Detection};
+use v2x_truth::dataset::GtObject;
 
 /// Centre-distance thresholds of the AP (m).
 pub const DIST_THS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];

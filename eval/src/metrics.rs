@@ -13,8 +13,8 @@
 
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
-use v2x_data::dataset::GtObject;
 use v2x_protocol::{wrap_angle, Class, Detection};
+use v2x_truth::dataset::GtObject;
 
 /// The errors of one prediction against its ground truth.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

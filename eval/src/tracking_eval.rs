@@ -33,9 +33,9 @@
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
-use v2x_data::dataset::GtObject;
 use v2x_fuser::association::{assign, Edge};
 use v2x_protocol::Class;
+use v2x_truth::dataset::GtObject;
 
 /// The matching distance (m): pairs at this distance or more never match.
 pub const MATCH_DISTANCE: f64 = 2.0;

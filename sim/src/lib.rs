@@ -1,6 +1,6 @@
 //! The v2x-fusion simulator: orchestration around the data and evaluation crates.
 //!
-//! - Re-exported from `v2x-data`: the ground truth ([`dataset`], [`town`]) and synthetic agents
+//! - Re-exported from `v2x-truth`: the ground truth ([`dataset`], [`town`]) and synthetic agents
 //!   ([`noise`], [`faults`], [`seed`]); [`gen`] writes agents' results files.
 //! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`] and [`tracking_eval`]; [`cli`]
 //!   reads files into them.
@@ -21,5 +21,5 @@ pub mod run;
 pub mod scenario;
 pub mod timeline;
 
-pub use v2x_data::{dataset, faults, noise, seed, town};
 pub use v2x_eval::{detection_eval, metrics, tracking_eval};
+pub use v2x_truth::{dataset, faults, noise, seed, town};
