@@ -495,7 +495,10 @@ pub async fn run(
         );
     }
     let ns = cfg.ns.clone();
-    let z = |e: zenoh::Error| anyhow!("{e}");
+    // Zenoh's errors say what failed, not where: each names its operation and key.
+    let z = |what: &'static str, key: String| {
+        move |e: zenoh::Error| anyhow!("cannot declare the {what} on {key}: {e}")
+    };
     let fk = keys::FuserKeys::of(&ns, cfg.region.map(|r| r.tile));
     let overflow = Arc::new(std::sync::atomic::AtomicU64::new(0));
     let (mut det, subscribed) = match &cfg.region {
@@ -504,7 +507,7 @@ pub async fn run(
                 session
                     .declare_subscriber(keys::all_detections(&ns))
                     .await
-                    .map_err(z)?,
+                    .map_err(z("detections subscriber", keys::all_detections(&ns)))?,
             ),
             Vec::new(),
         ),
@@ -523,7 +526,7 @@ pub async fn run(
                             }
                         })
                         .await
-                        .map_err(z)?,
+                        .map_err(z("detections subscriber", keys::tile_detections(&ns, *t)))?,
                 );
             }
             (Inbox::Tiles { rx, _subs: subs }, tiles)
@@ -534,21 +537,21 @@ pub async fn run(
         .declare_subscriber(keys::all_alive(&ns))
         .history(true)
         .await
-        .map_err(z)?;
+        .map_err(z("liveliness subscriber", keys::all_alive(&ns)))?;
     let queryable = session
         .declare_queryable(fk.stats.clone())
         .await
-        .map_err(z)?;
+        .map_err(z("statistics queryable", fk.stats.clone()))?;
     let publisher = session
         .declare_publisher(fk.fused.clone())
         .encoding(v2x_protocol::net::frame_encoding())
         .await
-        .map_err(z)?;
+        .map_err(z("fused-frame publisher", fk.fused.clone()))?;
     let _token = session
         .liveliness()
         .declare_token(fk.alive.clone())
         .await
-        .map_err(z)?;
+        .map_err(z("liveliness token", fk.alive.clone()))?;
     let clock = Clock::start();
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
@@ -558,7 +561,7 @@ pub async fn run(
                 .declare_publisher(fk.tracks.clone())
                 .encoding(v2x_protocol::net::frame_encoding())
                 .await
-                .map_err(z)?,
+                .map_err(z("tracks publisher", fk.tracks.clone()))?,
         ),
         None => None,
     };
@@ -724,7 +727,7 @@ pub async fn query_stats_at(
         .get(key)
         .timeout(timeout)
         .await
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
     while let Ok(reply) = replies.recv_async().await {
         if let Ok(sample) = reply.result() {
             return Ok(serde_json::from_slice(&sample.payload().to_bytes())?);

@@ -14,7 +14,7 @@ pub async fn serve_epoch(
     let queryable = session
         .declare_queryable(&key)
         .await
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| anyhow!("cannot declare the epoch queryable on {key}: {e}"))?;
     Ok(tokio::spawn(async move {
         while let Ok(q) = queryable.recv_async().await {
             let _ = q
