@@ -1,0 +1,149 @@
+//! `v2x-sim eval`.
+
+use super::*;
+use anyhow::bail;
+use std::path::PathBuf;
+use v2x_sim::bench;
+use v2x_sim::cli::{evaluate_file, DataArgs, EvalOptions, Evaluation};
+
+/// The options of `v2x-sim eval`.
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Count ground-truth frames absent from the file as all missed (default: score only the
+    /// frames the file has).
+    #[arg(long)]
+    pub all_frames: bool,
+    /// How predictions are matched to ground truth: `id` (the paper's protocol: by
+    /// ground-truth id, precision, recall, mATE...), `distance` (the nuScenes detection
+    /// benchmark: by centre distance, AP at 0.5/1/2/4 m, TP errors at 2 m, NDS), or `auto`:
+    /// by id when the file's boxes carry ground-truth ids, else by distance (a detector's own
+    /// output has none).
+    #[arg(long = "match", value_enum, default_value = "auto")]
+    pub matching: v2x_sim::cli::Match,
+    /// Score a tracking results file (`v2x-fuser track`) as the nuScenes tracking benchmark
+    /// does: AMOTA, AMOTP, and MOTA, MOTP, IDS, FRAG at each class's best score threshold,
+    /// 2 m centre distance, the seven tracking classes. The same file without --tracking
+    /// scores its boxes as detections.
+    #[arg(long, conflicts_with_all = ["replay_start_at", "at", "classes"])]
+    pub tracking: bool,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    pub format: Format,
+    /// For a fuser recording of `v2x-agent --clock real` replays: the agents' --start-at
+    /// (Unix seconds), so that capture times map back to the data's frames.
+    #[arg(long)]
+    pub replay_start_at: Option<f64>,
+    /// With --replay-start-at: the agents' --speed.
+    #[arg(long, default_value_t = 1.0, requires = "replay_start_at")]
+    pub replay_speed: f64,
+    /// When a sample is scored: `frame` (a sample token at its own frame, whatever the
+    /// file's meta.v2x_timestamps say) or `capture` (at its capture time from
+    /// meta.v2x_timestamps, the ground truth interpolated along its tracks; only for ground
+    /// truth tracked across frames). Keys that are no sample token (t<us>) use their time.
+    #[arg(long, value_enum, default_value = "frame")]
+    pub at: v2x_sim::cli::Timing,
+    /// The classes to score, comma-separated nuScenes names (e.g. car,truck,bus): other
+    /// classes' boxes, ground truth and predictions, are left out. Default: every class, the
+    /// benchmark's headline averaged over the classes the ground truth holds.
+    #[arg(long, value_parser = v2x_sim::cli::parse_classes)]
+    pub classes: Option<Vec<v2x_protocol::Class>>,
+    /// The results file to score.
+    pub pred: PathBuf,
+}
+
+/// Runs `v2x-sim eval`.
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    let EvalArgs {
+        data,
+        all_frames,
+        matching,
+        tracking,
+        format,
+        replay_start_at,
+        replay_speed,
+        at,
+        classes,
+        pred,
+    } = args;
+    if tracking {
+        let gt = data.load()?;
+        let m = evaluate_tracking(&gt, &pred, all_frames)?;
+        match format {
+            Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
+            Format::Table | Format::Csv => {
+                println!("| predictions | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+                println!(
+                    "| {} | {:.4} | {:.3} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
+                    pred.display(),
+                    m.amota,
+                    m.amotp,
+                    m.mota,
+                    m.motp,
+                    m.ids,
+                    m.ids_per_100_tracks,
+                    m.frag,
+                    m.tp,
+                    m.fp,
+                    m.fn_,
+                    m.gt_tracks
+                );
+            }
+        }
+        return Ok(());
+    }
+    let replay = match replay_start_at {
+        None => None,
+        Some(t) if t > 0.0 && t.is_finite() && replay_speed > 0.0 && replay_speed.is_finite() => {
+            Some(v2x_sim::cli::ReplayMap {
+                start_us: (t * 1e6) as u64,
+                speed: replay_speed,
+            })
+        }
+        Some(_) => {
+            bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
+        }
+    };
+    let gt = data.load()?;
+    let opts = EvalOptions {
+        all_frames,
+        replay,
+        how: matching,
+        timing: at,
+        classes,
+    };
+    let (evaluation, note) = evaluate_file(&gt, &pred, &opts)?;
+    eprintln!("{note}");
+    let csv = format == Format::Csv;
+    match evaluation {
+        e if format == Format::Json => println!("{}", serde_json::to_string_pretty(&e)?),
+        Evaluation::Distance(d) => {
+            let rows = [(pred.display().to_string(), &d)];
+            print!(
+                "{}",
+                if csv {
+                    bench::detection_csv(&rows)
+                } else {
+                    bench::detection_table(&rows)
+                }
+            );
+        }
+        Evaluation::Id(m) => {
+            let rows = [bench::Row {
+                noise: "-".into(),
+                method: pred.display().to_string(),
+                metrics: m,
+            }];
+            print!(
+                "{}",
+                if csv {
+                    bench::csv(&rows)
+                } else {
+                    bench::table(&rows)
+                }
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,146 @@
+//! The subcommands of `v2x-sim`, one module each, and what they share.
+
+use anyhow::{bail, Context};
+use clap::ValueEnum;
+use std::path::PathBuf;
+use v2x_fuser::Method;
+use v2x_sim::bench::BenchConfig;
+use v2x_sim::noise::{place_agents, NoiseSetting};
+
+pub mod bench;
+pub mod certs;
+pub mod eval;
+pub mod gen;
+pub mod load;
+pub mod mcap;
+pub mod plot;
+
+/// How a table is printed.
+#[derive(Copy, Clone, Debug, ValueEnum, PartialEq)]
+pub enum Format {
+    Table,
+    Json,
+    Csv,
+}
+
+/// Scores a tracking results file over the ground truth's frames in time order: only the frames
+/// the file has, or with `all_frames` every frame (absent ones all missed).
+pub(crate) fn evaluate_tracking(
+    gt: &v2x_sim::dataset::GroundTruth,
+    path: &std::path::Path,
+    all_frames: bool,
+) -> anyhow::Result<v2x_sim::tracking_eval::TrackingMetrics> {
+    let tracks = v2x_sim::tracking_eval::read_tracking(path).map_err(anyhow::Error::msg)?;
+    let known: std::collections::HashSet<&str> =
+        gt.frames.iter().map(|f| f.sample_token.as_str()).collect();
+    if let Some(s) = tracks.keys().find(|s| !known.contains(s.as_str())) {
+        bail!(
+            "{}: sample {s} is not in the ground truth: score the file against the data it was made from (--dataroot/--version, or the same town flags)",
+            path.display()
+        );
+    }
+    let mut other: std::collections::BTreeMap<&str, usize> = Default::default();
+    for b in tracks.values().flatten() {
+        if !b.class.is_tracking() {
+            *other.entry(b.class.name()).or_default() += 1;
+        }
+    }
+    if !other.is_empty() {
+        let list: Vec<String> = other.iter().map(|(c, n)| format!("{c} {n}")).collect();
+        eprintln!(
+            "{}: boxes of classes the tracking benchmark does not score were left out ({}); the official devkit refuses a file with them",
+            path.display(),
+            list.join(", ")
+        );
+    }
+    let mut eval = v2x_sim::tracking_eval::TrackingEval::new();
+    for f in &gt.frames {
+        match tracks.get(&f.sample_token) {
+            Some(boxes) => eval.add_frame(f.scene, f.timestamp_us, &f.objects, boxes),
+            None if all_frames => eval.add_frame(f.scene, f.timestamp_us, &f.objects, &[]),
+            None => {}
+        }
+    }
+    Ok(eval.summary())
+}
+
+/// A bench configuration over the paper's noise settings (or those named), with `methods`, or
+/// `default_methods` when it is `all`.
+pub(crate) fn paper_settings(
+    methods: &str,
+    default_methods: &str,
+    noise: &str,
+    seed: u64,
+    range: Option<f64>,
+) -> anyhow::Result<BenchConfig> {
+    let methods = if methods == "all" {
+        default_methods
+    } else {
+        methods
+    };
+    Ok(BenchConfig {
+        methods: parse_list(methods, vec![], |s| s.parse())?,
+        settings: parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?,
+        seed,
+        range,
+    })
+}
+
+pub(crate) fn faults_help() -> String {
+    let mut s = String::from("Fault keys (--faults KEY=VALUE,...; default in brackets):\n");
+    for (k, what) in v2x_sim::faults::FAULT_KEYS {
+        s.push_str(&format!("  {k:<11} {what}\n"));
+    }
+    s.push_str(&format!(
+        "  realistic = {}\n",
+        v2x_sim::faults::Faults::REALISTIC
+    ));
+    s
+}
+
+pub(crate) fn parse_list<T>(
+    s: &str,
+    all: Vec<T>,
+    parse: impl Fn(&str) -> Result<T, String>,
+) -> anyhow::Result<Vec<T>> {
+    if s == "all" {
+        return Ok(all);
+    }
+    s.split(',')
+        .map(|x| parse(x.trim()).map_err(anyhow::Error::msg))
+        .collect()
+}
+
+pub(crate) fn plot(
+    data: &v2x_sim::dataset::GroundTruth,
+    frame: usize,
+    setting: &NoiseSetting,
+    method: &Method,
+    seed: u64,
+    out: &std::path::Path,
+) -> anyhow::Result<PathBuf> {
+    let Some(f) = data.frames.get(frame) else {
+        bail!(
+            "--plot/--frame {frame} is out of range: the data has {} frames",
+            data.frames.len()
+        );
+    };
+    let agents = v2x_sim::bench::agent_detections(data, frame, setting, seed, None);
+    let fused = method.fuse(&agents);
+    let places = place_agents(f, agents.len(), seed);
+    let title = format!(
+        "frame {frame} ({}), noise {setting}, {method}",
+        f.sample_token
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let path = out.join(format!(
+        "frame-{frame}-{}.svg",
+        setting.name.replace('+', "-")
+    ));
+    std::fs::write(
+        &path,
+        v2x_sim::plot::frame_svg(f, &agents, &fused, &places, &title),
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}
