@@ -1,6 +1,7 @@
 //! Command-line pieces shared by the `v2x-sim` subcommands: where the ground truth comes from,
 //! and reading predictions against it.
 
+use crate::dair::{load_dair, Dair};
 use crate::dataset::{load_nuscenes, GroundTruth, GtObject};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
@@ -12,12 +13,41 @@ use std::path::{Path, PathBuf};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd};
 use v2x_protocol::{Class, Detection, Uncertainty, NO_ID};
 
-/// Where the ground truth comes from: nuScenes tables, or the synthetic town (the default).
+/// Which kind of data `--dataroot` holds.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum DatasetKind {
+    /// nuScenes tables (DATAROOT/VERSION/*.json).
+    #[default]
+    Nuscenes,
+    /// DAIR-V2X-C or V2X-Seq-SPD (DATAROOT holds cooperative/, vehicle-side/ and
+    /// infrastructure-side/): the agents are the data's vehicle `veh` and roadside unit `inf`.
+    DairV2x,
+}
+
+/// On or off.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+/// Where the ground truth comes from: nuScenes tables, DAIR-V2X cooperative data, or the
+/// synthetic town (the default).
 #[derive(Args, Clone, Debug)]
 pub struct DataArgs {
-    /// nuScenes data root (the folder holding VERSION/); without it, the synthetic town is used.
-    #[arg(long, requires = "version")]
+    /// Data root: the folder holding VERSION/ (nuScenes), or cooperative/, vehicle-side/ and
+    /// infrastructure-side/ (--dataset dair-v2x); without it, the synthetic town is used.
+    #[arg(long)]
     pub dataroot: Option<PathBuf>,
+    /// What --dataroot holds.
+    #[arg(long, value_enum, default_value = "nuscenes", requires = "dataroot")]
+    pub dataset: DatasetKind,
+    /// DAIR-V2X: move the roadside by each pair's calibration offset (system_error_offset), as
+    /// the official loader does.
+    #[arg(long, value_enum, default_value = "on")]
+    pub calibration_offset: Switch,
     /// nuScenes version folder name, e.g. v1.0-mini.
     #[arg(long)]
     pub version: Option<String>,
@@ -54,10 +84,31 @@ impl DataArgs {
         }
     }
 
-    /// Loads or generates the ground truth.
+    /// Whether the data is DAIR-V2X cooperative data.
+    pub fn is_dair(&self) -> bool {
+        self.dataroot.is_some() && self.dataset == DatasetKind::DairV2x
+    }
+
+    /// Loads DAIR-V2X cooperative data (`--dataset dair-v2x`).
+    pub fn load_dair(&self) -> anyhow::Result<Dair> {
+        match (&self.dataroot, self.dataset) {
+            (Some(root), DatasetKind::DairV2x) => {
+                Ok(load_dair(root, self.calibration_offset == Switch::On)?)
+            }
+            _ => bail!("this needs --dataset dair-v2x --dataroot DIR"),
+        }
+    }
+
+    /// Loads or generates the ground truth (for DAIR-V2X, its cooperative labels).
     pub fn load(&self) -> anyhow::Result<GroundTruth> {
+        if self.is_dair() {
+            return Ok(self.load_dair()?.gt);
+        }
         match (&self.dataroot, &self.version) {
             (Some(root), Some(version)) => Ok(load_nuscenes(root, version)?),
+            (Some(_), None) => bail!(
+                "--dataroot needs --version NAME for nuScenes tables (DATAROOT/NAME/*.json), or --dataset dair-v2x"
+            ),
             (None, Some(_)) => bail!("--version needs --dataroot"),
             _ => {
                 let t = self.town();
@@ -77,6 +128,15 @@ impl DataArgs {
     /// A short description of the source, for reports.
     pub fn describe(&self, gt: &GroundTruth) -> String {
         let what = match &self.dataroot {
+            Some(r) if self.is_dair() => format!(
+                "DAIR-V2X {} (calibration offset {})",
+                r.display(),
+                if self.calibration_offset == Switch::On {
+                    "on"
+                } else {
+                    "off"
+                }
+            ),
             Some(r) => format!(
                 "nuScenes tables {}",
                 r.join(self.version.as_deref().unwrap_or("")).display()

@@ -8,6 +8,7 @@
 //! frame), from which `v2x-agent` replays the agents in step and `v2x-fuser fuse` and
 //! `v2x-sim eval` align them in time.
 
+use crate::dair::Dair;
 use crate::dataset::GroundTruth;
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use v2x_protocol::nuscenes_json::{default_meta, Results};
@@ -156,6 +157,42 @@ pub fn generate(
         files.push(r);
     }
     files
+}
+
+/// The two agents of DAIR-V2X data (vehicle, then roadside) as results files: each pair keyed
+/// by its vehicle frame id, holding that side's labels ([`Dair::detections`], with `setting`'s
+/// noise on top when given) and stamped with that side's own capture time.
+pub fn generate_dair(
+    d: &Dair,
+    setting: Option<&NoiseSetting>,
+    seed: u64,
+    range: Option<f64>,
+) -> Vec<Results> {
+    let data_start =
+        d.gt.frames
+            .iter()
+            .map(|f| f.timestamp_us)
+            .min()
+            .unwrap_or(0);
+    (0..2)
+        .map(|a| {
+            let mut r = Results::default();
+            let mut times = serde_json::Map::new();
+            for (i, f) in d.gt.frames.iter().enumerate() {
+                let noise = setting.map(|s| &s.agents[a.min(s.agents.len() - 1)]);
+                let dets = d.detections(a, i, noise, seed, range);
+                times.insert(f.sample_token.clone(), d.capture_us(a, i).into());
+                r.order.push(f.sample_token.clone());
+                r.samples.insert(f.sample_token.clone(), dets);
+            }
+            let mut meta = default_meta();
+            meta["v2x_timestamps"] = serde_json::Value::Object(times);
+            meta["v2x_data_start_us"] = data_start.into();
+            meta["v2x_agent"] = v2x_truth::dair::AGENTS[a].into();
+            r.meta = meta;
+            r
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -21,5 +21,5 @@ pub mod run;
 pub mod scenario;
 pub mod timeline;
 
-pub use v2x_eval::{detection_eval, metrics, tracking_eval};
-pub use v2x_truth::{dataset, faults, noise, seed, town};
+pub use v2x_eval::{dair_eval, detection_eval, metrics, tracking_eval};
+pub use v2x_truth::{dair, dataset, faults, noise, seed, town};

@@ -54,6 +54,8 @@ impl DatasetSpec {
     pub fn data_args(&self) -> DataArgs {
         DataArgs {
             dataroot: self.dataroot.clone(),
+            dataset: Default::default(),
+            calibration_offset: crate::cli::Switch::On,
             version: self.version.clone(),
             scenes: self.scenes,
             seconds: self.seconds,

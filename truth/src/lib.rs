@@ -2,10 +2,13 @@
 //!
 //! - [`dataset`]: the ground truth every other crate scores against, read from nuScenes-format
 //!   tables (the types all modules share live here).
+//! - [`dair`]: DAIR-V2X-C and V2X-Seq-SPD cooperative data: its ground truth and its two real
+//!   agents.
 //! - [`town`]: a synthetic town whose actors move continuously.
 //! - [`noise`] and [`faults`]: agents' noisy detections and detector faults drawn from the
 //!   ground truth; [`seed`]: their independent random streams.
 
+pub mod dair;
 pub mod dataset;
 pub mod faults;
 pub mod noise;

@@ -12,9 +12,10 @@ pub struct GenArgs {
     #[command(flatten)]
     pub data: DataArgs,
     /// Noise: mild, moderate, large, realistic, a mix such as mild+large (one per agent), or
-    /// POS,SIZE,YAW_DEG.
-    #[arg(long, default_value = "mild+large")]
-    pub noise: String,
+    /// POS,SIZE,YAW_DEG [default: mild+large; with --dataset dair-v2x none: each side's own
+    /// labels, stating 0.5 m, 0.2 m and 0.1 rad].
+    #[arg(long)]
+    pub noise: Option<String>,
     /// Detector faults, replacing the noise profile's own (none, except for `realistic`):
     /// `none`, `realistic`, or KEY=VALUE,... (keys below); one for all agents or one per
     /// agent joined by '+'.
@@ -55,13 +56,39 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         phase_ms,
         out,
     } = args;
-    let gt = data.load()?;
-    let mut setting = NoiseSetting::parse(&noise, agents).map_err(anyhow::Error::msg)?;
-    if let Some(f) = &faults {
-        setting
-            .set_faults(f)
-            .map_err(|e| anyhow::anyhow!("--faults: {e}"))?;
+    if data.is_dair() {
+        if agent_hz.is_some() || phase_ms.is_some() || agents != 2 {
+            anyhow::bail!("--agent-hz, --phase-ms and --agents do not apply to DAIR-V2X: its two agents capture at their recorded times");
+        }
+        let d = data.load_dair()?;
+        let setting = match &noise {
+            Some(n) => Some(setting_with_faults(n, faults.as_deref(), 2)?),
+            None if faults.is_some() => anyhow::bail!(
+                "--faults on DAIR-V2X labels needs a --noise profile to draw them with"
+            ),
+            None => None,
+        };
+        std::fs::create_dir_all(&out)
+            .with_context(|| format!("cannot create {}", out.display()))?;
+        let files = v2x_sim::gen::generate_dair(&d, setting.as_ref(), seed, range);
+        for (a, r) in files.iter().enumerate() {
+            let p = out.join(format!("agent{}.json", a + 1));
+            write_results(&p, r, &d.gt.tokens)?;
+            let what = setting.as_ref().map_or("labels".to_string(), |s| {
+                format!("labels + {} noise", s.agents[a].label)
+            });
+            eprintln!(
+                "wrote {} ({}, {what})",
+                p.display(),
+                v2x_sim::dair::AGENTS[a]
+            );
+        }
+        eprintln!("{}", data.describe(&d.gt));
+        return Ok(());
     }
+    let gt = data.load()?;
+    let noise = noise.as_deref().unwrap_or("mild+large");
+    let setting = setting_with_faults(noise, faults.as_deref(), agents)?;
     let timings = v2x_sim::gen::Timing::parse(
         agent_hz.as_deref(),
         phase_ms.as_deref(),
@@ -77,4 +104,19 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
     }
     eprintln!("{}", data.describe(&gt));
     Ok(())
+}
+
+/// A noise setting for `agents` agents with the faults given, if any.
+fn setting_with_faults(
+    noise: &str,
+    faults: Option<&str>,
+    agents: usize,
+) -> anyhow::Result<NoiseSetting> {
+    let mut setting = NoiseSetting::parse(noise, agents).map_err(anyhow::Error::msg)?;
+    if let Some(f) = faults {
+        setting
+            .set_faults(f)
+            .map_err(|e| anyhow::anyhow!("--faults: {e}"))?;
+    }
+    Ok(setting)
 }

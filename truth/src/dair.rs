@@ -1,0 +1,745 @@
+//! DAIR-V2X cooperative data (DAIR-V2X-C and V2X-Seq-SPD): the cooperative ground truth and
+//! the two real agents, the vehicle (`veh`) and the roadside unit (`inf`), each with its own
+//! labels, capture times and calibration chain, all in the world frame.
+//!
+//! The layout and conventions are those of the official DAIR-V2X code:
+//! - `cooperative/data_info.json` pairs a vehicle frame with a roadside frame. DAIR-V2X-C names
+//!   them by `vehicle_pointcloud_path` and `infrastructure_pointcloud_path` and gives
+//!   `cooperative_label_path` (world-frame labels); V2X-Seq-SPD names them `vehicle_frame` and
+//!   `infrastructure_frame`, with `vehicle_sequence`, and keeps the cooperative labels (with
+//!   `track_id`) in `cooperative/label/{vehicle_frame}.json`, in the vehicle's LiDAR frame.
+//! - `vehicle-side/data_info.json` and `infrastructure-side/data_info.json` give each frame's
+//!   `pointcloud_timestamp` (microseconds), its label and calibration paths and its
+//!   `batch_id` (DAIR-V2X-C) or `sequence_id` (SPD), which become the scenes.
+//! - A label's `3d_location` is the box centre, `3d_dimensions` are `l` (along the heading), `w`
+//!   and `h`, and `rotation` is the yaw about the LiDAR's z axis. World labels give
+//!   `world_8_points` in the order of [`corners`]; they are read back into a box and refused if
+//!   they are not one.
+//! - The vehicle's LiDAR reaches the world through `calib/lidar_to_novatel` then
+//!   `calib/novatel_to_world`; the roadside's virtual LiDAR through `calib/virtuallidar_to_world`.
+//! - The calibration offset of a pair (`system_error_offset`, or the roadside calibration's
+//!   `relative_error`) moves the roadside by (delta_x, delta_y): in the world frame for
+//!   DAIR-V2X-C and in the vehicle's LiDAR frame for V2X-Seq-SPD, as the official loaders do.
+//!
+//! Classes: Car and Van are `car`, Truck `truck`, Bus `bus`, Pedestrian `pedestrian`, Cyclist
+//! `bicycle`, Motorcyclist and Tricyclist `motorcycle`, TrafficCone `traffic_cone`; any other
+//! type is skipped and counted. Boxes with a zero size are skipped, as the official loader does.
+
+pub mod corners;
+pub mod pose;
+
+use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion};
+use crate::noise::{detect, AgentNoise, Capture};
+pub use corners::{corners, from_corners, CornerBox, Corners};
+pub use pose::Pose;
+use serde_json::Value;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use v2x_protocol::{limits, wrap_angle, Class, Detection, Uncertainty, NO_ID};
+
+/// Which of the two layouts the data is in.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// DAIR-V2X-C: world-frame cooperative labels, no track ids.
+    Cooperative,
+    /// V2X-Seq-SPD: cooperative labels in the vehicle's frame, with track ids.
+    Sequential,
+}
+
+/// One cooperative frame: a vehicle frame and the roadside frame paired with it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DairPair {
+    /// The vehicle frame's id (the sample token of the frame).
+    pub veh_frame: String,
+    /// The roadside frame's id.
+    pub inf_frame: String,
+    /// The vehicle's capture time (us).
+    pub veh_us: u64,
+    /// The roadside's capture time (us).
+    pub inf_us: u64,
+    /// Vehicle LiDAR to world.
+    pub veh_to_world: Pose,
+    /// Roadside virtual LiDAR to world, with the calibration offset when it is applied.
+    pub inf_to_world: Pose,
+    /// The pair's calibration offset (delta_x, delta_y), applied or not.
+    pub offset: [f64; 2],
+}
+
+/// A loaded DAIR-V2X data set.
+#[derive(Clone, Debug)]
+pub struct Dair {
+    /// Which layout it was read from.
+    pub layout: Layout,
+    /// The cooperative labels in the world frame, one frame per pair at the vehicle's capture
+    /// time, keyed by the vehicle frame id.
+    pub gt: GroundTruth,
+    /// The pairs, parallel to `gt.frames`.
+    pub pairs: Vec<DairPair>,
+    /// The vehicle's own labels per pair, in the world frame.
+    pub veh: Vec<Vec<GtObject>>,
+    /// The roadside's own labels per pair, in the world frame.
+    pub inf: Vec<Vec<GtObject>>,
+}
+
+/// The two agents of the data, in the order `v2x-sim gen` writes them (agent1, agent2).
+pub const AGENTS: [&str; 2] = ["veh", "inf"];
+
+/// The stds an agent's labels state when they are taken as its detections with no noise on
+/// top: 0.5 m in x and y (vehicle and roadside labels of one object lie about 0.8 m apart on
+/// DAIR-V2X-C after the offset), 0.25 m in z, 0.2 m in size, 0.1 rad in yaw.
+pub fn label_std() -> Uncertainty {
+    Uncertainty {
+        pos: [0.5, 0.5, 0.25],
+        size: [0.2, 0.2, 0.2],
+        yaw: 0.1,
+    }
+}
+
+impl Dair {
+    /// An agent's (0 vehicle, 1 roadside) detections at pair `i`: its labels stating
+    /// [`label_std`], or with `noise` drawn on top of them (seeded by `seed`); within `range` m
+    /// of its sensor when given.
+    pub fn detections(
+        &self,
+        agent: usize,
+        i: usize,
+        noise: Option<&AgentNoise>,
+        seed: u64,
+        range: Option<f64>,
+    ) -> Vec<Detection> {
+        let side = if agent == 0 {
+            &self.veh[i]
+        } else {
+            &self.inf[i]
+        };
+        let position = self.position(agent, i);
+        if let Some(noise) = noise {
+            let capture = Capture {
+                draw: i as u64,
+                scene: self.gt.frames[i].scene,
+                t_us: self.capture_us(agent, i),
+            };
+            return detect(side, capture, agent, noise, position, range, seed);
+        }
+        let std = label_std();
+        side.iter()
+            .filter(|o| {
+                range.is_none_or(|r| {
+                    (o.center[0] - position[0]).hypot(o.center[1] - position[1]) <= r
+                })
+            })
+            .map(|o| Detection {
+                class: o.class,
+                center: o.center,
+                size: o.size,
+                yaw: o.yaw,
+                score: 1.0,
+                std,
+                pos_cov: None,
+                velocity: None,
+                id: NO_ID,
+            })
+            .collect()
+    }
+
+    /// An agent's capture time of pair `i` (us).
+    pub fn capture_us(&self, agent: usize, i: usize) -> u64 {
+        if agent == 0 {
+            self.pairs[i].veh_us
+        } else {
+            self.pairs[i].inf_us
+        }
+    }
+
+    /// An agent's sensor position in the world at pair `i`.
+    pub fn position(&self, agent: usize, i: usize) -> [f64; 3] {
+        let p = &self.pairs[i];
+        if agent == 0 {
+            p.veh_to_world.translation
+        } else {
+            p.inf_to_world.translation
+        }
+    }
+}
+
+/// Why a DAIR-V2X data root could not be read: the file and what is wrong with it.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {what}", path.display())]
+pub struct DairError {
+    /// The file or directory.
+    pub path: PathBuf,
+    /// What is wrong, naming the record and field.
+    pub what: String,
+}
+
+fn err(path: &Path, what: impl Into<String>) -> DairError {
+    DairError {
+        path: path.to_path_buf(),
+        what: what.into(),
+    }
+}
+
+/// A JSON file being read, for errors that name it.
+struct File {
+    path: PathBuf,
+    value: Value,
+}
+
+impl File {
+    fn read(path: PathBuf) -> Result<File, DairError> {
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| err(&path, format!("cannot read: {e}")))?;
+        let value =
+            serde_json::from_str(&text).map_err(|e| err(&path, format!("not valid JSON: {e}")))?;
+        Ok(File { path, value })
+    }
+
+    fn records(&self) -> Result<&Vec<Value>, DairError> {
+        self.value
+            .as_array()
+            .ok_or_else(|| err(&self.path, "expected a JSON array of records"))
+    }
+
+    fn fail(&self, at: Option<usize>, field: &str, what: impl std::fmt::Display) -> DairError {
+        match at {
+            Some(i) => err(&self.path, format!("record {i}: field '{field}': {what}")),
+            None => err(&self.path, format!("field '{field}': {what}")),
+        }
+    }
+}
+
+/// A number, or a string holding one (DAIR-V2X writes both).
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Number(n) => n.as_f64(),
+        Value::String(s) => s.trim().parse().ok(),
+        _ => None,
+    }
+    .filter(|x: &f64| x.is_finite())
+}
+
+fn field<'a>(
+    f: &File,
+    rec: &'a Value,
+    at: Option<usize>,
+    name: &str,
+) -> Result<&'a Value, DairError> {
+    rec.get(name).ok_or_else(|| f.fail(at, name, "missing"))
+}
+
+fn num(f: &File, rec: &Value, at: Option<usize>, name: &str) -> Result<f64, DairError> {
+    number(field(f, rec, at, name)?).ok_or_else(|| f.fail(at, name, "expected a finite number"))
+}
+
+fn text<'a>(f: &File, rec: &'a Value, at: Option<usize>, name: &str) -> Result<&'a str, DairError> {
+    field(f, rec, at, name)?
+        .as_str()
+        .ok_or_else(|| f.fail(at, name, "expected a string"))
+}
+
+/// An id or a path's file stem (`velodyne/000123.pcd` -> `000123`); numbers are accepted.
+fn id_of(f: &File, rec: &Value, at: Option<usize>, name: &str) -> Result<String, DairError> {
+    let v = field(f, rec, at, name)?;
+    let s = match v {
+        Value::String(s) => s.clone(),
+        Value::Number(n) => n.to_string(),
+        _ => return Err(f.fail(at, name, "expected a string")),
+    };
+    let stem = Path::new(&s)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("")
+        .to_string();
+    if stem.is_empty() {
+        return Err(f.fail(at, name, "is empty"));
+    }
+    Ok(stem)
+}
+
+/// All numbers of a (possibly nested) array, flattened.
+fn flat(v: &Value, out: &mut Vec<f64>) -> bool {
+    match v {
+        Value::Array(items) => items.iter().all(|x| flat(x, out)),
+        other => number(other).map(|x| out.push(x)).is_some(),
+    }
+}
+
+/// A calibration file's transform: `rotation` (3x3) and `translation` (3, flat or as a column),
+/// at the top level or under `key`.
+fn read_pose(path: PathBuf, key: Option<&str>) -> Result<(Pose, File), DairError> {
+    let f = File::read(path)?;
+    let rec = match key {
+        Some(k) => field(&f, &f.value, None, k)?,
+        None => &f.value,
+    };
+    let mut r = Vec::new();
+    let mut t = Vec::new();
+    if !flat(field(&f, rec, None, "rotation")?, &mut r) || r.len() != 9 {
+        return Err(f.fail(None, "rotation", "expected a 3x3 matrix of numbers"));
+    }
+    if !flat(field(&f, rec, None, "translation")?, &mut t) || t.len() != 3 {
+        return Err(f.fail(None, "translation", "expected 3 numbers"));
+    }
+    let pose = Pose {
+        rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[3 * i + j])),
+        translation: [t[0], t[1], t[2]],
+    };
+    if pose.inverse().is_none() {
+        return Err(f.fail(None, "rotation", "is singular"));
+    }
+    Ok((pose, f))
+}
+
+/// The detection class of a DAIR-V2X object type, if it is scored.
+pub fn class_of(kind: &str) -> Option<Class> {
+    Some(match kind.to_ascii_lowercase().as_str() {
+        "car" | "van" => Class::Car,
+        "truck" => Class::Truck,
+        "bus" => Class::Bus,
+        "pedestrian" => Class::Pedestrian,
+        "cyclist" => Class::Bicycle,
+        "motorcyclist" | "tricyclist" => Class::Motorcycle,
+        "trafficcone" => Class::TrafficCone,
+        _ => return None,
+    })
+}
+
+/// One label of a label file.
+struct Label {
+    class: Class,
+    center: [f64; 3],
+    size: [f64; 3],
+    yaw: f64,
+    track: Option<String>,
+}
+
+/// The labels of one file, in its frame; `world` reads `world_8_points` when a record has them.
+fn read_labels(
+    path: PathBuf,
+    world: bool,
+    skipped: &mut BTreeMap<String, usize>,
+) -> Result<Vec<Label>, DairError> {
+    let f = File::read(path)?;
+    let mut out = Vec::new();
+    for (i, rec) in f.records()?.iter().enumerate() {
+        let at = Some(i);
+        let kind = text(&f, rec, at, "type")?;
+        let Some(class) = class_of(kind) else {
+            *skipped.entry(kind.to_string()).or_default() += 1;
+            continue;
+        };
+        let track = match rec.get("track_id") {
+            Some(Value::String(s)) => Some(s.clone()),
+            Some(Value::Number(n)) => Some(n.to_string()),
+            _ => None,
+        };
+        if let (true, Some(points)) = (world, rec.get("world_8_points")) {
+            let mut v = Vec::new();
+            if !flat(points, &mut v) || v.len() != 24 {
+                return Err(f.fail(at, "world_8_points", "expected 8 points of 3 numbers"));
+            }
+            let c: Corners = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
+            let b = from_corners(&c).map_err(|e| f.fail(at, "world_8_points", e))?;
+            if b.size.contains(&0.0) {
+                continue;
+            }
+            check_box(&f, at, b.center, b.size)?;
+            out.push(Label {
+                class,
+                center: b.center,
+                size: b.size,
+                yaw: b.yaw,
+                track,
+            });
+            continue;
+        }
+        let dims = field(&f, rec, at, "3d_dimensions")?;
+        let loc = field(&f, rec, at, "3d_location")?;
+        let size = [
+            num(&f, dims, at, "l")?,
+            num(&f, dims, at, "w")?,
+            num(&f, dims, at, "h")?,
+        ];
+        if size.contains(&0.0) {
+            continue;
+        }
+        let center = [
+            num(&f, loc, at, "x")?,
+            num(&f, loc, at, "y")?,
+            num(&f, loc, at, "z")?,
+        ];
+        check_box(&f, at, center, size)?;
+        out.push(Label {
+            class,
+            center,
+            size,
+            yaw: num(&f, rec, at, "rotation")?,
+            track,
+        });
+    }
+    Ok(out)
+}
+
+fn check_box(
+    f: &File,
+    at: Option<usize>,
+    center: [f64; 3],
+    size: [f64; 3],
+) -> Result<(), DairError> {
+    if size.iter().any(|s| !limits::size_in_range(*s)) {
+        return Err(f.fail(
+            at,
+            "3d_dimensions",
+            format!(
+                "sizes must lie between {} and {} m, got {size:?}",
+                limits::SIZE_MIN,
+                limits::SIZE_MAX
+            ),
+        ));
+    }
+    if center.iter().any(|c| c.abs() > limits::COORD_MAX) {
+        return Err(f.fail(at, "3d_location", "coordinates must lie within 1e9 m"));
+    }
+    Ok(())
+}
+
+/// A label moved into the world by `pose`, as a ground-truth object with id `id`.
+fn to_world(l: &Label, pose: &Pose, id: u32) -> GtObject {
+    GtObject {
+        id,
+        class: l.class,
+        center: pose.apply(l.center),
+        size: l.size,
+        yaw: wrap_angle(pose.yaw(l.yaw)),
+        velocity: None,
+    }
+}
+
+/// One side's `data_info.json`, by frame id.
+struct SideInfo {
+    dir: PathBuf,
+    records: HashMap<String, (usize, Value)>,
+    file: File,
+}
+
+impl SideInfo {
+    fn read(root: &Path, side: &str) -> Result<SideInfo, DairError> {
+        let dir = root.join(side);
+        let file = File::read(dir.join("data_info.json"))?;
+        let mut records = HashMap::new();
+        for (i, rec) in file.records()?.iter().enumerate() {
+            let id = if rec.get("frame_id").is_some() {
+                id_of(&file, rec, Some(i), "frame_id")?
+            } else {
+                id_of(&file, rec, Some(i), "pointcloud_path")?
+            };
+            records.insert(id, (i, rec.clone()));
+        }
+        Ok(SideInfo { dir, records, file })
+    }
+
+    fn get(
+        &self,
+        id: &str,
+        pairs: &File,
+        at: usize,
+        name: &str,
+    ) -> Result<(usize, &Value), DairError> {
+        self.records.get(id).map(|(i, r)| (*i, r)).ok_or_else(|| {
+            pairs.fail(
+                Some(at),
+                name,
+                format!("frame {id} is not in {}", self.file.path.display()),
+            )
+        })
+    }
+
+    /// A path the record names under one of `keys`, else `default` (relative to the side).
+    fn path(&self, rec: &Value, keys: &[&str], default: String) -> PathBuf {
+        let named = keys
+            .iter()
+            .find_map(|k| rec.get(*k).and_then(Value::as_str))
+            .filter(|s| !s.is_empty());
+        self.dir.join(named.map(str::to_string).unwrap_or(default))
+    }
+
+    fn timestamp(&self, rec: &Value, at: usize) -> Result<u64, DairError> {
+        let t = num(&self.file, rec, Some(at), "pointcloud_timestamp")?;
+        if !(0.0..=1e17).contains(&t) {
+            return Err(self.file.fail(
+                Some(at),
+                "pointcloud_timestamp",
+                "expected microseconds since the epoch",
+            ));
+        }
+        Ok(t as u64)
+    }
+}
+
+/// A calibration offset object (`delta_x`, `delta_y`; empty strings are 0).
+fn offset_of(v: Option<&Value>) -> [f64; 2] {
+    let get = |k: &str| v.and_then(|o| o.get(k)).and_then(number).unwrap_or(0.0);
+    [get("delta_x"), get("delta_y")]
+}
+
+/// Loads a DAIR-V2X-C or V2X-Seq-SPD root (the folder holding `cooperative/`, `vehicle-side/`
+/// and `infrastructure-side/`), with the calibration offset applied when `offset` is true.
+pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
+    for sub in ["cooperative", "vehicle-side", "infrastructure-side"] {
+        if !root.join(sub).is_dir() {
+            return Err(err(
+                &root.join(sub),
+                "no such directory (give --dataroot the folder holding cooperative/, vehicle-side/ and infrastructure-side/)",
+            ));
+        }
+    }
+    let pairs_file = File::read(root.join("cooperative/data_info.json"))?;
+    let veh_info = SideInfo::read(root, "vehicle-side")?;
+    let inf_info = SideInfo::read(root, "infrastructure-side")?;
+    let records = pairs_file.records()?;
+    let layout = match records.first() {
+        Some(r) if r.get("vehicle_frame").is_some() => Layout::Sequential,
+        _ => Layout::Cooperative,
+    };
+    let mut gt = GroundTruth {
+        motion: Motion::Frames,
+        ..Default::default()
+    };
+    let src = Sources {
+        root,
+        pairs: &pairs_file,
+        layout,
+        veh_info: &veh_info,
+        inf_info: &inf_info,
+        apply_offset: offset,
+    };
+    let mut rows = Vec::new();
+    for (i, rec) in records.iter().enumerate() {
+        rows.push(read_pair(&src, i, rec, &mut gt)?);
+    }
+    // Frames by scene (in order of first capture), then time.
+    let mut first: HashMap<String, u64> = HashMap::new();
+    for r in &rows {
+        let e = first.entry(r.scene.clone()).or_insert(r.pair.veh_us);
+        *e = (*e).min(r.pair.veh_us);
+    }
+    rows.sort_by(|a, b| {
+        (first[&a.scene], &a.scene, a.pair.veh_us, &a.pair.veh_frame).cmp(&(
+            first[&b.scene],
+            &b.scene,
+            b.pair.veh_us,
+            &b.pair.veh_frame,
+        ))
+    });
+    let mut dair = Dair {
+        layout,
+        gt,
+        pairs: Vec::new(),
+        veh: Vec::new(),
+        inf: Vec::new(),
+    };
+    let mut seen = std::collections::HashSet::new();
+    for r in rows {
+        if !seen.insert(r.pair.veh_frame.clone()) {
+            return Err(err(
+                &pairs_file.path,
+                format!("vehicle frame {} is paired twice", r.pair.veh_frame),
+            ));
+        }
+        if dair.gt.scenes.last() != Some(&r.scene) {
+            dair.gt.scenes.push(r.scene.clone());
+        }
+        dair.gt.frames.push(GtFrame {
+            sample_token: r.pair.veh_frame.clone(),
+            scene: dair.gt.scenes.len() - 1,
+            timestamp_us: r.pair.veh_us,
+            ego: Some(r.pair.veh_to_world.translation),
+            objects: r.objects,
+        });
+        dair.pairs.push(r.pair);
+        dair.veh.push(r.veh);
+        dair.inf.push(r.inf);
+    }
+    Ok(dair)
+}
+
+/// One side's own labels in the world (types the ground truth does not score are left out).
+fn side_boxes(path: PathBuf, pose: &Pose) -> Result<Vec<GtObject>, DairError> {
+    let labels = read_labels(path, false, &mut BTreeMap::new())?;
+    Ok(labels.iter().map(|l| to_world(l, pose, NO_ID)).collect())
+}
+
+/// One pair as read, before ordering.
+struct Row {
+    scene: String,
+    pair: DairPair,
+    objects: Vec<GtObject>,
+    veh: Vec<GtObject>,
+    inf: Vec<GtObject>,
+}
+
+/// What every pair is read against.
+struct Sources<'a> {
+    root: &'a Path,
+    pairs: &'a File,
+    layout: Layout,
+    veh_info: &'a SideInfo,
+    inf_info: &'a SideInfo,
+    apply_offset: bool,
+}
+
+/// Pair `i` of `cooperative/data_info.json`: its frames, poses and labels.
+fn read_pair(src: &Sources, i: usize, rec: &Value, gt: &mut GroundTruth) -> Result<Row, DairError> {
+    let Sources {
+        root,
+        pairs,
+        layout,
+        veh_info,
+        inf_info,
+        apply_offset,
+    } = *src;
+    let (veh_key, inf_key) = match layout {
+        Layout::Sequential => ("vehicle_frame", "infrastructure_frame"),
+        Layout::Cooperative => ("vehicle_pointcloud_path", "infrastructure_pointcloud_path"),
+    };
+    let veh_frame = id_of(pairs, rec, Some(i), veh_key)?;
+    let inf_frame = id_of(pairs, rec, Some(i), inf_key)?;
+    let (vi, veh) = veh_info.get(&veh_frame, pairs, i, veh_key)?;
+    let (ii, inf) = inf_info.get(&inf_frame, pairs, i, inf_key)?;
+    let veh_us = veh_info.timestamp(veh, vi)?;
+    let inf_us = inf_info.timestamp(inf, ii)?;
+
+    let (lidar_to_novatel, _) = read_pose(
+        veh_info.path(
+            veh,
+            &["calib_lidar_to_novatel_path"],
+            format!("calib/lidar_to_novatel/{veh_frame}.json"),
+        ),
+        Some("transform"),
+    )?;
+    let (novatel_to_world, _) = read_pose(
+        veh_info.path(
+            veh,
+            &["calib_novatel_to_world_path"],
+            format!("calib/novatel_to_world/{veh_frame}.json"),
+        ),
+        None,
+    )?;
+    let veh_to_world = lidar_to_novatel.then(&novatel_to_world);
+    let (inf_calib, inf_calib_file) = read_pose(
+        inf_info.path(
+            inf,
+            &["calib_virtuallidar_to_world_path"],
+            format!("calib/virtuallidar_to_world/{inf_frame}.json"),
+        ),
+        None,
+    )?;
+    let offset = match layout {
+        Layout::Cooperative => match inf_calib_file.value.get("relative_error") {
+            Some(e) => offset_of(Some(e)),
+            None => offset_of(rec.get("system_error_offset")),
+        },
+        Layout::Sequential => offset_of(rec.get("system_error_offset")),
+    };
+    let shift = match layout {
+        Layout::Cooperative => [offset[0], offset[1], 0.0],
+        Layout::Sequential => veh_to_world.rotate([offset[0], offset[1], 0.0]),
+    };
+    let inf_to_world = if apply_offset {
+        inf_calib.shifted(shift)
+    } else {
+        inf_calib
+    };
+
+    let scene = match layout {
+        Layout::Sequential => rec
+            .get("vehicle_sequence")
+            .or_else(|| veh.get("sequence_id"))
+            .and_then(|v| {
+                v.as_str()
+                    .map(str::to_string)
+                    .or_else(|| number(v).map(|n| n.to_string()))
+            }),
+        Layout::Cooperative => veh.get("batch_id").and_then(|v| {
+            v.as_str()
+                .map(str::to_string)
+                .or_else(|| number(v).map(|n| n.to_string()))
+        }),
+    }
+    .unwrap_or_else(|| "dair".to_string());
+
+    let skipped = &mut gt.skipped;
+    let objects = match layout {
+        Layout::Cooperative => {
+            let path = match rec.get("cooperative_label_path").and_then(Value::as_str) {
+                Some(p) => root.join(p),
+                None => root.join(format!("cooperative/label_world/{veh_frame}.json")),
+            };
+            let labels = read_labels(path, true, skipped)?;
+            labels
+                .iter()
+                .enumerate()
+                .map(|(k, l)| {
+                    to_world(
+                        l,
+                        &Pose::IDENTITY,
+                        gt.tokens.intern(&format!("{veh_frame}#{k}")),
+                    )
+                })
+                .collect::<Vec<_>>()
+        }
+        Layout::Sequential => {
+            let path = root.join(format!("cooperative/label/{veh_frame}.json"));
+            let labels = read_labels(path, false, skipped)?;
+            labels
+                .iter()
+                .enumerate()
+                .map(|(k, l)| {
+                    let token = match &l.track {
+                        Some(t) => format!("track {t}"),
+                        None => format!("{veh_frame}#{k}"),
+                    };
+                    to_world(l, &veh_to_world, gt.tokens.intern(&token))
+                })
+                .collect()
+        }
+    };
+    let veh_boxes = side_boxes(
+        veh_info.path(
+            veh,
+            &["label_lidar_std_path", "label_lidar_path"],
+            format!("label/lidar/{veh_frame}.json"),
+        ),
+        &veh_to_world,
+    )?;
+    let inf_boxes = side_boxes(
+        inf_info.path(
+            inf,
+            &[
+                "label_lidar_std_path",
+                "label_virtuallidar_path",
+                "label_lidar_path",
+            ],
+            format!("label/virtuallidar/{inf_frame}.json"),
+        ),
+        &inf_to_world,
+    )?;
+    Ok(Row {
+        scene,
+        pair: DairPair {
+            veh_frame,
+            inf_frame,
+            veh_us,
+            inf_us,
+            veh_to_world,
+            inf_to_world,
+            offset,
+        },
+        objects,
+        veh: veh_boxes,
+        inf: inf_boxes,
+    })
+}
+
+#[cfg(test)]
+mod tests;
