@@ -114,6 +114,40 @@ pub fn errors(p: &Detection, g: &GtObject) -> Errors {
     }
 }
 
+/// Predictions that carry no ground-truth id (a real detector's, a data set's own labels) given
+/// the id of the object they match by centre distance, as the nuScenes benchmark matches at one
+/// threshold: by score, highest first, each takes the nearest object of its class within `max_m`
+/// that no earlier prediction took; the others keep no id. Predictions with ids keep them.
+pub fn ids_by_distance(gt: &[GtObject], preds: &[Detection], max_m: f64) -> Vec<Detection> {
+    let mut out = preds.to_vec();
+    let mut order: Vec<usize> = (0..preds.len()).collect();
+    order.sort_by(|&a, &b| preds[b].score.total_cmp(&preds[a].score).then(a.cmp(&b)));
+    let mut taken = vec![false; gt.len()];
+    for j in order {
+        if out[j].id != v2x_protocol::NO_ID {
+            continue;
+        }
+        let p = &preds[j];
+        let best = gt
+            .iter()
+            .enumerate()
+            .filter(|(i, g)| !taken[*i] && g.class == p.class)
+            .map(|(i, g)| {
+                (
+                    i,
+                    (p.center[0] - g.center[0]).hypot(p.center[1] - g.center[1]),
+                )
+            })
+            .filter(|(_, d)| *d <= max_m)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((i, _)) = best {
+            taken[i] = true;
+            out[j].id = gt[i].id;
+        }
+    }
+    out
+}
+
 impl Accumulator {
     /// An empty accumulator.
     pub fn new() -> Self {

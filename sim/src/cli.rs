@@ -14,7 +14,8 @@ use v2x_protocol::nuscenes_json::{read_results, MissingStd};
 use v2x_protocol::{Class, Detection, Uncertainty, NO_ID};
 
 /// Which kind of data `--dataroot` holds.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum DatasetKind {
     /// nuScenes tables (DATAROOT/VERSION/*.json).
     #[default]
@@ -48,6 +49,15 @@ pub struct DataArgs {
     /// the official loader does.
     #[arg(long, value_enum, default_value = "on")]
     pub calibration_offset: Switch,
+    /// DAIR-V2X: the vehicle's boxes from a detector's results instead of its labels: a folder
+    /// of {frame_id}.json, or one JSON object by frame id, each with `boxes_3d` (8 corners in
+    /// mmdetection3d's order, in the vehicle's LiDAR frame), `labels_3d` and `scores_3d`.
+    #[arg(long, requires = "dataroot")]
+    pub veh_results: Option<PathBuf>,
+    /// DAIR-V2X: the roadside's boxes from a detector's results (as --veh-results, in its
+    /// virtual LiDAR frame).
+    #[arg(long, requires = "dataroot")]
+    pub inf_results: Option<PathBuf>,
     /// nuScenes version folder name, e.g. v1.0-mini.
     #[arg(long)]
     pub version: Option<String>,
@@ -93,7 +103,24 @@ impl DataArgs {
     pub fn load_dair(&self) -> anyhow::Result<Dair> {
         match (&self.dataroot, self.dataset) {
             (Some(root), DatasetKind::DairV2x) => {
-                Ok(load_dair(root, self.calibration_offset == Switch::On)?)
+                let mut d = load_dair(root, self.calibration_offset == Switch::On)?;
+                for (agent, path) in [&self.veh_results, &self.inf_results]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let Some(path) = path else { continue };
+                    let results = crate::dair::results::read_results(path)?;
+                    let missing = d.use_results(agent, &results);
+                    if missing > 0 {
+                        eprintln!(
+                            "{}: no results for {missing} of {} {} frames (those frames get no boxes)",
+                            path.display(),
+                            d.rec.pairs.len(),
+                            crate::dair::AGENTS[agent]
+                        );
+                    }
+                }
+                Ok(d)
             }
             _ => bail!("this needs --dataset dair-v2x --dataroot DIR"),
         }
@@ -101,6 +128,9 @@ impl DataArgs {
 
     /// Loads or generates the ground truth (for DAIR-V2X, its cooperative labels).
     pub fn load(&self) -> anyhow::Result<GroundTruth> {
+        if !self.is_dair() && (self.veh_results.is_some() || self.inf_results.is_some()) {
+            bail!("--veh-results and --inf-results read DAIR-V2X detection results: they need --dataset dair-v2x");
+        }
         if self.is_dair() {
             return Ok(self.load_dair()?.gt);
         }

@@ -160,11 +160,11 @@ pub fn generate(
 }
 
 /// The two agents of DAIR-V2X data (vehicle, then roadside) as results files: each pair keyed
-/// by its vehicle frame id, holding that side's labels ([`Dair::detections`], with `setting`'s
-/// noise on top when given) and stamped with that side's own capture time.
+/// by its vehicle frame id, holding that side's labels as `setting` sees them
+/// ([`Dair::detections`]; `labels`: exactly) and stamped with that side's own capture time.
 pub fn generate_dair(
     d: &Dair,
-    setting: Option<&NoiseSetting>,
+    setting: &NoiseSetting,
     seed: u64,
     range: Option<f64>,
 ) -> Vec<Results> {
@@ -179,8 +179,7 @@ pub fn generate_dair(
             let mut r = Results::default();
             let mut times = serde_json::Map::new();
             for (i, f) in d.gt.frames.iter().enumerate() {
-                let noise = setting.map(|s| &s.agents[a.min(s.agents.len() - 1)]);
-                let dets = d.detections(a, i, noise, seed, range);
+                let dets = d.detections(a, i, &setting.agents[a], seed, range);
                 times.insert(f.sample_token.clone(), d.capture_us(a, i).into());
                 r.order.push(f.sample_token.clone());
                 r.samples.insert(f.sample_token.clone(), dets);

@@ -1,11 +1,11 @@
 //! The v2x-fusion simulator: orchestration around the data and evaluation crates.
 //!
-//! - Re-exported from `v2x-truth`: the ground truth ([`dataset`], [`town`]) and synthetic agents
-//!   ([`noise`], [`faults`], [`seed`]); [`gen`] writes agents' results files.
-//! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`] and [`tracking_eval`]; [`cli`]
-//!   reads files into them.
-//! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents)
-//!   and [`plot`] (a bird's-eye view).
+//! - Re-exported from `v2x-truth`: the ground truth ([`dataset`], [`town`], [`dair`]) and
+//!   synthetic agents ([`noise`], [`faults`], [`seed`]); [`gen`] writes agents' results files.
+//! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`], [`tracking_eval`] and
+//!   [`dair_eval`]; [`cli`] reads files into them.
+//! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents),
+//!   [`dair_bench`] (real vehicle and roadside data) and [`plot`] (a bird's-eye view).
 //! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
 //!   [`run`] (whole scenarios), [`load`] (the fuser under load) and [`certs`] (certificates and
 //!   the access-control policy for the secure mode).
@@ -14,6 +14,7 @@ pub mod asyncbench;
 pub mod bench;
 pub mod certs;
 pub mod cli;
+pub mod dair_bench;
 pub mod gen;
 pub mod load;
 pub mod plot;

@@ -22,8 +22,14 @@ pub const DEFAULT: &str = include_str!("../../scenarios/default.toml");
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct DatasetSpec {
-    /// nuScenes data root (absent: the synthetic town). Relative to the scenario file.
+    /// Data root (absent: the synthetic town). Relative to the scenario file.
     pub dataroot: Option<PathBuf>,
+    /// What the root holds: `nuscenes` (tables under `version`) or `dair-v2x` (DAIR-V2X-C or
+    /// V2X-Seq-SPD: the two agents are the data's vehicle and roadside unit, replayed at their
+    /// recorded capture times).
+    pub kind: crate::cli::DatasetKind,
+    /// DAIR-V2X: move the roadside by each pair's calibration offset.
+    pub calibration_offset: bool,
     /// nuScenes version folder.
     pub version: Option<String>,
     /// Synthetic town: scenes.
@@ -40,6 +46,8 @@ impl Default for DatasetSpec {
     fn default() -> Self {
         DatasetSpec {
             dataroot: None,
+            kind: Default::default(),
+            calibration_offset: true,
             version: None,
             scenes: 1,
             seconds: 20.0,
@@ -54,8 +62,14 @@ impl DatasetSpec {
     pub fn data_args(&self) -> DataArgs {
         DataArgs {
             dataroot: self.dataroot.clone(),
-            dataset: Default::default(),
-            calibration_offset: crate::cli::Switch::On,
+            dataset: self.kind,
+            veh_results: None,
+            inf_results: None,
+            calibration_offset: if self.calibration_offset {
+                crate::cli::Switch::On
+            } else {
+                crate::cli::Switch::Off
+            },
             version: self.version.clone(),
             scenes: self.scenes,
             seconds: self.seconds,
@@ -467,6 +481,30 @@ impl Scenario {
         }
         if !(self.speed > 0.0 && self.speed.is_finite()) {
             return Err(format!("speed must be > 0 (got {})", self.speed));
+        }
+        if self.dataset.kind == crate::cli::DatasetKind::DairV2x {
+            if self.dataset.dataroot.is_none() {
+                return Err("dataset: kind = \"dair-v2x\" needs a dataroot (the folder holding cooperative/, vehicle-side/ and infrastructure-side/)".into());
+            }
+            if self.agents.len() != 2 {
+                return Err(format!(
+                    "dataset: DAIR-V2X has two agents, the vehicle then the roadside unit; the scenario names {}",
+                    self.agents.len()
+                ));
+            }
+            if let Some(a) = self
+                .agents
+                .iter()
+                .find(|a| a.hz.is_some() || a.phase_ms != 0.0)
+            {
+                return Err(format!(
+                    "agents: {}: DAIR-V2X agents capture at their recorded times; leave out hz and phase_ms",
+                    a.name
+                ));
+            }
+            if self.regions.is_some() {
+                return Err("regions: a city runs on the synthetic town or nuScenes tables".into());
+            }
         }
         self.fuser
             .method

@@ -27,15 +27,17 @@
 
 pub mod corners;
 pub mod pose;
+pub mod results;
 
-use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion};
-use crate::noise::{detect, AgentNoise, Capture};
+use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion, Recorded};
+use crate::noise::{recorded_view, AgentNoise};
 pub use corners::{corners, from_corners, CornerBox, Corners};
 pub use pose::Pose;
 use serde_json::Value;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use v2x_protocol::{limits, wrap_angle, Class, Detection, Uncertainty, NO_ID};
+use std::sync::Arc;
+use v2x_protocol::{limits, wrap_angle, Class, Detection, NO_ID};
 
 /// Which of the two layouts the data is in.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -71,9 +73,20 @@ pub struct Dair {
     /// Which layout it was read from.
     pub layout: Layout,
     /// The cooperative labels in the world frame, one frame per pair at the vehicle's capture
-    /// time, keyed by the vehicle frame id.
+    /// time, keyed by the vehicle frame id; its `recorded` agents are [`Dair::rec`].
     pub gt: GroundTruth,
-    /// The pairs, parallel to `gt.frames`.
+    /// The two agents as recorded.
+    pub rec: Arc<Recording>,
+    /// A detector's results in place of an agent's labels (vehicle, roadside), per pair in the
+    /// world frame ([`Dair::use_results`]).
+    pub results: [Option<Vec<Vec<Detection>>>; 2],
+}
+
+/// The two agents of DAIR-V2X data as recorded, pair by pair (parallel to the ground truth's
+/// frames).
+#[derive(Clone, Debug, Default)]
+pub struct Recording {
+    /// The pairs.
     pub pairs: Vec<DairPair>,
     /// The vehicle's own labels per pair, in the world frame.
     pub veh: Vec<Vec<GtObject>>,
@@ -81,84 +94,113 @@ pub struct Dair {
     pub inf: Vec<Vec<GtObject>>,
 }
 
-/// The two agents of the data, in the order `v2x-sim gen` writes them (agent1, agent2).
-pub const AGENTS: [&str; 2] = ["veh", "inf"];
-
-/// The stds an agent's labels state when they are taken as its detections with no noise on
-/// top: 0.5 m in x and y (vehicle and roadside labels of one object lie about 0.8 m apart on
-/// DAIR-V2X-C after the offset), 0.25 m in z, 0.2 m in size, 0.1 rad in yaw.
-pub fn label_std() -> Uncertainty {
-    Uncertainty {
-        pos: [0.5, 0.5, 0.25],
-        size: [0.2, 0.2, 0.2],
-        yaw: 0.1,
-    }
-}
-
-impl Dair {
-    /// An agent's (0 vehicle, 1 roadside) detections at pair `i`: its labels stating
-    /// [`label_std`], or with `noise` drawn on top of them (seeded by `seed`); within `range` m
-    /// of its sensor when given.
-    pub fn detections(
-        &self,
-        agent: usize,
-        i: usize,
-        noise: Option<&AgentNoise>,
-        seed: u64,
-        range: Option<f64>,
-    ) -> Vec<Detection> {
-        let side = if agent == 0 {
-            &self.veh[i]
-        } else {
-            &self.inf[i]
-        };
-        let position = self.position(agent, i);
-        if let Some(noise) = noise {
-            let capture = Capture {
-                draw: i as u64,
-                scene: self.gt.frames[i].scene,
-                t_us: self.capture_us(agent, i),
-            };
-            return detect(side, capture, agent, noise, position, range, seed);
-        }
-        let std = label_std();
-        side.iter()
-            .filter(|o| {
-                range.is_none_or(|r| {
-                    (o.center[0] - position[0]).hypot(o.center[1] - position[1]) <= r
-                })
-            })
-            .map(|o| Detection {
-                class: o.class,
-                center: o.center,
-                size: o.size,
-                yaw: o.yaw,
-                score: 1.0,
-                std,
-                pos_cov: None,
-                velocity: None,
-                id: NO_ID,
-            })
-            .collect()
+impl Recorded for Recording {
+    fn names(&self) -> Vec<String> {
+        AGENTS.iter().map(|s| s.to_string()).collect()
     }
 
-    /// An agent's capture time of pair `i` (us).
-    pub fn capture_us(&self, agent: usize, i: usize) -> u64 {
+    fn capture_us(&self, agent: usize, frame: usize) -> u64 {
+        let p = &self.pairs[frame];
         if agent == 0 {
-            self.pairs[i].veh_us
+            p.veh_us
         } else {
-            self.pairs[i].inf_us
+            p.inf_us
         }
     }
 
-    /// An agent's sensor position in the world at pair `i`.
-    pub fn position(&self, agent: usize, i: usize) -> [f64; 3] {
-        let p = &self.pairs[i];
+    fn position(&self, agent: usize, frame: usize) -> [f64; 3] {
+        let p = &self.pairs[frame];
         if agent == 0 {
             p.veh_to_world.translation
         } else {
             p.inf_to_world.translation
         }
+    }
+
+    fn labels(&self, agent: usize, frame: usize) -> &[GtObject] {
+        if agent == 0 {
+            &self.veh[frame]
+        } else {
+            &self.inf[frame]
+        }
+    }
+}
+
+/// The two agents of the data, in the order `v2x-sim gen` writes them (agent1, agent2).
+pub const AGENTS: [&str; 2] = ["veh", "inf"];
+
+impl Dair {
+    /// An agent's (0 vehicle, 1 roadside) detections at pair `i`: its labels as `noise` sees
+    /// them ([`AgentNoise::labels`]: exactly, stating 0.5 m; another profile: with its noise
+    /// drawn on top, seeded by `seed`), within `range` m of its sensor when given.
+    pub fn detections(
+        &self,
+        agent: usize,
+        i: usize,
+        noise: &AgentNoise,
+        seed: u64,
+        range: Option<f64>,
+    ) -> Vec<Detection> {
+        if let Some(r) = &self.results[agent] {
+            let p = self.rec.position(agent, i);
+            return r[i]
+                .iter()
+                .filter(|d| {
+                    range.is_none_or(|m| (d.center[0] - p[0]).hypot(d.center[1] - p[1]) <= m)
+                })
+                .cloned()
+                .collect();
+        }
+        recorded_view(&self.gt, self.rec.as_ref(), agent, i, noise, seed, range)
+    }
+
+    /// Takes a detector's results (by the side's frame id, in its LiDAR frame) as agent
+    /// `agent`'s boxes instead of its labels, stating [`AgentNoise::labels`]' stds. Returns
+    /// how many pairs the results have no frame for (those pairs get no boxes).
+    pub fn use_results(
+        &mut self,
+        agent: usize,
+        results: &BTreeMap<String, Vec<results::LocalBox>>,
+    ) -> usize {
+        let std = AgentNoise::labels().std;
+        let mut missing = 0;
+        let per_pair = self
+            .rec
+            .pairs
+            .iter()
+            .map(|p| {
+                let (frame, pose) = if agent == 0 {
+                    (&p.veh_frame, &p.veh_to_world)
+                } else {
+                    (&p.inf_frame, &p.inf_to_world)
+                };
+                let Some(boxes) = results.get(frame) else {
+                    missing += 1;
+                    return Vec::new();
+                };
+                boxes
+                    .iter()
+                    .map(|b| Detection {
+                        class: b.class,
+                        center: pose.apply(b.center),
+                        size: b.size,
+                        yaw: wrap_angle(pose.yaw(b.yaw)),
+                        score: b.score,
+                        std,
+                        pos_cov: None,
+                        velocity: None,
+                        id: NO_ID,
+                    })
+                    .collect()
+            })
+            .collect();
+        self.results[agent] = Some(per_pair);
+        missing
+    }
+
+    /// An agent's capture time of pair `i` (us).
+    pub fn capture_us(&self, agent: usize, i: usize) -> u64 {
+        self.rec.capture_us(agent, i)
     }
 }
 
@@ -531,13 +573,7 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
             &b.pair.veh_frame,
         ))
     });
-    let mut dair = Dair {
-        layout,
-        gt,
-        pairs: Vec::new(),
-        veh: Vec::new(),
-        inf: Vec::new(),
-    };
+    let mut rec = Recording::default();
     let mut seen = std::collections::HashSet::new();
     for r in rows {
         if !seen.insert(r.pair.veh_frame.clone()) {
@@ -546,21 +582,28 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
                 format!("vehicle frame {} is paired twice", r.pair.veh_frame),
             ));
         }
-        if dair.gt.scenes.last() != Some(&r.scene) {
-            dair.gt.scenes.push(r.scene.clone());
+        if gt.scenes.last() != Some(&r.scene) {
+            gt.scenes.push(r.scene.clone());
         }
-        dair.gt.frames.push(GtFrame {
+        gt.frames.push(GtFrame {
             sample_token: r.pair.veh_frame.clone(),
-            scene: dair.gt.scenes.len() - 1,
+            scene: gt.scenes.len() - 1,
             timestamp_us: r.pair.veh_us,
             ego: Some(r.pair.veh_to_world.translation),
             objects: r.objects,
         });
-        dair.pairs.push(r.pair);
-        dair.veh.push(r.veh);
-        dair.inf.push(r.inf);
+        rec.pairs.push(r.pair);
+        rec.veh.push(r.veh);
+        rec.inf.push(r.inf);
     }
-    Ok(dair)
+    let rec = Arc::new(rec);
+    gt.recorded = Some(rec.clone());
+    Ok(Dair {
+        layout,
+        gt,
+        rec,
+        results: [None, None],
+    })
 }
 
 /// One side's own labels in the world (types the ground truth does not score are left out).

@@ -108,6 +108,21 @@ pub struct GroundTruth {
     pub skipped: BTreeMap<String, usize>,
     /// How objects move between frames (continuous-time ground truth).
     pub motion: Motion,
+    /// Agents recorded with the data, when it has them (DAIR-V2X's vehicle and roadside unit).
+    pub recorded: Option<std::sync::Arc<dyn Recorded>>,
+}
+
+/// Agents recorded with the data: at each frame, each agent's own capture time, sensor position
+/// and labels (its view of the objects).
+pub trait Recorded: std::fmt::Debug + Send + Sync {
+    /// The agents' names, in order.
+    fn names(&self) -> Vec<String>;
+    /// Agent `agent`'s capture time at frame `frame` (us).
+    fn capture_us(&self, agent: usize, frame: usize) -> u64;
+    /// Where agent `agent`'s sensor stands at frame `frame`.
+    fn position(&self, agent: usize, frame: usize) -> [f64; 3];
+    /// Agent `agent`'s own labels at frame `frame`.
+    fn labels(&self, agent: usize, frame: usize) -> &[GtObject];
 }
 
 impl GroundTruth {
@@ -542,6 +557,7 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
         tokens,
         skipped,
         motion: Motion::Tracks(tracks),
+        recorded: None,
     })
 }
 

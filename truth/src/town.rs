@@ -452,6 +452,7 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
                 .map(|s| std::sync::Arc::new(s) as std::sync::Arc<dyn Continuous>)
                 .collect(),
         ),
+        recorded: None,
     }
 }
 

@@ -9,6 +9,7 @@ use std::time::Instant;
 use v2x_fuser::Method;
 use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::cli::DataArgs;
+use v2x_sim::dataset::GroundTruth;
 use v2x_sim::noise::NoiseSetting;
 
 /// The options of `v2x-sim bench`.
@@ -69,124 +70,196 @@ pub struct BenchArgs {
     pub asynchronous: bool,
 }
 
-/// Runs `v2x-sim bench`.
+/// Runs `v2x-sim bench`: one of its modes.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    let BenchArgs {
-        data,
-        noise,
-        methods,
+    if args.data.is_dair() {
+        return dair(&args);
+    }
+    let gt = args.data.load()?;
+    if let Some(size) = args.tile_size {
+        return regions(&args, &gt, size);
+    }
+    if args.tracking {
+        return tracking(&args, &gt);
+    }
+    if let Some(profile) = &args.profile {
+        return detection(&args, &gt, profile);
+    }
+    if args.asynchronous {
+        return asynchronous(&args, &gt);
+    }
+    table2(&args, &gt)
+}
+
+/// `--dataset dair-v2x`: the vehicle, the roadside and every method on real cooperative data.
+fn dair(args: &BenchArgs) -> anyhow::Result<()> {
+    if args.tile_size.is_some()
+        || args.tracking
+        || args.profile.is_some()
+        || args.asynchronous
+        || args.plot.is_some()
+    {
+        bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
+    }
+    let d = args.data.load_dair()?;
+    let methods: Vec<Method> = if args.methods == "all" {
+        Method::all()
+            .into_iter()
+            .filter(|m| m.name() != "gt-wls")
+            .collect()
+    } else {
+        parse_list(&args.methods, vec![], |s| s.parse())?
+    };
+    if methods.iter().any(|m| m.name() == "gt-wls") {
+        bail!("gt-wls groups boxes by ground-truth id, which DAIR-V2X's own labels do not carry");
+    }
+    let noise = if args.noise == "all" {
+        "labels"
+    } else {
+        args.noise.as_str()
+    };
+    let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
+    let start = Instant::now();
+    let rows = v2x_sim::dair_bench::run(&d, &methods, &setting, args.seed, args.range);
+    match args.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Csv => print!("{}", v2x_sim::dair_bench::csv(&rows)),
+        Format::Table => {
+            let what = format!(
+                "noise {setting} over each side's own labels, seed {}",
+                args.seed
+            );
+            println!(
+                "{} ; {what}; devkit-style over the ground truth's classes, AP in % (DAIR-V2X protocol, vehicle frame); {:.1} s\n",
+                args.data.describe(&d.gt),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", v2x_sim::dair_bench::table(&rows));
+        }
+    }
+    Ok(())
+}
+
+/// `--tile-size`: one fuser against regional fusers.
+fn regions(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
+    let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
+    let (seed, range, format) = (args.seed, args.range, args.format);
+    let halo = args.halo;
+    let tiling =
+        v2x_fuser::region::Tiling::new(size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
+    if !(halo.is_finite() && halo >= 0.0) {
+        bail!("--halo {halo}: expected a finite distance of at least 0 m");
+    }
+    let cfg = paper_settings(methods, "csba-wls+,csba-wls", noise, seed, range)?;
+    let start = Instant::now();
+    let rows = bench::run_regions(gt, &cfg, tiling, halo);
+    match format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Csv => print!("{}", bench::csv(&rows)),
+        Format::Table => {
+            println!(
+                "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s\n",
+                data.describe(gt),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", bench::table(&rows));
+        }
+    }
+    Ok(())
+}
+
+/// `--tracking`: single-frame fusion against tracking.
+fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
+    let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
+    let (seed, range, format) = (args.seed, args.range, args.format);
+    let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, range)?;
+    let start = Instant::now();
+    let rows = bench::run_tracking(gt, &cfg, Default::default());
+    match format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Table | Format::Csv => {
+            println!(
+                "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s\n",
+                data.describe(gt),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", bench::tracking_table(&rows));
+        }
+    }
+    Ok(())
+}
+
+/// `--profile`: the nuScenes detection benchmark under detector profiles.
+fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Result<()> {
+    let (data, methods) = (&args.data, args.methods.as_str());
+    let (seed, range, format) = (args.seed, args.range, args.format);
+    let cfg = BenchConfig {
+        methods: parse_list(methods, Method::all(), |s| s.parse())?,
+        settings: parse_list(profile, vec![], |s| NoiseSetting::parse(s, 2))?,
         seed,
         range,
-        format,
-        plot: plot_frame,
-        out,
-        profile,
-        align,
-        tracking,
-        tile_size,
-        halo,
-        asynchronous,
-    } = args;
-    let gt = data.load()?;
-    if let Some(size) = tile_size {
-        let tiling = v2x_fuser::region::Tiling::new(size)
-            .map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
-        if !(halo.is_finite() && halo >= 0.0) {
-            bail!("--halo {halo}: expected a finite distance of at least 0 m");
+    };
+    let start = Instant::now();
+    let params = v2x_fuser::align::AlignParams::default();
+    let rows = bench::run_detection(gt, &cfg, args.align.then_some(&params), &|| {});
+    let named: Vec<(String, &v2x_sim::detection_eval::DetectionMetrics)> = rows
+        .iter()
+        .map(|r| (format!("{} {}", r.noise, r.method), &r.metrics))
+        .collect();
+    match format {
+        Format::Table => {
+            println!(
+                "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s\n",
+                data.describe(gt),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", bench::detection_table(&named));
         }
-        let cfg = paper_settings(&methods, "csba-wls+,csba-wls", &noise, seed, range)?;
-        let start = Instant::now();
-        let rows = bench::run_regions(&gt, &cfg, tiling, halo);
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-            Format::Csv => print!("{}", bench::csv(&rows)),
-            Format::Table => {
-                println!(
-                    "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s\n",
-                    data.describe(&gt),
-                    start.elapsed().as_secs_f64()
-                );
-                print!("{}", bench::table(&rows));
-            }
-        }
-        return Ok(());
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Csv => print!("{}", bench::detection_csv(&named)),
     }
-    if tracking {
-        let cfg = paper_settings(&methods, "csba-wls+,gt-wls", &noise, seed, range)?;
-        let start = Instant::now();
-        let rows = bench::run_tracking(&gt, &cfg, Default::default());
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-            Format::Table | Format::Csv => {
-                println!(
-                    "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s\n",
-                    data.describe(&gt),
-                    start.elapsed().as_secs_f64()
-                );
-                print!("{}", bench::tracking_table(&rows));
-            }
+    Ok(())
+}
+
+/// `--async`: agents captured at different instants.
+fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
+    let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
+    let (seed, range, format) = (args.seed, args.range, args.format);
+    let noise = if noise == "all" { "mild" } else { noise };
+    let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
+    let methods = if methods == "all" {
+        "csba-wls+,gt-wls"
+    } else {
+        methods
+    };
+    let cfg = BenchConfig {
+        methods: parse_list(methods, vec![], |s| s.parse())?,
+        settings: vec![],
+        seed,
+        range,
+    };
+    let start = Instant::now();
+    let rows = v2x_sim::asyncbench::run(gt, &cfg, &setting);
+    match format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Table | Format::Csv => {
+            println!(
+                "{} ; noise {setting}, seed {seed}; {:.1} s\n",
+                data.describe(gt),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", v2x_sim::asyncbench::table(&rows));
         }
-        return Ok(());
     }
-    if let Some(profile) = profile {
-        let cfg = BenchConfig {
-            methods: parse_list(&methods, Method::all(), |s| s.parse())?,
-            settings: parse_list(&profile, vec![], |s| NoiseSetting::parse(s, 2))?,
-            seed,
-            range,
-        };
-        let start = Instant::now();
-        let params = v2x_fuser::align::AlignParams::default();
-        let rows = bench::run_detection(&gt, &cfg, align.then_some(&params), &|| {});
-        let named: Vec<(String, &v2x_sim::detection_eval::DetectionMetrics)> = rows
-            .iter()
-            .map(|r| (format!("{} {}", r.noise, r.method), &r.metrics))
-            .collect();
-        match format {
-            Format::Table => {
-                println!(
-                    "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s\n",
-                    data.describe(&gt),
-                    start.elapsed().as_secs_f64()
-                );
-                print!("{}", bench::detection_table(&named));
-            }
-            Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-            Format::Csv => print!("{}", bench::detection_csv(&named)),
-        }
-        return Ok(());
-    }
-    if asynchronous {
-        let noise = if noise == "all" { "mild".into() } else { noise };
-        let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;
-        let methods = if methods == "all" {
-            "csba-wls+,gt-wls".into()
-        } else {
-            methods
-        };
-        let cfg = BenchConfig {
-            methods: parse_list(&methods, vec![], |s| s.parse())?,
-            settings: vec![],
-            seed,
-            range,
-        };
-        let start = Instant::now();
-        let rows = v2x_sim::asyncbench::run(&gt, &cfg, &setting);
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-            Format::Table | Format::Csv => {
-                println!(
-                    "{} ; noise {setting}, seed {seed}; {:.1} s\n",
-                    data.describe(&gt),
-                    start.elapsed().as_secs_f64()
-                );
-                print!("{}", v2x_sim::asyncbench::table(&rows));
-            }
-        }
-        return Ok(());
-    }
-    let settings = parse_list(&noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?;
-    let methods = parse_list(&methods, Method::all(), |s| s.parse())?;
+    Ok(())
+}
+
+/// The paper's Table 2.
+fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
+    let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
+    let (seed, range, format) = (args.seed, args.range, args.format);
+    let settings = parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?;
+    let methods = parse_list(methods, Method::all(), |s| s.parse())?;
     let cfg = BenchConfig {
         methods,
         settings,
@@ -206,25 +279,21 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         .expect("valid template"),
     );
     let start = Instant::now();
-    let rows = bench::run(&gt, &cfg, &|| bar.inc(1));
+    let rows = bench::run(gt, &cfg, &|| bar.inc(1));
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     match format {
         Format::Table => {
-            println!(
-                "{} ; noise seed {seed}; {:.1} s\n",
-                data.describe(&gt),
-                secs
-            );
+            println!("{} ; noise seed {seed}; {:.1} s\n", data.describe(gt), secs);
             print!("{}", bench::table(&rows));
         }
         Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
         Format::Csv => print!("{}", bench::csv(&rows)),
     }
-    if let (Some(frame), Some(out)) = (plot_frame, out) {
+    if let (Some(frame), Some(out)) = (args.plot, &args.out) {
         let best: Method = "csba-wls+".parse().map_err(anyhow::Error::msg)?;
         for s in &cfg.settings {
-            eprintln!("drew {}", plot(&gt, frame, s, &best, seed, &out)?.display());
+            eprintln!("drew {}", plot(gt, frame, s, &best, seed, out)?.display());
         }
     }
     Ok(())

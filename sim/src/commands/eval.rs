@@ -105,7 +105,15 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
         }
     };
-    let gt = data.load()?;
+    let dair = if data.is_dair() {
+        Some(data.load_dair()?)
+    } else {
+        None
+    };
+    let gt = match &dair {
+        Some(d) => d.gt.clone(),
+        None => data.load()?,
+    };
     let opts = EvalOptions {
         all_frames,
         replay,
@@ -116,6 +124,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let (evaluation, note) = evaluate_file(&gt, &pred, &opts)?;
     eprintln!("{note}");
     let csv = format == Format::Csv;
+    if let Some(d) = &dair {
+        return dair_eval(d, &pred, all_frames, evaluation, format);
+    }
     match evaluation {
         e if format == Format::Json => println!("{}", serde_json::to_string_pretty(&e)?),
         Evaluation::Distance(d) => {
@@ -144,6 +155,43 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
                 }
             );
         }
+    }
+    Ok(())
+}
+
+/// The DAIR-V2X protocol beside the devkit-style figures, for one results file.
+fn dair_eval(
+    d: &v2x_sim::dair::Dair,
+    pred: &std::path::Path,
+    all_frames: bool,
+    evaluation: Evaluation,
+    format: Format,
+) -> anyhow::Result<()> {
+    let results = v2x_protocol::nuscenes_json::read_results(
+        pred,
+        &mut d.gt.tokens.clone(),
+        v2x_protocol::nuscenes_json::MissingStd::Default(v2x_protocol::Uncertainty::uniform(
+            1.0, 1.0, 1.0,
+        )),
+    )?;
+    let (dair, scored) = v2x_sim::dair_bench::score_results(d, &results, all_frames);
+    eprintln!(
+        "DAIR-V2X protocol over {scored} pairs, in the vehicle's frame within its evaluation range"
+    );
+    let Evaluation::Distance(detection) = evaluation else {
+        bail!("{}: DAIR-V2X boxes carry no ground-truth ids: score them with --match distance (or auto)", pred.display());
+    };
+    let rows = [v2x_sim::dair_bench::DairRow {
+        method: pred.display().to_string(),
+        detection,
+        dair,
+        bytes_per_frame: None,
+        official_ab: None,
+    }];
+    match format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows[0])?),
+        Format::Csv => print!("{}", v2x_sim::dair_bench::csv(&rows)),
+        Format::Table => print!("{}", v2x_sim::dair_bench::table(&rows)),
     }
     Ok(())
 }

@@ -12,8 +12,8 @@ pub struct GenArgs {
     #[command(flatten)]
     pub data: DataArgs,
     /// Noise: mild, moderate, large, realistic, a mix such as mild+large (one per agent), or
-    /// POS,SIZE,YAW_DEG [default: mild+large; with --dataset dair-v2x none: each side's own
-    /// labels, stating 0.5 m, 0.2 m and 0.1 rad].
+    /// POS,SIZE,YAW_DEG, or labels (each object exactly as labelled, stating 0.5 m, 0.2 m and
+    /// 0.1 rad) [default: mild+large; with --dataset dair-v2x: labels, each side's own].
     #[arg(long)]
     pub noise: Option<String>,
     /// Detector faults, replacing the noise profile's own (none, except for `realistic`):
@@ -61,26 +61,19 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
             anyhow::bail!("--agent-hz, --phase-ms and --agents do not apply to DAIR-V2X: its two agents capture at their recorded times");
         }
         let d = data.load_dair()?;
-        let setting = match &noise {
-            Some(n) => Some(setting_with_faults(n, faults.as_deref(), 2)?),
-            None if faults.is_some() => anyhow::bail!(
-                "--faults on DAIR-V2X labels needs a --noise profile to draw them with"
-            ),
-            None => None,
-        };
+        let noise = noise.as_deref().unwrap_or("labels");
+        let setting = setting_with_faults(noise, faults.as_deref(), 2)?;
         std::fs::create_dir_all(&out)
             .with_context(|| format!("cannot create {}", out.display()))?;
-        let files = v2x_sim::gen::generate_dair(&d, setting.as_ref(), seed, range);
+        let files = v2x_sim::gen::generate_dair(&d, &setting, seed, range);
         for (a, r) in files.iter().enumerate() {
             let p = out.join(format!("agent{}.json", a + 1));
             write_results(&p, r, &d.gt.tokens)?;
-            let what = setting.as_ref().map_or("labels".to_string(), |s| {
-                format!("labels + {} noise", s.agents[a].label)
-            });
             eprintln!(
-                "wrote {} ({}, {what})",
+                "wrote {} ({}, noise {})",
                 p.display(),
-                v2x_sim::dair::AGENTS[a]
+                v2x_sim::dair::AGENTS[a],
+                setting.agents[a].label
             );
         }
         eprintln!("{}", data.describe(&d.gt));

@@ -31,7 +31,7 @@ pub fn agent_routers(
     let tiling = regions.tiling();
     (0..scenario.agents.len())
         .map(|idx| {
-            let first = super::agent_captures(scenario, schedule, idx)
+            let first = super::agent_captures(scenario, gt, schedule, idx)
                 .first()
                 .copied();
             let home = first.map(|t| {

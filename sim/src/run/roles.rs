@@ -5,7 +5,7 @@ use super::epoch::serve_epoch;
 use super::schedule::Schedule;
 use crate::dataset::GroundTruth;
 use crate::noise::AgentNoise;
-use crate::noise::{detect, place_agents, Capture};
+use crate::noise::{detect, place_agents, recorded_view, Capture};
 use crate::scenario::Scenario;
 use crate::timeline::fuser_restarts;
 use std::collections::BTreeMap;
@@ -29,6 +29,18 @@ pub fn agent_view(
     noise: &AgentNoise,
 ) -> (Vec<Detection>, [f64; 3]) {
     let spec = &scenario.agents[idx];
+    if let Some(rec) = &gt.recorded {
+        // The recorded agent's own view at the scheduled frame it captured for.
+        let Some(&i) = schedule
+            .frames
+            .iter()
+            .find(|&&i| rec.capture_us(idx, i) == t_us)
+        else {
+            return (Vec::new(), [0.0; 3]);
+        };
+        let view = recorded_view(gt, rec.as_ref(), idx, i, noise, scenario.seed, spec.range_m);
+        return (view, rec.position(idx, i));
+    }
     let objects = gt.in_draw_order(gt.objects_at(schedule.scene, t_us));
     let near = gt
         .nearest_frame(schedule.scene, t_us)
@@ -54,8 +66,24 @@ pub fn agent_view(
     )
 }
 
-/// An agent's capture times (data time) in a run.
-pub fn agent_captures(scenario: &Scenario, schedule: &Schedule, idx: usize) -> Vec<u64> {
+/// An agent's capture times (data time) in a run: a recorded agent's own, once each (a
+/// roadside frame paired with two vehicle frames is sent once), else on its rate and phase.
+pub fn agent_captures(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    idx: usize,
+) -> Vec<u64> {
+    if let Some(rec) = &gt.recorded {
+        let mut times: Vec<u64> = Vec::with_capacity(schedule.frames.len());
+        for &i in &schedule.frames {
+            let t = rec.capture_us(idx, i);
+            if times.last().is_none_or(|&last| t > last) {
+                times.push(t);
+            }
+        }
+        return times;
+    }
     let spec = &scenario.agents[idx];
     schedule.captures(spec.hz, spec.phase_ms)
 }
@@ -86,7 +114,7 @@ pub async fn agent_role(
             // Per tile: wait for the fuser of the tile the agent starts in, if it has one.
             let tiling = r.tiling();
             agent = agent.with_tiling(tiling);
-            let first = agent_captures(scenario, schedule, idx).first().copied();
+            let first = agent_captures(scenario, gt, schedule, idx).first().copied();
             if let Some(t) = first {
                 let (_, place) = agent_view(scenario, gt, schedule, idx, 0, t, &spec.agent_noise());
                 let home = tiling.tile_of(place);
@@ -100,7 +128,7 @@ pub async fn agent_role(
     }
     let mut timeline = spec.timeline(&scenario.events);
     let mut state = timeline.at(0);
-    for (j, t) in agent_captures(scenario, schedule, idx)
+    for (j, t) in agent_captures(scenario, gt, schedule, idx)
         .into_iter()
         .enumerate()
     {

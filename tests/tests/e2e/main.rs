@@ -4,6 +4,7 @@
 
 mod city;
 mod cli;
+mod dair;
 mod docs;
 mod ingest;
 mod loopback;

@@ -26,7 +26,7 @@ fn dair_v2x_c_lands_every_side_on_the_world_boxes_with_the_offset() {
             .map(|f| f.sample_token.as_str())
             .collect();
     assert_eq!(tokens, ["000010", "000011", "000012"]);
-    let p = &d.pairs[1];
+    let p = &d.rec.pairs[1];
     assert_eq!(
         (p.veh_frame.as_str(), p.inf_frame.as_str()),
         ("000011", "001011")
@@ -53,7 +53,7 @@ fn dair_v2x_c_lands_every_side_on_the_world_boxes_with_the_offset() {
     assert!((gt[1].yaw).abs() < 1e-9);
     // Each side's car A on the world's: the vehicle's through its chain, the roadside's
     // through its half turn plus the offset.
-    let (veh, inf) = (&d.veh[1], &d.inf[1]);
+    let (veh, inf) = (&d.rec.veh[1], &d.rec.inf[1]);
     assert_eq!(veh.len(), 2);
     assert_eq!(
         inf.len(),
@@ -85,7 +85,7 @@ fn dair_v2x_c_lands_every_side_on_the_world_boxes_with_the_offset() {
 #[test]
 fn without_the_offset_the_roadside_is_off_by_it() {
     let d = load_dair(&fixture("dair-v2x-c"), false).unwrap();
-    let (car, world) = (&d.inf[0][0], &d.gt.frames[0].objects[0]);
+    let (car, world) = (&d.rec.inf[0][0], &d.gt.frames[0].objects[0]);
     assert!(close(
         car.center,
         [
@@ -96,7 +96,7 @@ fn without_the_offset_the_roadside_is_off_by_it() {
         1e-9
     ));
     // The vehicle does not move with the offset.
-    assert!(close(d.veh[0][0].center, world.center, 1e-9));
+    assert!(close(d.rec.veh[0][0].center, world.center, 1e-9));
 }
 
 #[test]
@@ -115,9 +115,9 @@ fn v2x_seq_spd_tracks_keep_their_ids_and_its_offset_turns_with_the_vehicle() {
         assert!((f.objects[1].yaw).abs() < 1e-9 || (f.objects[1].yaw.abs() - PI).abs() < 1e-9);
         // The roadside's car A lands on it only with the offset turned into the world.
         assert!(
-            close(d.inf[k][0].center, f.objects[0].center, 1e-9),
+            close(d.rec.inf[k][0].center, f.objects[0].center, 1e-9),
             "{:?}",
-            d.inf[k][0].center
+            d.rec.inf[k][0].center
         );
     }
     let ids: Vec<u32> = d.gt.frames.iter().map(|f| f.objects[0].id).collect();
@@ -128,7 +128,7 @@ fn v2x_seq_spd_tracks_keep_their_ids_and_its_offset_turns_with_the_vehicle() {
     assert_ne!(d.gt.frames[0].objects[0].id, d.gt.frames[0].objects[1].id);
     let off = load_dair(&fixture("v2x-seq-spd"), false).unwrap();
     // R90 (0.5, -0.3) = (0.3, 0.5) in the world.
-    let (a, b) = (off.inf[0][0].center, d.inf[0][0].center);
+    let (a, b) = (off.rec.inf[0][0].center, d.rec.inf[0][0].center);
     assert!(close(
         [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
         [0.3, 0.5, 0.0],
