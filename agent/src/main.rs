@@ -106,13 +106,10 @@ fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let rt = match tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-    {
+    let rt = match v2x_protocol::net::runtime() {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("error: starting the async runtime: {e}");
+            eprintln!("error: {e}");
             return std::process::ExitCode::FAILURE;
         }
     };

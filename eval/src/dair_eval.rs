@@ -20,6 +20,7 @@
 
 use serde::Serialize;
 use std::collections::BTreeMap;
+use v2x_fuser::geometry::{convex_hull, polygon_area, Pt};
 use v2x_protocol::{Class, Detection};
 use v2x_truth::dair::{corners, Corners, Pose};
 use v2x_truth::dataset::GtObject;
@@ -124,8 +125,6 @@ pub fn detection_boxes(dets: &[Detection], world_to_vehicle: &Pose) -> Vec<DairB
 /// then top.
 const PERM: [usize; 8] = [3, 2, 1, 0, 7, 6, 5, 4];
 
-type Pt = [f64; 2];
-
 /// The official Sutherland-Hodgman clip of `subject` by the convex, counter-clockwise `clip`,
 /// except that an edge lying along a clip line yields its end rather than a point computed by
 /// dividing by zero (which the official code can return far outside both boxes).
@@ -176,50 +175,17 @@ fn polygon_clip(subject: &[Pt], clip: &[Pt]) -> Vec<Pt> {
     output
 }
 
-/// The area of a polygon (shoelace, absolute).
-fn poly_area(p: &[Pt]) -> f64 {
-    let n = p.len();
-    let twice: f64 = (0..n)
-        .map(|i| {
-            let j = (i + n - 1) % n;
-            p[i][0] * p[j][1] - p[i][1] * p[j][0]
-        })
-        .sum();
-    0.5 * twice.abs()
-}
-
 /// The area of the convex hull of `points` (the official code measures the clipped polygon by
 /// its hull); 0 when the points span no area.
 fn hull_area(points: &[Pt]) -> f64 {
     if points.len() < 3 || points.iter().flatten().any(|v| !v.is_finite()) {
         return 0.0;
     }
-    let mut p = points.to_vec();
-    p.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
-    p.dedup();
-    let cross = |o: Pt, a: Pt, b: Pt| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    let mut hull: Vec<Pt> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &Pt>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in iter {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
-            {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-    }
+    let hull = convex_hull(points);
     if hull.len() < 3 {
         return 0.0;
     }
-    poly_area(&hull)
+    polygon_area(&hull).abs()
 }
 
 /// The official 3D and BEV IoU of two boxes given in [`corners`] order.
@@ -228,7 +194,7 @@ pub fn box_iou(a: &Corners, b: &Corners) -> (f64, f64) {
     let b: Corners = PERM.map(|i| b[i]);
     let rect = |c: &Corners| -> [Pt; 4] { std::array::from_fn(|i| [c[i][0], c[i][1]]) };
     let (ra, rb) = (rect(&a), rect(&b));
-    let (area_a, area_b) = (poly_area(&ra), poly_area(&rb));
+    let (area_a, area_b) = (polygon_area(&ra).abs(), polygon_area(&rb).abs());
     let inter = hull_area(&polygon_clip(&ra, &rb));
     let iou_2d = inter / (area_a + area_b - inter);
     let zmax = a[4][2].min(b[4][2]);

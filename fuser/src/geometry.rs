@@ -12,7 +12,8 @@
 
 use v2x_protocol::Detection;
 
-type Pt = [f64; 2];
+/// A point in the plane (x, y).
+pub type Pt = [f64; 2];
 
 /// Signed area of a polygon (positive when counter-clockwise).
 pub fn polygon_area(p: &[Pt]) -> f64 {

@@ -2,7 +2,6 @@
 //! tracks a fused one; `node` runs the fuser on the network, `router` a Zenoh router for the
 //! secure mode, and `stats` asks a running node for its statistics.
 
-use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use v2x_fuser::align::AlignParams;
@@ -35,134 +34,154 @@ struct Cli {
 enum Command {
     /// Fuse nuScenes detection-results files offline, one file per agent.
     #[command(after_help = methods_help())]
-    Fuse {
-        /// Fusion method (see the list below).
-        #[arg(long, short, default_value = "csba-wls+")]
-        method: Method,
-        /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
-        /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it, a missing std is an error.
-        #[arg(long, value_parser = v2x_protocol::parse_std)]
-        default_std: Option<v2x_protocol::Uncertainty>,
-        #[command(flatten)]
-        motion: MotionArgs,
-        /// Window width delta t (ms) when files carry capture times.
-        #[arg(long, default_value_t = 100.0)]
-        window_ms: f64,
-        #[command(flatten)]
-        align: AlignArgs,
-        /// With --align: the reference agent, as its position among the inputs (1 = first).
-        /// `v2x-sim gen` writes the roadside unit as agent2.json.
-        #[arg(long, default_value_t = 2, requires = "align")]
-        align_to: usize,
-        /// Where to write the fused results file.
-        #[arg(long, short)]
-        output: PathBuf,
-        /// Input results files, one per agent, in agent order.
-        #[arg(required = true)]
-        inputs: Vec<PathBuf>,
-    },
+    Fuse(FuseArgs),
     /// Fuse results files, one per agent, then follow the fused boxes over time with a
     /// constant-velocity Kalman tracker, and write nuScenes tracking results (`tracking_id`,
     /// `tracking_name`, `tracking_score`, beside the detection fields). The files must carry
     /// capture times (meta.v2x_timestamps, as `v2x-sim gen` writes them).
     #[command(after_help = methods_help())]
-    Track {
-        /// Fusion method of each window.
-        #[arg(long, short, default_value = "csba-wls+")]
-        method: Method,
-        /// Stds for boxes that carry none (as `fuse --default-std`).
-        #[arg(long, value_parser = v2x_protocol::parse_std)]
-        default_std: Option<v2x_protocol::Uncertainty>,
-        #[command(flatten)]
-        motion: MotionArgs,
-        /// Window width delta t (ms).
-        #[arg(long, default_value_t = 100.0)]
-        window_ms: f64,
-        /// Hits in a row that confirm a track (a box seen once never becomes one at 2).
-        #[arg(long, default_value_t = 2)]
-        confirm_hits: u32,
-        /// Windows in a row without a box a confirmed track survives.
-        #[arg(long, default_value_t = 3)]
-        max_misses: u32,
-        /// Also track the classes the nuScenes tracking benchmark does not score (barrier,
-        /// traffic cone, construction vehicle). Without it the file holds the seven tracking
-        /// classes only, as the official devkit's loader requires; with it the devkit refuses it.
-        #[arg(long)]
-        all_classes: bool,
-        /// Where to write the tracking results file.
-        #[arg(long, short)]
-        output: PathBuf,
-        /// Input results files, one per agent, in agent order.
-        #[arg(required = true)]
-        inputs: Vec<PathBuf>,
-    },
+    Track(TrackArgs),
     /// Run the fuser on the network: subscribe to every agent, fuse each time window, publish.
     #[command(after_help = methods_help())]
-    Node {
-        /// Scenario namespace (keys v2x/NS/...).
-        #[arg(long, default_value = "default")]
-        ns: String,
-        /// Fusion method.
-        #[arg(long, short, default_value = "csba-wls+")]
-        method: Method,
-        /// Window width delta t (ms).
-        #[arg(long, default_value_t = 100.0)]
-        window_ms: f64,
-        /// Longest wait for missing live agents after a window's first frame (ms).
-        #[arg(long, default_value_t = 150.0)]
-        max_wait_ms: f64,
-        #[command(flatten)]
-        limits: Box<IngestArgs>,
-        #[command(flatten)]
-        motion: MotionArgs,
-        #[command(flatten)]
-        region: RegionArgs,
-        #[command(flatten)]
-        align: AlignArgs,
-        /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
-        /// tracks each window updated on v2x/NS/tracks, each box's id its track's (the seven
-        /// classes of the nuScenes tracking benchmark, as `v2x-fuser track` writes them).
-        #[arg(long)]
-        track: bool,
-        /// With --track: also track barriers, traffic cones and construction vehicles.
-        #[arg(long, requires = "track")]
-        track_all_classes: bool,
-        /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
-        /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
-        /// completeness, every box's source agents) goes in meta.v2x_provenance.
-        #[arg(long)]
-        record: Option<PathBuf>,
-        #[command(flatten)]
-        viz: v2x_fuser::viz::VizArgs,
-        /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM, which both write
-        /// the recording and print the final statistics).
-        #[arg(long)]
-        duration_s: Option<f64>,
-        #[command(flatten)]
-        zenoh: v2x_protocol::net::ZenohArgs,
-    },
+    Node(NodeArgs),
     /// Run a Zenoh router: the access-control point of a secure deployment (mutual TLS and the
     /// ACL come from its --zenoh-config, as `v2x-sim certs` writes it), until Ctrl-C or SIGTERM.
     /// Agents, fuser and observers connect to it as clients. Access control holds only through
     /// a router: in peer mode sessions talk to each other directly.
-    Router {
-        #[command(flatten)]
-        zenoh: v2x_protocol::net::ZenohArgs,
-    },
+    Router(RouterArgs),
     /// Ask a running fuser for its statistics (JSON).
-    Stats {
-        /// Scenario namespace.
-        #[arg(long, default_value = "default")]
-        ns: String,
-        /// Ask the regional fuser of this tile (COLUMN_ROW) instead of the single fuser.
-        #[arg(long)]
-        tile: Option<v2x_protocol::tiles::Tile>,
-        /// How long to wait for an answer (s).
-        #[arg(long, default_value_t = 5.0)]
-        timeout_s: f64,
-        #[command(flatten)]
-        zenoh: v2x_protocol::net::ZenohArgs,
-    },
+    Stats(StatsArgs),
+}
+
+/// The options of `v2x-fuser fuse`.
+#[derive(clap::Args)]
+struct FuseArgs {
+    /// Fusion method (see the list below).
+    #[arg(long, short, default_value = "csba-wls+")]
+    method: Method,
+    /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
+    /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it, a missing std is an error.
+    #[arg(long, value_parser = v2x_protocol::parse_std)]
+    default_std: Option<v2x_protocol::Uncertainty>,
+    #[command(flatten)]
+    motion: MotionArgs,
+    /// Window width delta t (ms) when files carry capture times.
+    #[arg(long, default_value_t = 100.0)]
+    window_ms: f64,
+    #[command(flatten)]
+    align: AlignArgs,
+    /// With --align: the reference agent, as its position among the inputs (1 = first).
+    /// `v2x-sim gen` writes the roadside unit as agent2.json.
+    #[arg(long, default_value_t = 2, requires = "align")]
+    align_to: usize,
+    /// Where to write the fused results file.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Input results files, one per agent, in agent order.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+}
+
+/// The options of `v2x-fuser track`.
+#[derive(clap::Args)]
+struct TrackArgs {
+    /// Fusion method of each window.
+    #[arg(long, short, default_value = "csba-wls+")]
+    method: Method,
+    /// Stds for boxes that carry none (as `fuse --default-std`).
+    #[arg(long, value_parser = v2x_protocol::parse_std)]
+    default_std: Option<v2x_protocol::Uncertainty>,
+    #[command(flatten)]
+    motion: MotionArgs,
+    /// Window width delta t (ms).
+    #[arg(long, default_value_t = 100.0)]
+    window_ms: f64,
+    /// Hits in a row that confirm a track (a box seen once never becomes one at 2).
+    #[arg(long, default_value_t = 2)]
+    confirm_hits: u32,
+    /// Windows in a row without a box a confirmed track survives.
+    #[arg(long, default_value_t = 3)]
+    max_misses: u32,
+    /// Also track the classes the nuScenes tracking benchmark does not score (barrier,
+    /// traffic cone, construction vehicle). Without it the file holds the seven tracking
+    /// classes only, as the official devkit's loader requires; with it the devkit refuses it.
+    #[arg(long)]
+    all_classes: bool,
+    /// Where to write the tracking results file.
+    #[arg(long, short)]
+    output: PathBuf,
+    /// Input results files, one per agent, in agent order.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+}
+
+/// The options of `v2x-fuser node`.
+#[derive(clap::Args)]
+struct NodeArgs {
+    /// Scenario namespace (keys v2x/NS/...).
+    #[arg(long, default_value = "default")]
+    ns: String,
+    /// Fusion method.
+    #[arg(long, short, default_value = "csba-wls+")]
+    method: Method,
+    /// Window width delta t (ms).
+    #[arg(long, default_value_t = 100.0)]
+    window_ms: f64,
+    /// Longest wait for missing live agents after a window's first frame (ms).
+    #[arg(long, default_value_t = 150.0)]
+    max_wait_ms: f64,
+    #[command(flatten)]
+    limits: Box<IngestArgs>,
+    #[command(flatten)]
+    motion: MotionArgs,
+    #[command(flatten)]
+    region: RegionArgs,
+    #[command(flatten)]
+    align: AlignArgs,
+    /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
+    /// tracks each window updated on v2x/NS/tracks, each box's id its track's (the seven
+    /// classes of the nuScenes tracking benchmark, as `v2x-fuser track` writes them).
+    #[arg(long)]
+    track: bool,
+    /// With --track: also track barriers, traffic cones and construction vehicles.
+    #[arg(long, requires = "track")]
+    track_all_classes: bool,
+    /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
+    /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
+    /// completeness, every box's source agents) goes in meta.v2x_provenance.
+    #[arg(long)]
+    record: Option<PathBuf>,
+    #[command(flatten)]
+    viz: v2x_fuser::viz::VizArgs,
+    /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM, which both write
+    /// the recording and print the final statistics).
+    #[arg(long)]
+    duration_s: Option<f64>,
+    #[command(flatten)]
+    zenoh: v2x_protocol::net::ZenohArgs,
+}
+
+/// The options of `v2x-fuser router`.
+#[derive(clap::Args)]
+struct RouterArgs {
+    #[command(flatten)]
+    zenoh: v2x_protocol::net::ZenohArgs,
+}
+
+/// The options of `v2x-fuser stats`.
+#[derive(clap::Args)]
+struct StatsArgs {
+    /// Scenario namespace.
+    #[arg(long, default_value = "default")]
+    ns: String,
+    /// Ask the regional fuser of this tile (COLUMN_ROW) instead of the single fuser.
+    #[arg(long)]
+    tile: Option<v2x_protocol::tiles::Tile>,
+    /// How long to wait for an answer (s).
+    #[arg(long, default_value_t = 5.0)]
+    timeout_s: f64,
+    #[command(flatten)]
+    zenoh: v2x_protocol::net::ZenohArgs,
 }
 
 /// Motion compensation of a window to its latest capture time.
@@ -380,256 +399,266 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     match cli.command {
-        Command::Fuse {
-            method,
-            default_std,
-            motion,
-            window_ms,
-            align,
-            align_to,
-            output,
-            inputs,
-        } => {
-            if !(window_ms > 0.0 && window_ms.is_finite()) {
-                anyhow::bail!("--window-ms must be > 0");
-            }
-            let align_params = align.params()?;
-            if align_params.is_some() && !(1..=inputs.len()).contains(&align_to) {
-                anyhow::bail!(
-                    "--align-to {align_to}: there are {} inputs (give 1 to {})",
-                    inputs.len(),
-                    inputs.len()
-                );
-            }
-            let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
-            let opts = v2x_fuser::offline::OfflineOptions {
-                motion: motion.params()?,
-                window_ms,
-                align: align_params.map(|p| (p, align_to - 1)),
-            };
-            let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
-            let how = match (report.by_time, opts.motion.is_some()) {
-                (true, true) => "grouped by capture time, motion-compensated",
-                (true, false) => "grouped by capture time, not compensated",
-                (false, _) => "grouped by sample token (the files carry no capture times)",
-            };
-            eprintln!(
-                "{method}: fused {} boxes from {} agents over {} samples into {} boxes ({how}) -> {}",
-                report.boxes_in,
-                inputs.len(),
-                report.samples,
-                report.boxes_out,
-                output.display()
-            );
-            for (agent, measured, applied, last) in &report.registration {
-                let last = last.map_or(String::new(), |r| {
-                    format!(
-                        "; last estimate shift ({:.2}, {:.2}) m +- ({:.2}, {:.2}), turn {:.2} deg, {}",
-                        r.shift_m[0],
-                        r.shift_m[1],
-                        r.std[0],
-                        r.std[1],
-                        r.turn_rad.to_degrees(),
-                        match (r.applied, r.turn_applied) {
-                            (true, true) => "applied",
-                            (true, false) => "shift applied, turn not",
-                            (false, true) => "turn applied, shift not",
-                            (false, false) => "not applied",
-                        }
-                    )
-                });
-                eprintln!(
-                    "registration of {agent}: measured in {measured} of {} windows, applied in {applied}{last} (per window: meta.v2x_registration)",
-                    report.samples
-                );
-            }
-            Ok(())
-        }
-        Command::Track {
-            method,
-            default_std,
-            motion,
-            window_ms,
-            confirm_hits,
-            max_misses,
-            all_classes,
-            output,
-            inputs,
-        } => {
-            if !(window_ms > 0.0 && window_ms.is_finite()) {
-                anyhow::bail!("--window-ms must be > 0");
-            }
-            if confirm_hits == 0 {
-                anyhow::bail!("--confirm-hits must be at least 1");
-            }
-            let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
-            let opts = v2x_fuser::offline::OfflineOptions {
-                motion: motion.params()?,
-                window_ms,
-                align: None,
-            };
-            let params = v2x_fuser::tracker::TrackerParams {
-                confirm_hits,
-                max_misses,
-                all_classes,
-                ..Default::default()
-            };
-            let tracks =
-                v2x_fuser::offline::track_files(&method, &inputs, &output, missing, &opts, params)
-                    .map_err(anyhow::Error::msg)?;
-            let boxes: usize = tracks.results.samples.values().map(Vec::len).sum();
-            eprintln!(
-                "{method}: {} windows, {boxes} tracked boxes, {} tracks confirmed, {} ended, {} live at the end -> {}",
-                tracks.results.samples.len(),
-                tracks.stats.births,
-                tracks.stats.deaths,
-                tracks.stats.live,
-                output.display()
-            );
-            Ok(())
-        }
-        Command::Node {
-            ns,
-            method,
-            window_ms,
-            max_wait_ms,
-            limits,
-            motion,
-            region,
-            align,
-            track,
-            track_all_classes,
-            record,
-            viz,
-            duration_s,
-            zenoh,
-        } => {
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .enable_all()
-                .build()
-                .context("starting the async runtime")?;
-            rt.block_on(async move {
-                if let Some(s) = duration_s {
-                    if !(s > 0.0 && s.is_finite()) {
-                        anyhow::bail!("--duration-s must be > 0");
-                    }
-                }
-                let mut cfg = node::NodeConfig::new(&ns, method);
-                cfg.window_ms = window_ms;
-                cfg.max_wait_ms = max_wait_ms;
-                limits.apply(&mut cfg)?;
-                cfg.motion = motion.params()?;
-                cfg.region = region.region()?;
-                cfg.align = align.params()?;
-                cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
-                    time_scale: motion.time_scale,
-                    all_classes: track_all_classes,
-                    ..Default::default()
-                });
-                cfg.viz = viz.open().await?;
-                let shown = cfg.viz.clone();
-                let session = v2x_protocol::net::open_session(&zenoh).await?;
-                let mut recorded = Results::default();
-                let mut provenance = serde_json::Map::new();
-                let stop = async move {
-                    match duration_s {
-                        Some(s) => tokio::select! {
-                            _ = tokio::time::sleep(std::time::Duration::from_secs_f64(s)) => {}
-                            _ = node::shutdown_signal() => {}
-                        },
-                        None => node::shutdown_signal().await,
-                    }
-                };
-                let stats = node::run(
-                    &session,
-                    cfg,
-                    |f| {
-                        if record.is_some() {
-                            let sample = format!("t{}", f.frame.capture_us);
-                            provenance.insert(sample.clone(), provenance_json(&f.provenance));
-                            recorded.samples.insert(sample, f.frame.detections.clone());
-                        }
-                    },
-                    stop,
-                )
-                .await?;
-                if let Some(v) = shown {
-                    v.close()?;
-                }
-                if let Some(path) = &record {
-                    let mut meta = default_meta();
-                    meta["v2x_provenance"] = serde_json::Value::Object(provenance);
-                    recorded.meta = meta;
-                    write_results(path, &recorded, &TokenTable::new())?;
-                    eprintln!(
-                        "recorded {} fused frames -> {}",
-                        recorded.samples.len(),
-                        path.display()
-                    );
-                }
-                println!("{}", serde_json::to_string_pretty(&stats)?);
-                session
-                    .close()
-                    .await
-                    .map_err(|e| anyhow::anyhow!("closing the session: {e}"))?;
-                Ok(())
-            })
-        }
-        Command::Router { mut zenoh } => {
-            if zenoh.mode.is_none() {
-                zenoh.mode = Some("router".into());
-            }
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .enable_all()
-                .build()
-                .context("starting the async runtime")?;
-            rt.block_on(async move {
-                let config = v2x_protocol::net::config(&zenoh)?;
-                let secure = config
-                    .get_json("access_control/enabled")
-                    .is_ok_and(|v| v == "true");
-                let session = zenoh::open(config)
-                    .await
-                    .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
-                eprintln!(
-                    "router {} running ({}); Ctrl-C or SIGTERM stops it",
-                    session.zid(),
-                    if secure {
-                        "access control on"
-                    } else {
-                        "no access control: any client may publish anything"
-                    }
-                );
-                v2x_protocol::net::shutdown_signal().await;
-                session
-                    .close()
-                    .await
-                    .map_err(|e| anyhow::anyhow!("closing the router: {e}"))?;
-                Ok(())
-            })
-        }
-        Command::Stats {
-            ns,
-            tile,
-            timeout_s,
-            zenoh,
-        } => {
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .enable_all()
-                .build()
-                .context("starting the async runtime")?;
-            rt.block_on(async move {
-                let session = v2x_protocol::net::open_session(&zenoh).await?;
-                let key = v2x_protocol::keys::FuserKeys::of(&ns, tile).stats;
-                let v = node::query_stats_at(
-                    &session,
-                    &key,
-                    std::time::Duration::from_secs_f64(timeout_s),
-                )
-                .await?;
-                println!("{}", serde_json::to_string_pretty(&v)?);
-                Ok(())
-            })
-        }
+        Command::Fuse(args) => fuse(args),
+        Command::Track(args) => track(args),
+        Command::Node(args) => run_node(args),
+        Command::Router(args) => router(args),
+        Command::Stats(args) => stats(args),
     }
+}
+
+/// `v2x-fuser fuse`.
+fn fuse(args: FuseArgs) -> anyhow::Result<()> {
+    let FuseArgs {
+        method,
+        default_std,
+        motion,
+        window_ms,
+        align,
+        align_to,
+        output,
+        inputs,
+    } = args;
+    if !(window_ms > 0.0 && window_ms.is_finite()) {
+        anyhow::bail!("--window-ms must be > 0");
+    }
+    let align_params = align.params()?;
+    if align_params.is_some() && !(1..=inputs.len()).contains(&align_to) {
+        anyhow::bail!(
+            "--align-to {align_to}: there are {} inputs (give 1 to {})",
+            inputs.len(),
+            inputs.len()
+        );
+    }
+    let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
+    let opts = v2x_fuser::offline::OfflineOptions {
+        motion: motion.params()?,
+        window_ms,
+        align: align_params.map(|p| (p, align_to - 1)),
+    };
+    let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
+    let how = match (report.by_time, opts.motion.is_some()) {
+        (true, true) => "grouped by capture time, motion-compensated",
+        (true, false) => "grouped by capture time, not compensated",
+        (false, _) => "grouped by sample token (the files carry no capture times)",
+    };
+    eprintln!(
+        "{method}: fused {} boxes from {} agents over {} samples into {} boxes ({how}) -> {}",
+        report.boxes_in,
+        inputs.len(),
+        report.samples,
+        report.boxes_out,
+        output.display()
+    );
+    for (agent, measured, applied, last) in &report.registration {
+        let last = last.map_or(String::new(), |r| {
+            format!(
+                "; last estimate shift ({:.2}, {:.2}) m +- ({:.2}, {:.2}), turn {:.2} deg, {}",
+                r.shift_m[0],
+                r.shift_m[1],
+                r.std[0],
+                r.std[1],
+                r.turn_rad.to_degrees(),
+                match (r.applied, r.turn_applied) {
+                    (true, true) => "applied",
+                    (true, false) => "shift applied, turn not",
+                    (false, true) => "turn applied, shift not",
+                    (false, false) => "not applied",
+                }
+            )
+        });
+        eprintln!(
+            "registration of {agent}: measured in {measured} of {} windows, applied in {applied}{last} (per window: meta.v2x_registration)",
+            report.samples
+        );
+    }
+    Ok(())
+}
+
+/// `v2x-fuser track`.
+fn track(args: TrackArgs) -> anyhow::Result<()> {
+    let TrackArgs {
+        method,
+        default_std,
+        motion,
+        window_ms,
+        confirm_hits,
+        max_misses,
+        all_classes,
+        output,
+        inputs,
+    } = args;
+    if !(window_ms > 0.0 && window_ms.is_finite()) {
+        anyhow::bail!("--window-ms must be > 0");
+    }
+    if confirm_hits == 0 {
+        anyhow::bail!("--confirm-hits must be at least 1");
+    }
+    let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
+    let opts = v2x_fuser::offline::OfflineOptions {
+        motion: motion.params()?,
+        window_ms,
+        align: None,
+    };
+    let params = v2x_fuser::tracker::TrackerParams {
+        confirm_hits,
+        max_misses,
+        all_classes,
+        ..Default::default()
+    };
+    let tracks = v2x_fuser::offline::track_files(&method, &inputs, &output, missing, &opts, params)
+        .map_err(anyhow::Error::msg)?;
+    let boxes: usize = tracks.results.samples.values().map(Vec::len).sum();
+    eprintln!(
+        "{method}: {} windows, {boxes} tracked boxes, {} tracks confirmed, {} ended, {} live at the end -> {}",
+        tracks.results.samples.len(),
+        tracks.stats.births,
+        tracks.stats.deaths,
+        tracks.stats.live,
+        output.display()
+    );
+    Ok(())
+}
+
+/// `v2x-fuser node`.
+fn run_node(args: NodeArgs) -> anyhow::Result<()> {
+    let NodeArgs {
+        ns,
+        method,
+        window_ms,
+        max_wait_ms,
+        limits,
+        motion,
+        region,
+        align,
+        track,
+        track_all_classes,
+        record,
+        viz,
+        duration_s,
+        zenoh,
+    } = args;
+    let rt = v2x_protocol::net::runtime()?;
+    rt.block_on(async move {
+        if let Some(s) = duration_s {
+            if !(s > 0.0 && s.is_finite()) {
+                anyhow::bail!("--duration-s must be > 0");
+            }
+        }
+        let mut cfg = node::NodeConfig::new(&ns, method);
+        cfg.window_ms = window_ms;
+        cfg.max_wait_ms = max_wait_ms;
+        limits.apply(&mut cfg)?;
+        cfg.motion = motion.params()?;
+        cfg.region = region.region()?;
+        cfg.align = align.params()?;
+        cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
+            time_scale: motion.time_scale,
+            all_classes: track_all_classes,
+            ..Default::default()
+        });
+        cfg.viz = viz.open().await?;
+        let shown = cfg.viz.clone();
+        let session = v2x_protocol::net::open_session(&zenoh).await?;
+        let mut recorded = Results::default();
+        let mut provenance = serde_json::Map::new();
+        let stop = async move {
+            match duration_s {
+                Some(s) => tokio::select! {
+                    _ = tokio::time::sleep(std::time::Duration::from_secs_f64(s)) => {}
+                    _ = node::shutdown_signal() => {}
+                },
+                None => node::shutdown_signal().await,
+            }
+        };
+        let stats = node::run(
+            &session,
+            cfg,
+            |f| {
+                if record.is_some() {
+                    let sample = format!("t{}", f.frame.capture_us);
+                    provenance.insert(sample.clone(), provenance_json(&f.provenance));
+                    recorded.samples.insert(sample, f.frame.detections.clone());
+                }
+            },
+            stop,
+        )
+        .await?;
+        if let Some(v) = shown {
+            v.close()?;
+        }
+        if let Some(path) = &record {
+            let mut meta = default_meta();
+            meta["v2x_provenance"] = serde_json::Value::Object(provenance);
+            recorded.meta = meta;
+            write_results(path, &recorded, &TokenTable::new())?;
+            eprintln!(
+                "recorded {} fused frames -> {}",
+                recorded.samples.len(),
+                path.display()
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&stats)?);
+        session
+            .close()
+            .await
+            .map_err(|e| anyhow::anyhow!("closing the session: {e}"))?;
+        Ok(())
+    })
+}
+
+/// `v2x-fuser router`.
+fn router(args: RouterArgs) -> anyhow::Result<()> {
+    let RouterArgs { mut zenoh } = args;
+    if zenoh.mode.is_none() {
+        zenoh.mode = Some("router".into());
+    }
+    let rt = v2x_protocol::net::runtime()?;
+    rt.block_on(async move {
+        let config = v2x_protocol::net::config(&zenoh)?;
+        let secure = config
+            .get_json("access_control/enabled")
+            .is_ok_and(|v| v == "true");
+        let session = zenoh::open(config)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot start the router: {e}"))?;
+        eprintln!(
+            "router {} running ({}); Ctrl-C or SIGTERM stops it",
+            session.zid(),
+            if secure {
+                "access control on"
+            } else {
+                "no access control: any client may publish anything"
+            }
+        );
+        v2x_protocol::net::shutdown_signal().await;
+        session
+            .close()
+            .await
+            .map_err(|e| anyhow::anyhow!("closing the router: {e}"))?;
+        Ok(())
+    })
+}
+
+/// `v2x-fuser stats`.
+fn stats(args: StatsArgs) -> anyhow::Result<()> {
+    let StatsArgs {
+        ns,
+        tile,
+        timeout_s,
+        zenoh,
+    } = args;
+    let rt = v2x_protocol::net::runtime()?;
+    rt.block_on(async move {
+        let session = v2x_protocol::net::open_session(&zenoh).await?;
+        let key = v2x_protocol::keys::FuserKeys::of(&ns, tile).stats;
+        let v = node::query_stats_at(
+            &session,
+            &key,
+            std::time::Duration::from_secs_f64(timeout_s),
+        )
+        .await?;
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        Ok(())
+    })
 }

@@ -135,6 +135,15 @@ pub async fn open_counted_session(
         .map_err(|e| SessionError(format!("cannot open a Zenoh session: {e}")))
 }
 
+/// The multi-threaded async runtime every binary runs its network work on.
+#[cfg(feature = "session")]
+pub fn runtime() -> Result<tokio::runtime::Runtime, SessionError> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| SessionError(format!("cannot start the async runtime: {e}")))
+}
+
 /// Resolves on SIGINT (Ctrl-C) or SIGTERM (systemd, `docker stop`, `timeout`).
 #[cfg(feature = "session")]
 pub async fn shutdown_signal() {

@@ -1,7 +1,6 @@
 //! `v2x-sim`: generate noisy agents from ground truth, score results files, reproduce the
 //! paper's Table 2, draw a frame, and run scripted scenarios over Zenoh.
 
-use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 mod commands;
@@ -70,10 +69,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mcap(args) => commands::mcap::run(args)?,
         Command::Load(args) => commands::load::run(args)?,
         Command::Run(cmd) => {
-            let rt = tokio::runtime::Builder::new_multi_thread()
-                .enable_all()
-                .build()
-                .context("starting the async runtime")?;
+            let rt = v2x_protocol::net::runtime()?;
             rt.block_on(v2x_sim::run::run_command(cmd))?;
         }
         Command::Certs(args) => commands::certs::run(args)?,

@@ -633,155 +633,156 @@ struct Sources<'a> {
 
 /// Pair `i` of `cooperative/data_info.json`: its frames, poses and labels.
 fn read_pair(src: &Sources, i: usize, rec: &Value, gt: &mut GroundTruth) -> Result<Row, DairError> {
-    let Sources {
-        root,
-        pairs,
-        layout,
-        veh_info,
-        inf_info,
-        apply_offset,
-    } = *src;
-    let (veh_key, inf_key) = match layout {
+    let (veh_key, inf_key) = match src.layout {
         Layout::Sequential => ("vehicle_frame", "infrastructure_frame"),
         Layout::Cooperative => ("vehicle_pointcloud_path", "infrastructure_pointcloud_path"),
     };
-    let veh_frame = id_of(pairs, rec, Some(i), veh_key)?;
-    let inf_frame = id_of(pairs, rec, Some(i), inf_key)?;
-    let (vi, veh) = veh_info.get(&veh_frame, pairs, i, veh_key)?;
-    let (ii, inf) = inf_info.get(&inf_frame, pairs, i, inf_key)?;
-    let veh_us = veh_info.timestamp(veh, vi)?;
-    let inf_us = inf_info.timestamp(inf, ii)?;
+    let veh_frame = id_of(src.pairs, rec, Some(i), veh_key)?;
+    let inf_frame = id_of(src.pairs, rec, Some(i), inf_key)?;
+    let (vi, veh) = src.veh_info.get(&veh_frame, src.pairs, i, veh_key)?;
+    let (ii, inf) = src.inf_info.get(&inf_frame, src.pairs, i, inf_key)?;
+    let pair = pair_poses(src, rec, (&veh_frame, veh), (&inf_frame, inf))?;
+    let pair = DairPair {
+        veh_us: src.veh_info.timestamp(veh, vi)?,
+        inf_us: src.inf_info.timestamp(inf, ii)?,
+        ..pair
+    };
+    let scene = match src.layout {
+        Layout::Sequential => rec
+            .get("vehicle_sequence")
+            .or_else(|| veh.get("sequence_id")),
+        Layout::Cooperative => veh.get("batch_id"),
+    }
+    .and_then(|v| {
+        v.as_str()
+            .map(str::to_string)
+            .or_else(|| number(v).map(|n| n.to_string()))
+    })
+    .unwrap_or_else(|| "dair".to_string());
+    let objects = cooperative_labels(src, rec, &pair, gt)?;
+    let veh_labels = src.veh_info.path(
+        veh,
+        &["label_lidar_std_path", "label_lidar_path"],
+        format!("label/lidar/{veh_frame}.json"),
+    );
+    let inf_labels = src.inf_info.path(
+        inf,
+        &[
+            "label_lidar_std_path",
+            "label_virtuallidar_path",
+            "label_lidar_path",
+        ],
+        format!("label/virtuallidar/{inf_frame}.json"),
+    );
+    Ok(Row {
+        scene,
+        objects,
+        veh: side_boxes(veh_labels, &pair.veh_to_world)?,
+        inf: side_boxes(inf_labels, &pair.inf_to_world)?,
+        pair,
+    })
+}
 
-    let (lidar_to_novatel, _) = read_pose(
-        veh_info.path(
-            veh,
-            &["calib_lidar_to_novatel_path"],
-            format!("calib/lidar_to_novatel/{veh_frame}.json"),
-        ),
+/// A pair's frames and poses (capture times still 0): the vehicle's chain, the roadside's
+/// calibration and the offset, applied as the layout's official loader does when asked.
+fn pair_poses(
+    src: &Sources,
+    rec: &Value,
+    (veh_frame, veh): (&str, &Value),
+    (inf_frame, inf): (&str, &Value),
+) -> Result<DairPair, DairError> {
+    let calib = |info: &SideInfo, r: &Value, key: &str, default: String, under: Option<&str>| {
+        read_pose(info.path(r, &[key], default), under)
+    };
+    let (lidar_to_novatel, _) = calib(
+        src.veh_info,
+        veh,
+        "calib_lidar_to_novatel_path",
+        format!("calib/lidar_to_novatel/{veh_frame}.json"),
         Some("transform"),
     )?;
-    let (novatel_to_world, _) = read_pose(
-        veh_info.path(
-            veh,
-            &["calib_novatel_to_world_path"],
-            format!("calib/novatel_to_world/{veh_frame}.json"),
-        ),
+    let (novatel_to_world, _) = calib(
+        src.veh_info,
+        veh,
+        "calib_novatel_to_world_path",
+        format!("calib/novatel_to_world/{veh_frame}.json"),
         None,
     )?;
     let veh_to_world = lidar_to_novatel.then(&novatel_to_world);
-    let (inf_calib, inf_calib_file) = read_pose(
-        inf_info.path(
-            inf,
-            &["calib_virtuallidar_to_world_path"],
-            format!("calib/virtuallidar_to_world/{inf_frame}.json"),
-        ),
+    let (inf_calib, inf_file) = calib(
+        src.inf_info,
+        inf,
+        "calib_virtuallidar_to_world_path",
+        format!("calib/virtuallidar_to_world/{inf_frame}.json"),
         None,
     )?;
-    let offset = match layout {
-        Layout::Cooperative => match inf_calib_file.value.get("relative_error") {
-            Some(e) => offset_of(Some(e)),
-            None => offset_of(rec.get("system_error_offset")),
-        },
-        Layout::Sequential => offset_of(rec.get("system_error_offset")),
-    };
-    let shift = match layout {
-        Layout::Cooperative => [offset[0], offset[1], 0.0],
-        Layout::Sequential => veh_to_world.rotate([offset[0], offset[1], 0.0]),
-    };
-    let inf_to_world = if apply_offset {
-        inf_calib.shifted(shift)
-    } else {
-        inf_calib
-    };
-
-    let scene = match layout {
-        Layout::Sequential => rec
-            .get("vehicle_sequence")
-            .or_else(|| veh.get("sequence_id"))
-            .and_then(|v| {
-                v.as_str()
-                    .map(str::to_string)
-                    .or_else(|| number(v).map(|n| n.to_string()))
-            }),
-        Layout::Cooperative => veh.get("batch_id").and_then(|v| {
-            v.as_str()
-                .map(str::to_string)
-                .or_else(|| number(v).map(|n| n.to_string()))
-        }),
-    }
-    .unwrap_or_else(|| "dair".to_string());
-
-    let skipped = &mut gt.skipped;
-    let objects = match layout {
+    let (offset, shift) = match src.layout {
         Layout::Cooperative => {
-            let path = match rec.get("cooperative_label_path").and_then(Value::as_str) {
-                Some(p) => root.join(p),
-                None => root.join(format!("cooperative/label_world/{veh_frame}.json")),
-            };
-            let labels = read_labels(path, true, skipped)?;
-            labels
-                .iter()
-                .enumerate()
-                .map(|(k, l)| {
-                    to_world(
-                        l,
-                        &Pose::IDENTITY,
-                        gt.tokens.intern(&format!("{veh_frame}#{k}")),
-                    )
-                })
-                .collect::<Vec<_>>()
+            let o = offset_of(
+                inf_file
+                    .value
+                    .get("relative_error")
+                    .or_else(|| rec.get("system_error_offset")),
+            );
+            (o, [o[0], o[1], 0.0])
         }
         Layout::Sequential => {
-            let path = root.join(format!("cooperative/label/{veh_frame}.json"));
-            let labels = read_labels(path, false, skipped)?;
-            labels
-                .iter()
-                .enumerate()
-                .map(|(k, l)| {
-                    let token = match &l.track {
-                        Some(t) => format!("track {t}"),
-                        None => format!("{veh_frame}#{k}"),
-                    };
-                    to_world(l, &veh_to_world, gt.tokens.intern(&token))
-                })
-                .collect()
+            let o = offset_of(rec.get("system_error_offset"));
+            (o, veh_to_world.rotate([o[0], o[1], 0.0]))
         }
     };
-    let veh_boxes = side_boxes(
-        veh_info.path(
-            veh,
-            &["label_lidar_std_path", "label_lidar_path"],
-            format!("label/lidar/{veh_frame}.json"),
-        ),
-        &veh_to_world,
-    )?;
-    let inf_boxes = side_boxes(
-        inf_info.path(
-            inf,
-            &[
-                "label_lidar_std_path",
-                "label_virtuallidar_path",
-                "label_lidar_path",
-            ],
-            format!("label/virtuallidar/{inf_frame}.json"),
-        ),
-        &inf_to_world,
-    )?;
-    Ok(Row {
-        scene,
-        pair: DairPair {
-            veh_frame,
-            inf_frame,
-            veh_us,
-            inf_us,
-            veh_to_world,
-            inf_to_world,
-            offset,
+    Ok(DairPair {
+        veh_frame: veh_frame.to_string(),
+        inf_frame: inf_frame.to_string(),
+        veh_us: 0,
+        inf_us: 0,
+        veh_to_world,
+        inf_to_world: if src.apply_offset {
+            inf_calib.shifted(shift)
+        } else {
+            inf_calib
         },
-        objects,
-        veh: veh_boxes,
-        inf: inf_boxes,
+        offset,
     })
+}
+
+/// A pair's cooperative labels in the world, each with its id: its track's (SPD) or its own.
+fn cooperative_labels(
+    src: &Sources,
+    rec: &Value,
+    pair: &DairPair,
+    gt: &mut GroundTruth,
+) -> Result<Vec<GtObject>, DairError> {
+    let frame = &pair.veh_frame;
+    let (path, world, pose) = match src.layout {
+        Layout::Cooperative => (
+            match rec.get("cooperative_label_path").and_then(Value::as_str) {
+                Some(p) => src.root.join(p),
+                None => src
+                    .root
+                    .join(format!("cooperative/label_world/{frame}.json")),
+            },
+            true,
+            Pose::IDENTITY,
+        ),
+        Layout::Sequential => (
+            src.root.join(format!("cooperative/label/{frame}.json")),
+            false,
+            pair.veh_to_world,
+        ),
+    };
+    let labels = read_labels(path, world, &mut gt.skipped)?;
+    Ok(labels
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            let token = match &l.track {
+                Some(t) => format!("track {t}"),
+                None => format!("{frame}#{k}"),
+            };
+            to_world(l, &pose, gt.tokens.intern(&token))
+        })
+        .collect())
 }
 
 #[cfg(test)]

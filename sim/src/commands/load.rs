@@ -1,13 +1,8 @@
 //! `v2x-sim load`: the fuser under load, on a runtime of its own.
 
-use anyhow::Context;
-
 /// Runs `v2x-sim load`.
 pub fn run(args: v2x_sim::load::LoadArgs) -> anyhow::Result<()> {
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("starting the async runtime")?;
+    let rt = v2x_protocol::net::runtime()?;
     if args.regions.is_some() {
         let rows = rt.block_on(v2x_sim::load::run_regions(&args))?;
         if args.json {

@@ -1,6 +1,6 @@
 //! `v2x-sim mcap`.
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use std::path::PathBuf;
 use v2x_sim::cli::DataArgs;
 
@@ -37,10 +37,7 @@ pub fn run(args: McapArgs) -> anyhow::Result<()> {
             unknown.len()
         );
     }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("starting the async runtime")?;
+    let rt = v2x_protocol::net::runtime()?;
     let viz = rt.block_on(v2x_fuser::viz::Viz::open(Some(&out), None))?;
     for v2x_sim::cli::SampleTime {
         key,

@@ -348,3 +348,151 @@ fn track_then_score_tracks_and_boxes() {
         .arg(&bare));
     assert!(!ok && err.contains("capture times"), "{err}");
 }
+
+fn dair_fixture(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../truth/fixtures/dair")
+        .join(name)
+}
+
+#[test]
+fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
+    let dir = tempdir("dair");
+    let c = dair_fixture("dair-v2x-c");
+    // gen: agent1 = veh, agent2 = inf, keyed by vehicle frame, each with its capture time.
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--dataset", "dair-v2x", "--dataroot"])
+        .arg(&c)
+        .arg("--out")
+        .arg(&dir));
+    assert!(ok, "{err}");
+    let inf: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("agent2.json")).unwrap()).unwrap();
+    assert_eq!(inf["meta"]["v2x_agent"], "inf");
+    assert_eq!(inf["meta"]["v2x_timestamps"]["000011"], 1626155123080000u64);
+    assert_eq!(inf["results"]["000011"].as_array().unwrap().len(), 3);
+    // fuse, then eval: the devkit-style figures and the official protocol in one row.
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--output"])
+        .arg(dir.join("fused.json"))
+        .arg(dir.join("agent1.json"))
+        .arg(dir.join("agent2.json")));
+    assert!(ok, "{err}");
+    let (ok, out, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "eval",
+            "--format",
+            "json",
+            "--dataset",
+            "dair-v2x",
+            "--dataroot",
+        ])
+        .arg(&c)
+        .arg(dir.join("fused.json")));
+    assert!(ok, "{err}");
+    let row: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(row["detection"]["recall"], 1.0);
+    let ap = row["dair"]["ap_3d"]["car@0.7"].as_f64().unwrap();
+    assert!((ap - 8.0 / 9.0).abs() < 1e-9, "{row}");
+    // bench: every row, in JSON; the official byte count of the roadside's three boxes.
+    let (ok, out, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "bench",
+            "--format",
+            "json",
+            "--methods",
+            "csba-wls+",
+            "--dataset",
+            "dair-v2x",
+        ])
+        .arg("--dataroot")
+        .arg(&c));
+    assert!(ok, "{err}");
+    let rows: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let names: Vec<&str> = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["method"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["veh", "inf", "csba-wls+"]);
+    assert_eq!(rows[1]["official_ab"], 216.0);
+    // gt-wls needs ground-truth ids, which the labels lack; results need --dataset dair-v2x.
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "bench",
+            "--methods",
+            "gt-wls",
+            "--dataset",
+            "dair-v2x",
+            "--dataroot",
+        ])
+        .arg(&c));
+    assert!(
+        !ok && err.contains("gt-wls groups boxes by ground-truth id"),
+        "{err}"
+    );
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--dataroot", "/nonexistent", "--version", "v1.0-x"])
+        .args(["--veh-results", "x.json", "--out"])
+        .arg(&dir));
+    assert!(!ok && err.contains("need --dataset dair-v2x"), "{err}");
+    // A detector's results in the official format replace the roadside's labels.
+    let results = serde_json::json!({
+        "001010": {"boxes_3d": [], "labels_3d": [], "scores_3d": []},
+        "001011": {"boxes_3d": [], "labels_3d": [], "scores_3d": []},
+    });
+    std::fs::write(dir.join("inf-results.json"), results.to_string()).unwrap();
+    let (ok, out, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "bench",
+            "--format",
+            "json",
+            "--methods",
+            "csba-wls+",
+            "--dataset",
+            "dair-v2x",
+        ])
+        .arg("--inf-results")
+        .arg(dir.join("inf-results.json"))
+        .arg("--dataroot")
+        .arg(&c));
+    assert!(ok, "{err}");
+    assert!(err.contains("no results for 1 of 3 inf frames"), "{err}");
+    let rows: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(
+        rows[1]["detection"]["tp"], 0,
+        "the roadside detected nothing"
+    );
+    // V2X-Seq-SPD: its track ids score tracking results.
+    let spd = dair_fixture("v2x-seq-spd");
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["gen", "--dataset", "dair-v2x", "--dataroot"])
+        .arg(&spd)
+        .arg("--out")
+        .arg(dir.join("spd")));
+    assert!(ok, "{err}");
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["track", "--confirm-hits", "1", "--output"])
+        .arg(dir.join("tracks.json"))
+        .arg(dir.join("spd/agent1.json"))
+        .arg(dir.join("spd/agent2.json")));
+    assert!(ok, "{err}");
+    let (ok, out, err) = run(Command::new(bin("v2x-sim"))
+        .args([
+            "eval",
+            "--tracking",
+            "--format",
+            "json",
+            "--dataset",
+            "dair-v2x",
+            "--dataroot",
+        ])
+        .arg(&spd)
+        .arg(dir.join("tracks.json")));
+    assert!(ok, "{err}");
+    let m: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(m["gt_tracks"], 3, "{m}");
+    assert_eq!(m["IDS"], 0, "{m}");
+    assert_eq!(m["tp"], 9, "{m}");
+}

@@ -37,21 +37,25 @@ pub struct CornerBox {
     pub yaw: f64,
 }
 
-/// The box whose corners these are, or why they are not a box's: every group of four parallel
-/// edges must agree in length within 5 cm + 5%, and length must stand square to width within
-/// about 3 degrees.
-pub fn from_corners(c: &Corners) -> Result<CornerBox, String> {
+/// For length (back to front), width and height, the four edges of each as (to, from) corners.
+pub type EdgeGroups = [[(usize, usize); 4]; 3];
+
+/// The edges of [`corners`]' order.
+const EDGES: EdgeGroups = [
+    [(0, 3), (1, 2), (4, 7), (5, 6)],
+    [(0, 1), (3, 2), (4, 5), (7, 6)],
+    [(4, 0), (5, 1), (6, 2), (7, 3)],
+];
+
+/// The box of eight corners whose edges are `groups`: every group of four parallel edges must
+/// agree in length within 5 cm + 5%, and length must stand square to width within about 3
+/// degrees.
+pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, String> {
     if c.iter().flatten().any(|v| !v.is_finite()) {
         return Err("a corner is not a finite number".into());
     }
     let sub = |a: usize, b: usize| -> [f64; 3] { std::array::from_fn(|k| c[a][k] - c[b][k]) };
     let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    // Edges along the length (back to front), the width and the height.
-    let groups: [[(usize, usize); 4]; 3] = [
-        [(0, 3), (1, 2), (4, 7), (5, 6)],
-        [(0, 1), (3, 2), (4, 5), (7, 6)],
-        [(4, 0), (5, 1), (6, 2), (7, 3)],
-    ];
     let mut size = [0.0; 3];
     let mut mean_edge = [[0.0; 3]; 3];
     for (g, edges) in groups.iter().enumerate() {
@@ -86,6 +90,11 @@ pub fn from_corners(c: &Corners) -> Result<CornerBox, String> {
         size,
         yaw: l[1].atan2(l[0]),
     })
+}
+
+/// The box whose corners, in [`corners`]' order, these are, or why they are not a box's.
+pub fn from_corners(c: &Corners) -> Result<CornerBox, String> {
+    box_of(c, &EDGES)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 //! mean, sizes = the mean length of each group of parallel edges, heading = the direction of the
 //! edges from the back face (the first four) to the front face.
 
+use super::corners::{box_of, CornerBox, Corners, EdgeGroups};
 use super::{err, number, DairError};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -41,45 +42,16 @@ fn class_of_id(id: i64) -> Option<Class> {
     }
 }
 
+/// The edges of mmdetection3d's corner order: length (back face to front face), width, height.
+const MMDET_EDGES: EdgeGroups = [
+    [(4, 0), (5, 1), (6, 2), (7, 3)],
+    [(3, 0), (2, 1), (6, 5), (7, 4)],
+    [(1, 0), (2, 3), (5, 4), (6, 7)],
+];
+
 /// A box from mmdetection3d's corners, or why they are not one.
-pub fn from_mmdet_corners(c: &[[f64; 3]; 8]) -> Result<([f64; 3], [f64; 3], f64), String> {
-    if c.iter().flatten().any(|v| !v.is_finite()) {
-        return Err("a corner is not a finite number".into());
-    }
-    let sub = |a: usize, b: usize| -> [f64; 3] { std::array::from_fn(|k| c[a][k] - c[b][k]) };
-    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let groups: [[(usize, usize); 4]; 3] = [
-        [(4, 0), (5, 1), (6, 2), (7, 3)], // length, back to front
-        [(3, 0), (2, 1), (6, 5), (7, 4)], // width
-        [(1, 0), (2, 3), (5, 4), (6, 7)], // height
-    ];
-    let mut size = [0.0; 3];
-    let mut heading = [0.0; 3];
-    for (g, edges) in groups.iter().enumerate() {
-        let lengths: Vec<f64> = edges.iter().map(|&(a, b)| norm(sub(a, b))).collect();
-        let mean = lengths.iter().sum::<f64>() / 4.0;
-        if lengths
-            .iter()
-            .any(|l| (l - mean).abs() > 0.05 + 0.05 * mean)
-        {
-            return Err(format!(
-                "the corners are not a box in mmdetection3d's order: its {} edges measure {:.3?} m",
-                ["length", "width", "height"][g],
-                lengths
-            ));
-        }
-        size[g] = mean;
-        if g == 0 {
-            for &(a, b) in edges {
-                let d = sub(a, b);
-                for k in 0..3 {
-                    heading[k] += d[k] / 4.0;
-                }
-            }
-        }
-    }
-    let center = std::array::from_fn(|k| c.iter().map(|p| p[k]).sum::<f64>() / 8.0);
-    Ok((center, size, heading[1].atan2(heading[0])))
+pub fn from_mmdet_corners(c: &Corners) -> Result<CornerBox, String> {
+    box_of(c, &MMDET_EDGES).map_err(|e| format!("{e} (in mmdetection3d's corner order)"))
 }
 
 /// One frame's results object.
@@ -128,8 +100,8 @@ fn frame_boxes(path: &Path, frame: &str, v: &Value) -> Result<Vec<LocalBox>, Dai
                 format!("box {i}: expected 8 corners of 3 numbers"),
             ));
         }
-        let c: [[f64; 3]; 8] = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
-        let (center, size, yaw) =
+        let c: Corners = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
+        let CornerBox { center, size, yaw } =
             from_mmdet_corners(&c).map_err(|e| fail("boxes_3d", format!("box {i}: {e}")))?;
         if size.iter().any(|s| !limits::size_in_range(*s)) {
             return Err(fail(
@@ -186,7 +158,7 @@ mod tests {
     use super::*;
 
     /// mmdetection3d's corners of a box, written out by hand for yaw 0 and turned by `yaw`.
-    fn mmdet(center: [f64; 3], [l, w, h]: [f64; 3], yaw: f64) -> [[f64; 3]; 8] {
+    fn mmdet(center: [f64; 3], [l, w, h]: [f64; 3], yaw: f64) -> Corners {
         let local = [
             [-l / 2.0, -w / 2.0, 0.0],
             [-l / 2.0, -w / 2.0, h],
@@ -209,7 +181,7 @@ mod tests {
 
     #[test]
     fn a_box_comes_back_from_its_mmdetection3d_corners() {
-        let (center, size, yaw) =
+        let CornerBox { center, size, yaw } =
             from_mmdet_corners(&mmdet([5.0, -2.0, -1.0], [4.2, 1.8, 1.5], 0.4)).unwrap();
         assert!(center
             .iter()
