@@ -104,6 +104,13 @@ impl DataArgs {
         match (&self.dataroot, self.dataset) {
             (Some(root), DatasetKind::DairV2x) => {
                 let mut d = load_dair(root, self.calibration_offset == Switch::On)?;
+                if d.corner_mismatches > 0 {
+                    eprintln!(
+                        "{}: {} world labels place their box more than 10 cm from their world_8_points; the corners were used",
+                        root.display(),
+                        d.corner_mismatches
+                    );
+                }
                 for (agent, path) in [&self.veh_results, &self.inf_results]
                     .into_iter()
                     .enumerate()

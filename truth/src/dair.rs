@@ -80,6 +80,9 @@ pub struct Dair {
     /// A detector's results in place of an agent's labels (vehicle, roadside), per pair in the
     /// world frame ([`Dair::use_results`]).
     pub results: [Option<Vec<Vec<Detection>>>; 2],
+    /// World labels whose `3d_location` or `3d_dimensions` lie more than 10 cm from their
+    /// `world_8_points` (the corners are used).
+    pub corner_mismatches: usize,
 }
 
 /// The two agents of DAIR-V2X data as recorded, pair by pair (parallel to the ground truth's
@@ -355,11 +358,14 @@ struct Label {
     track: Option<String>,
 }
 
-/// The labels of one file, in its frame; `world` reads `world_8_points` when a record has them.
+/// The labels of one file, in its frame; `world` reads `world_8_points` when a record has them,
+/// and counts in `mismatched` the records whose `3d_location` and `3d_dimensions` disagree with
+/// their corners by more than 10 cm (the corners are used, as the official evaluation does).
 fn read_labels(
     path: PathBuf,
     world: bool,
     skipped: &mut BTreeMap<String, usize>,
+    mismatched: &mut usize,
 ) -> Result<Vec<Label>, DairError> {
     let f = File::read(path)?;
     let mut out = Vec::new();
@@ -375,51 +381,73 @@ fn read_labels(
             Some(Value::Number(n)) => Some(n.to_string()),
             _ => None,
         };
-        if let (true, Some(points)) = (world, rec.get("world_8_points")) {
-            let mut v = Vec::new();
-            if !flat(points, &mut v) || v.len() != 24 {
-                return Err(f.fail(at, "world_8_points", "expected 8 points of 3 numbers"));
+        let corners = match (world, rec.get("world_8_points")) {
+            (true, Some(points)) => {
+                let mut v = Vec::new();
+                if !flat(points, &mut v) || v.len() != 24 {
+                    return Err(f.fail(at, "world_8_points", "expected 8 points of 3 numbers"));
+                }
+                let c: Corners = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
+                Some(from_corners(&c).map_err(|e| f.fail(at, "world_8_points", e))?)
             }
-            let c: Corners = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
-            let b = from_corners(&c).map_err(|e| f.fail(at, "world_8_points", e))?;
-            if b.size.contains(&0.0) {
-                continue;
+            _ => None,
+        };
+        let described = ["3d_location", "3d_dimensions", "rotation"]
+            .iter()
+            .all(|k| rec.get(*k).is_some());
+        let fields = if corners.is_none() || described {
+            Some(label_fields(&f, rec, at)?)
+        } else {
+            None
+        };
+        let b = match (corners, fields) {
+            (Some(b), Some(g)) => {
+                let off = (0..3)
+                    .map(|k| (b.center[k] - g.center[k]).abs())
+                    .fold(0.0, f64::max);
+                let size = (0..3)
+                    .map(|k| (b.size[k] - g.size[k]).abs())
+                    .fold(0.0, f64::max);
+                if off > 0.1 || size > 0.1 {
+                    *mismatched += 1;
+                }
+                b
             }
-            check_box(&f, at, b.center, b.size)?;
-            out.push(Label {
-                class,
-                center: b.center,
-                size: b.size,
-                yaw: b.yaw,
-                track,
-            });
+            (Some(b), None) | (None, Some(b)) => b,
+            (None, None) => unreachable!("one of the two is read"),
+        };
+        if b.size.contains(&0.0) {
             continue;
         }
-        let dims = field(&f, rec, at, "3d_dimensions")?;
-        let loc = field(&f, rec, at, "3d_location")?;
-        let size = [
-            num(&f, dims, at, "l")?,
-            num(&f, dims, at, "w")?,
-            num(&f, dims, at, "h")?,
-        ];
-        if size.contains(&0.0) {
-            continue;
-        }
-        let center = [
-            num(&f, loc, at, "x")?,
-            num(&f, loc, at, "y")?,
-            num(&f, loc, at, "z")?,
-        ];
-        check_box(&f, at, center, size)?;
+        check_box(&f, at, b.center, b.size)?;
         out.push(Label {
             class,
-            center,
-            size,
-            yaw: num(&f, rec, at, "rotation")?,
+            center: b.center,
+            size: b.size,
+            yaw: b.yaw,
             track,
         });
     }
     Ok(out)
+}
+
+/// A record's box from `3d_location` (the centre), `3d_dimensions` and `rotation`.
+fn label_fields(f: &File, rec: &Value, at: Option<usize>) -> Result<CornerBox, DairError> {
+    let dims = field(f, rec, at, "3d_dimensions")?;
+    let loc = field(f, rec, at, "3d_location")?;
+    Ok(CornerBox {
+        size: [
+            num(f, dims, at, "l")?,
+            num(f, dims, at, "w")?,
+            num(f, dims, at, "h")?,
+        ],
+        center: [
+            num(f, loc, at, "x")?,
+            num(f, loc, at, "y")?,
+            num(f, loc, at, "z")?,
+        ],
+        yaw: num(f, rec, at, "rotation")?,
+    })
 }
 
 fn check_box(
@@ -574,6 +602,7 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
         ))
     });
     let mut rec = Recording::default();
+    let mut corner_mismatches = 0;
     let mut seen = std::collections::HashSet::new();
     for r in rows {
         if !seen.insert(r.pair.veh_frame.clone()) {
@@ -592,6 +621,7 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
             ego: Some(r.pair.veh_to_world.translation),
             objects: r.objects,
         });
+        corner_mismatches += r.mismatched;
         rec.pairs.push(r.pair);
         rec.veh.push(r.veh);
         rec.inf.push(r.inf);
@@ -603,18 +633,20 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
         gt,
         rec,
         results: [None, None],
+        corner_mismatches,
     })
 }
 
 /// One side's own labels in the world (types the ground truth does not score are left out).
 fn side_boxes(path: PathBuf, pose: &Pose) -> Result<Vec<GtObject>, DairError> {
-    let labels = read_labels(path, false, &mut BTreeMap::new())?;
+    let labels = read_labels(path, false, &mut BTreeMap::new(), &mut 0)?;
     Ok(labels.iter().map(|l| to_world(l, pose, NO_ID)).collect())
 }
 
 /// One pair as read, before ordering.
 struct Row {
     scene: String,
+    mismatched: usize,
     pair: DairPair,
     objects: Vec<GtObject>,
     veh: Vec<GtObject>,
@@ -659,7 +691,8 @@ fn read_pair(src: &Sources, i: usize, rec: &Value, gt: &mut GroundTruth) -> Resu
             .or_else(|| number(v).map(|n| n.to_string()))
     })
     .unwrap_or_else(|| "dair".to_string());
-    let objects = cooperative_labels(src, rec, &pair, gt)?;
+    let mut mismatched = 0;
+    let objects = cooperative_labels(src, rec, &pair, gt, &mut mismatched)?;
     let veh_labels = src.veh_info.path(
         veh,
         &["label_lidar_std_path", "label_lidar_path"],
@@ -676,6 +709,7 @@ fn read_pair(src: &Sources, i: usize, rec: &Value, gt: &mut GroundTruth) -> Resu
     );
     Ok(Row {
         scene,
+        mismatched,
         objects,
         veh: side_boxes(veh_labels, &pair.veh_to_world)?,
         inf: side_boxes(inf_labels, &pair.inf_to_world)?,
@@ -752,6 +786,7 @@ fn cooperative_labels(
     rec: &Value,
     pair: &DairPair,
     gt: &mut GroundTruth,
+    mismatched: &mut usize,
 ) -> Result<Vec<GtObject>, DairError> {
     let frame = &pair.veh_frame;
     let (path, world, pose) = match src.layout {
@@ -771,7 +806,7 @@ fn cooperative_labels(
             pair.veh_to_world,
         ),
     };
-    let labels = read_labels(path, world, &mut gt.skipped)?;
+    let labels = read_labels(path, world, &mut gt.skipped, mismatched)?;
     Ok(labels
         .iter()
         .enumerate()

@@ -69,6 +69,29 @@ async fn the_vehicle_and_the_roadside_fuse_live_at_their_own_capture_times() {
     }
 }
 
+#[test]
+fn the_example_scenario_reads_the_fixture() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/dair-v2x.toml");
+    let s = Scenario::load(&path).unwrap();
+    let d = s.dataset.data_args().load_dair().unwrap();
+    assert_eq!(d.gt.frames.len(), 3);
+    // Two agents, the vehicle first, and nothing else is a DAIR-V2X scenario.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let three = format!("{text}\n[[agents]]\nname = \"x\"\nnoise = \"mild\"\n");
+    let e = Scenario::parse(&three, "three", path.parent())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("DAIR-V2X has two agents"), "{e}");
+    let timed = text.replace("name = \"inf\"", "name = \"inf\"\nhz = 20.0");
+    let e = Scenario::parse(&timed, "timed", path.parent())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("inf: DAIR-V2X agents capture at their recorded times"),
+        "{e}"
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn without_the_calibration_offset_the_shared_car_lands_apart() {
     let s = scenario("dair-nooffset", false);

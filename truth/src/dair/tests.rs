@@ -174,6 +174,21 @@ fn bad_input_names_the_file_record_and_field() {
             && e.contains("not a box"),
         "{e}"
     );
+    // A world label whose fields disagree with its corners: counted, the corners used.
+    let _ = std::fs::remove_dir_all(&dir);
+    copy_dir(&src, &dir);
+    let label = dir.join("cooperative/label_world/000010.json");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&label).unwrap()).unwrap();
+    v[0]["3d_location"]["x"] = Value::from(1001.0);
+    std::fs::write(&label, v.to_string()).unwrap();
+    let d = load_dair(&dir, true).unwrap();
+    assert_eq!(d.corner_mismatches, 1);
+    assert!(close(
+        d.gt.frames[0].objects[0].center,
+        [1000.0, 2011.0, 10.5],
+        1e-9
+    ));
+    assert_eq!(load_dair(&src, true).unwrap().corner_mismatches, 0);
     // A timestamp that is no number.
     let _ = std::fs::remove_dir_all(&dir);
     copy_dir(&src, &dir);
