@@ -106,31 +106,15 @@ fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let rt = match v2x_protocol::net::runtime() {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return std::process::ExitCode::FAILURE;
-        }
-    };
-    // Errors are for people: one line with its causes, no backtrace.
-    match rt.block_on(run(cli)) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    v2x_protocol::net::exit_code(
+        v2x_protocol::net::runtime()
+            .map_err(anyhow::Error::from)
+            .and_then(|rt| rt.block_on(run(cli))),
+    )
 }
 
 async fn run(cli: Cli) -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,zenoh=warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    v2x_protocol::net::init_logging("info,zenoh=warn");
     if !(cli.speed > 0.0 && cli.speed.is_finite()) {
         bail!("--speed must be > 0");
     }

@@ -380,24 +380,11 @@ impl IngestArgs {
 }
 
 fn main() -> std::process::ExitCode {
-    // Errors are for people: one line with its causes, no backtrace.
-    match run(Cli::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    v2x_protocol::net::exit_code(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,zenoh=warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    v2x_protocol::net::init_logging("info,zenoh=warn");
     match cli.command {
         Command::Fuse(args) => fuse(args),
         Command::Track(args) => track(args),

@@ -135,6 +135,30 @@ pub async fn open_counted_session(
         .map_err(|e| SessionError(format!("cannot open a Zenoh session: {e}")))
 }
 
+/// Logs to stderr at the levels `RUST_LOG` names, else at `default` (e.g. `info,zenoh=warn`).
+#[cfg(feature = "cli")]
+pub fn init_logging(default: &str) {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| default.into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+/// A binary's exit: success, or its error on one line with its causes (for people: no
+/// backtrace).
+pub fn exit_code<E: std::fmt::Display>(result: Result<(), E>) -> std::process::ExitCode {
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 /// The multi-threaded async runtime every binary runs its network work on.
 #[cfg(feature = "session")]
 pub fn runtime() -> Result<tokio::runtime::Runtime, SessionError> {

@@ -44,24 +44,11 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    // Errors are for people: one line with its causes, no backtrace.
-    match run(Cli::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    v2x_protocol::net::exit_code(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "warn,zenoh=error".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    v2x_protocol::net::init_logging("warn,zenoh=error");
     match cli.command {
         Command::Gen(args) => commands::gen::run(args)?,
         Command::Eval(args) => commands::eval::run(args)?,

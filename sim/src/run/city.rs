@@ -191,18 +191,7 @@ pub async fn run_city_local(
                 .await?;
         sessions.push(session);
     }
-    let runs = (0..scenario.agents.len()).map(|idx| {
-        agent_role(
-            &sessions[idx],
-            scenario,
-            gt,
-            &schedule,
-            idx,
-            epoch,
-            stop.clone(),
-        )
-    });
-    let results = futures::future::join_all(runs).await;
+    let results = super::roles::all_agents(&sessions, scenario, gt, &schedule, epoch, &stop).await;
     let _ = done_tx.send(true);
     let mut outcomes = Vec::new();
     let mut reports = Vec::new();

@@ -190,18 +190,8 @@ async fn run_local_until(
     };
     let fuser = fuser_role(&fuser_session, scenario, &schedule, epoch, viz, fuser_stop);
     let agents = async {
-        let runs = scenario.agents.iter().enumerate().map(|(idx, _)| {
-            agent_role(
-                &agent_sessions[idx],
-                scenario,
-                gt,
-                &schedule,
-                idx,
-                epoch,
-                stop.clone(),
-            )
-        });
-        let results = futures::future::join_all(runs).await;
+        let results =
+            roles::all_agents(&agent_sessions, scenario, gt, &schedule, epoch, &stop).await;
         let _ = done_tx.send(());
         results
     };

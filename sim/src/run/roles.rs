@@ -176,6 +176,29 @@ pub async fn agent_role(
     Ok(agent.counters().totals())
 }
 
+/// Every agent role of a scenario, each on its own session, until its schedule ends or `stop`.
+pub async fn all_agents(
+    sessions: &[zenoh::Session],
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    epoch_us: u64,
+    stop: &watch::Receiver<bool>,
+) -> Vec<anyhow::Result<AgentTotals>> {
+    let runs = (0..scenario.agents.len()).map(|idx| {
+        agent_role(
+            &sessions[idx],
+            scenario,
+            gt,
+            schedule,
+            idx,
+            epoch_us,
+            stop.clone(),
+        )
+    });
+    futures::future::join_all(runs).await
+}
+
 /// What the fuser role collected.
 #[derive(Default)]
 pub struct FuserOutcome {
