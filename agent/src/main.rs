@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 use v2x_agent::{now_us, replay, Agent, Link, ReplayClock};
 use v2x_protocol::net::{open_session, ZenohArgs};
-use v2x_protocol::nuscenes_json::{read_results, MissingStd, TokenTable};
+use v2x_protocol::nuscenes_json::{read_results, MissingStd, Results, TokenTable};
 use v2x_protocol::tiles::Tiling;
 use v2x_protocol::{AgentKind, Frame, Uncertainty};
 
@@ -121,19 +121,7 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     if !(cli.wait_s >= 0.0 && cli.wait_s.is_finite()) {
         bail!("--wait-s must be >= 0");
     }
-    let clock = match (cli.clock, cli.start_at) {
-        (ClockArg::Data, Some(_)) => bail!("--start-at goes with --clock real"),
-        (ClockArg::Data, None) => ReplayClock::Data,
-        (ClockArg::Real, None) => ReplayClock::Real {
-            start_us: now_us(),
-            data_start_us: None,
-        },
-        (ClockArg::Real, Some(t)) if t > 0.0 && t.is_finite() => ReplayClock::Real {
-            start_us: (t * 1e6) as u64,
-            data_start_us: None,
-        },
-        (ClockArg::Real, Some(t)) => bail!("--start-at must be a positive Unix time (got {t})"),
-    };
+    let clock = replay_clock(&cli)?;
     let missing = cli
         .default_std
         .map_or(MissingStd::Error, MissingStd::Default);
@@ -150,52 +138,7 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         },
         c => c,
     };
-    let mut times: HashMap<String, u64> = match &cli.sample_table {
-        Some(p) => timestamps(p)?,
-        None => results
-            .meta
-            .get("v2x_timestamps")
-            .and_then(|m| m.as_object())
-            .map(|m| {
-                m.iter()
-                    .filter_map(|(k, v)| Some((k.clone(), v.as_u64()?)))
-                    .collect()
-            })
-            .unwrap_or_default(),
-    };
-    if times.is_empty() {
-        if !(cli.hz > 0.0 && cli.hz.is_finite()) {
-            bail!("--hz must be > 0");
-        }
-        tracing::warn!(
-            "no timestamps known: sending samples in token order at {} Hz",
-            cli.hz
-        );
-        for (i, s) in results.samples.keys().enumerate() {
-            times.insert(s.clone(), (i as f64 * 1e6 / cli.hz) as u64);
-        }
-    }
-    let mut frames = Vec::new();
-    for (token, dets) in results.samples {
-        let t = *times.get(&token).ok_or_else(|| {
-            anyhow!(
-                "{}: sample '{token}' has no timestamp in the sample table",
-                cli.results.display()
-            )
-        })?;
-        frames.push(
-            Frame {
-                agent: cli.name.clone(),
-                kind: cli.kind,
-                seq: 0,
-                capture_us: t,
-                origin: [0.0; 3],
-                detections: dets,
-            }
-            .with_centroid_origin(),
-        );
-    }
-    frames.sort_by_key(|f| f.capture_us);
+    let frames = frames_of(&cli, results)?;
     let link = Link {
         latency_ms: cli.latency_ms,
         jitter_ms: cli.jitter_ms,
@@ -242,4 +185,73 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         .await
         .map_err(|e| anyhow!("closing the session: {e}"))?;
     Ok(())
+}
+
+/// The clock a replay runs on, from --clock and --start-at.
+fn replay_clock(cli: &Cli) -> anyhow::Result<ReplayClock> {
+    Ok(match (cli.clock, cli.start_at) {
+        (ClockArg::Data, Some(_)) => bail!("--start-at goes with --clock real"),
+        (ClockArg::Data, None) => ReplayClock::Data,
+        (ClockArg::Real, None) => ReplayClock::Real {
+            start_us: now_us(),
+            data_start_us: None,
+        },
+        (ClockArg::Real, Some(t)) if t > 0.0 && t.is_finite() => ReplayClock::Real {
+            start_us: (t * 1e6) as u64,
+            data_start_us: None,
+        },
+        (ClockArg::Real, Some(t)) => bail!("--start-at must be a positive Unix time (got {t})"),
+    })
+}
+
+/// The file's samples as frames in capture order, each at its time: from --sample-table, else
+/// the file's meta.v2x_timestamps, else in token order at --hz.
+fn frames_of(cli: &Cli, results: Results) -> anyhow::Result<Vec<Frame>> {
+    let mut times: HashMap<String, u64> = match &cli.sample_table {
+        Some(p) => timestamps(p)?,
+        None => results
+            .meta
+            .get("v2x_timestamps")
+            .and_then(|m| m.as_object())
+            .map(|m| {
+                m.iter()
+                    .filter_map(|(k, v)| Some((k.clone(), v.as_u64()?)))
+                    .collect()
+            })
+            .unwrap_or_default(),
+    };
+    if times.is_empty() {
+        if !(cli.hz > 0.0 && cli.hz.is_finite()) {
+            bail!("--hz must be > 0");
+        }
+        tracing::warn!(
+            "no timestamps known: sending samples in token order at {} Hz",
+            cli.hz
+        );
+        for (i, s) in results.samples.keys().enumerate() {
+            times.insert(s.clone(), (i as f64 * 1e6 / cli.hz) as u64);
+        }
+    }
+    let mut frames = Vec::new();
+    for (token, dets) in results.samples {
+        let t = *times.get(&token).ok_or_else(|| {
+            anyhow!(
+                "{}: sample '{token}' has no timestamp in the sample table",
+                cli.results.display()
+            )
+        })?;
+        frames.push(
+            Frame {
+                agent: cli.name.clone(),
+                kind: cli.kind,
+                seq: 0,
+                capture_us: t,
+                origin: [0.0; 3],
+                detections: dets,
+            }
+            .with_centroid_origin(),
+        );
+    }
+    frames.sort_by_key(|f| f.capture_us);
+    Ok(frames)
 }

@@ -68,30 +68,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         pred,
     } = args;
     if tracking {
-        let gt = data.load()?;
-        let m = evaluate_tracking(&gt, &pred, all_frames)?;
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
-            Format::Table | Format::Csv => {
-                println!("| predictions | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-                println!(
-                    "| {} | {:.4} | {:.3} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
-                    pred.display(),
-                    m.amota,
-                    m.amotp,
-                    m.mota,
-                    m.motp,
-                    m.ids,
-                    m.ids_per_100_tracks,
-                    m.frag,
-                    m.tp,
-                    m.fp,
-                    m.fn_,
-                    m.gt_tracks
-                );
-            }
-        }
-        return Ok(());
+        return tracking_table(&data, &pred, all_frames, format);
     }
     let replay = match replay_start_at {
         None => None,
@@ -192,6 +169,39 @@ fn dair_eval(
         Format::Json => println!("{}", serde_json::to_string_pretty(&rows[0])?),
         Format::Csv => print!("{}", v2x_sim::dair_bench::csv(&rows)),
         Format::Table => print!("{}", v2x_sim::dair_bench::table(&rows)),
+    }
+    Ok(())
+}
+
+/// `--tracking`: the nuScenes tracking benchmark's figures of a tracking results file.
+fn tracking_table(
+    data: &DataArgs,
+    pred: &std::path::Path,
+    all_frames: bool,
+    format: Format,
+) -> anyhow::Result<()> {
+    let gt = data.load()?;
+    let m = evaluate_tracking(&gt, pred, all_frames)?;
+    match format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
+        Format::Table | Format::Csv => {
+            println!("| predictions | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+            println!(
+                "| {} | {:.4} | {:.3} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
+                pred.display(),
+                m.amota,
+                m.amotp,
+                m.mota,
+                m.motp,
+                m.ids,
+                m.ids_per_100_tracks,
+                m.frag,
+                m.tp,
+                m.fp,
+                m.fn_,
+                m.gt_tracks
+            );
+        }
     }
     Ok(())
 }
