@@ -271,24 +271,7 @@ pub fn evaluate_file(
     } else {
         (Evaluation::Id(acc.summary()), opts.classes.clone())
     };
-    let left_out: Vec<String> = t
-        .predicted
-        .iter()
-        .filter(|(c, _)| scored_classes.as_ref().is_some_and(|k| !k.contains(c)))
-        .map(|(c, n)| format!("{c} {n}"))
-        .collect();
-    if !left_out.is_empty() {
-        note += &format!(
-            "; predicted boxes of classes not scored: {}",
-            left_out.join(", ")
-        );
-    }
-    if t.predictions > 0 && t.sparse as f64 > SPARSE_SHARE * t.predictions as f64 {
-        let (sparse, predictions) = (t.sparse, t.predictions);
-        note += &format!(
-            "\nwarning: {sparse} of {predictions} predictions fall in samples whose ground truth holds fewer than a tenth as many objects: is the timing right (--at), and the data root?"
-        );
-    }
+    note += &classes_note(&t, scored_classes.as_deref());
     Ok((evaluation, note))
 }
 
@@ -337,6 +320,31 @@ fn sample_objects(
             gt.objects_at(st.scene, st.t_us)
         }
     }
+}
+
+/// The note on predicted classes left out, and a warning when most predictions fall where the
+/// ground truth has (almost) nothing.
+fn classes_note(t: &Tally, scored: Option<&[Class]>) -> String {
+    let mut note = String::new();
+    let left_out: Vec<String> = t
+        .predicted
+        .iter()
+        .filter(|(c, _)| scored.is_some_and(|k| !k.contains(c)))
+        .map(|(c, n)| format!("{c} {n}"))
+        .collect();
+    if !left_out.is_empty() {
+        note += &format!(
+            "; predicted boxes of classes not scored: {}",
+            left_out.join(", ")
+        );
+    }
+    if t.predictions > 0 && t.sparse as f64 > SPARSE_SHARE * t.predictions as f64 {
+        let (sparse, predictions) = (t.sparse, t.predictions);
+        note += &format!(
+            "\nwarning: {sparse} of {predictions} predictions fall in samples whose ground truth holds fewer than a tenth as many objects: is the timing right (--at), and the data root?"
+        );
+    }
+    note
 }
 
 /// The note on what was scored, when, and how it was matched.

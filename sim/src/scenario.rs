@@ -482,30 +482,46 @@ impl Scenario {
         if !(self.speed > 0.0 && self.speed.is_finite()) {
             return Err(format!("speed must be > 0 (got {})", self.speed));
         }
-        if self.dataset.kind == crate::cli::DatasetKind::DairV2x {
-            if self.dataset.dataroot.is_none() {
-                return Err("dataset: kind = \"dair-v2x\" needs a dataroot (the folder holding cooperative/, vehicle-side/ and infrastructure-side/)".into());
-            }
-            if self.agents.len() != 2 {
-                return Err(format!(
-                    "dataset: DAIR-V2X has two agents, the vehicle then the roadside unit; the scenario names {}",
-                    self.agents.len()
-                ));
-            }
-            if let Some(a) = self
-                .agents
-                .iter()
-                .find(|a| a.hz.is_some() || a.phase_ms != 0.0)
-            {
-                return Err(format!(
-                    "agents: {}: DAIR-V2X agents capture at their recorded times; leave out hz and phase_ms",
-                    a.name
-                ));
-            }
-            if self.regions.is_some() {
-                return Err("regions: a city runs on the synthetic town or nuScenes tables".into());
-            }
+        self.check_dataset()?;
+        self.check_fuser()?;
+        self.check_agents()?;
+        self.check_regions()?;
+        let names: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
+        crate::timeline::check(&self.events, &names, self.duration_s)
+    }
+
+    /// A DAIR-V2X scenario: a data root, the vehicle and the roadside at their recorded times.
+    fn check_dataset(&self) -> Result<(), String> {
+        if !(self.dataset.kind == crate::cli::DatasetKind::DairV2x) {
+            return Ok(());
         }
+        if self.dataset.dataroot.is_none() {
+            return Err("dataset: kind = \"dair-v2x\" needs a dataroot (the folder holding cooperative/, vehicle-side/ and infrastructure-side/)".into());
+        }
+        if self.agents.len() != 2 {
+            return Err(format!(
+                "dataset: DAIR-V2X has two agents, the vehicle then the roadside unit; the scenario names {}",
+                self.agents.len()
+            ));
+        }
+        if let Some(a) = self
+            .agents
+            .iter()
+            .find(|a| a.hz.is_some() || a.phase_ms != 0.0)
+        {
+            return Err(format!(
+                "agents: {}: DAIR-V2X agents capture at their recorded times; leave out hz and phase_ms",
+                a.name
+            ));
+        }
+        if self.regions.is_some() {
+            return Err("regions: a city runs on the synthetic town or nuScenes tables".into());
+        }
+        Ok(())
+    }
+
+    /// The fuser's method, budget, area, window and registration.
+    fn check_fuser(&self) -> Result<(), String> {
         self.fuser
             .method
             .parse::<Method>()
@@ -525,6 +541,11 @@ impl Scenario {
             .params()
             .validate()
             .map_err(|e| format!("fuser.registration: {e}"))?;
+        Ok(())
+    }
+
+    /// Every agent: a free name, its noise, faults, link, range, rate and phase.
+    fn check_agents(&self) -> Result<(), String> {
         let mut names = std::collections::BTreeSet::new();
         for a in &self.agents {
             keys::validate_chunk("agent name", &a.name).map_err(|e| format!("agents: {e}"))?;
@@ -561,39 +582,44 @@ impl Scenario {
                 return Err(format!("agent {}: phase_ms must be in [0, 60000)", a.name));
             }
         }
-        if let Some(r) = &self.regions {
-            r.check(self.security.mode)?;
-            if self.fuser.track || self.fuser.align {
-                return Err("regions: fuser.track and fuser.align need one fuser".into());
-            }
-            if !fuser_restarts(&self.events).is_empty() {
-                return Err("regions: scripted fuser restarts need one fuser".into());
-            }
-            // The regions' windows are joined by reference time: agents capture in step.
-            let first = &self.agents[0];
-            if let Some(a) = self
-                .agents
-                .iter()
-                .find(|a| a.hz != first.hz || a.phase_ms != first.phase_ms)
-            {
-                return Err(format!(
-                    "regions: agent {} captures out of step with {} (a city's agents share hz and phase_ms)",
-                    a.name, first.name
-                ));
-            }
-            if let Some(a) = self
-                .agents
-                .iter()
-                .find(|a| a.name.starts_with("router-") || a.name.starts_with("fuser-"))
-            {
-                return Err(format!(
-                    "agents: the name '{}' is a city role's (router-NAME, fuser-TILE)",
-                    a.name
-                ));
-            }
+        Ok(())
+    }
+
+    /// A city: its routers and fusers, one fuser's features left out, agents in step.
+    fn check_regions(&self) -> Result<(), String> {
+        let Some(r) = &self.regions else {
+            return Ok(());
+        };
+        r.check(self.security.mode)?;
+        if self.fuser.track || self.fuser.align {
+            return Err("regions: fuser.track and fuser.align need one fuser".into());
         }
-        let names: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
-        crate::timeline::check(&self.events, &names, self.duration_s)
+        if !fuser_restarts(&self.events).is_empty() {
+            return Err("regions: scripted fuser restarts need one fuser".into());
+        }
+        // The regions' windows are joined by reference time: agents capture in step.
+        let first = &self.agents[0];
+        if let Some(a) = self
+            .agents
+            .iter()
+            .find(|a| a.hz != first.hz || a.phase_ms != first.phase_ms)
+        {
+            return Err(format!(
+                "regions: agent {} captures out of step with {} (a city's agents share hz and phase_ms)",
+                a.name, first.name
+            ));
+        }
+        if let Some(a) = self
+            .agents
+            .iter()
+            .find(|a| a.name.starts_with("router-") || a.name.starts_with("fuser-"))
+        {
+            return Err(format!(
+                "agents: the name '{}' is a city role's (router-NAME, fuser-TILE)",
+                a.name
+            ));
+        }
+        Ok(())
     }
 
     /// The noise setting of the agents, in order.

@@ -439,28 +439,7 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
         scene_index.insert(scene.str(i, "token")?, i);
         scenes.push(scene.str(i, "name")?.to_string());
     }
-    // Ego poses by sample, through key-frame sample_data.
-    let mut ego_of_sample: HashMap<String, [f64; 3]> = HashMap::new();
-    if let (Some(sd), Some(ep)) = (&sample_data, &ego_pose) {
-        let mut pose: HashMap<&str, [f64; 3]> = HashMap::new();
-        for i in 0..ep.rows.len() {
-            pose.insert(ep.str(i, "token")?, ep.nums::<3>(i, "translation")?);
-        }
-        for i in 0..sd.rows.len() {
-            let key = sd.rows[i]
-                .get("is_key_frame")
-                .and_then(Value::as_bool)
-                .unwrap_or(true);
-            if !key {
-                continue;
-            }
-            let s = sd.str(i, "sample_token")?;
-            let e = sd.str(i, "ego_pose_token")?;
-            if let Some(p) = pose.get(e) {
-                ego_of_sample.entry(s.to_string()).or_insert(*p);
-            }
-        }
-    }
+    let ego_of_sample = ego_by_sample(sample_data.as_ref(), ego_pose.as_ref())?;
     let mut frames = Vec::with_capacity(sample.rows.len());
     let mut frame_of: HashMap<&str, usize> = HashMap::new();
     for i in 0..sample.rows.len() {
@@ -513,9 +492,59 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
             velocity: None,
         });
     }
-    // Tracks: each object's annotations in time order, with the devkit's velocities.
-    let mut tracks: Vec<BTreeMap<u32, Vec<TrackPoint>>> = vec![BTreeMap::new(); scenes.len()];
-    for f in &frames {
+    let tracks = tracks_with_velocities(&mut frames, scenes.len());
+    frames.sort_by(|a, b| {
+        (a.scene, a.timestamp_us, &a.sample_token).cmp(&(b.scene, b.timestamp_us, &b.sample_token))
+    });
+    Ok(GroundTruth {
+        scenes,
+        frames,
+        tokens,
+        skipped,
+        motion: Motion::Tracks(tracks),
+        recorded: None,
+    })
+}
+
+/// Ego positions by sample token, through the key-frame `sample_data` records, when both
+/// tables are present.
+fn ego_by_sample(
+    sample_data: Option<&Table>,
+    ego_pose: Option<&Table>,
+) -> Result<HashMap<String, [f64; 3]>, LoadError> {
+    let mut out = HashMap::new();
+    let (Some(sd), Some(ep)) = (sample_data, ego_pose) else {
+        return Ok(out);
+    };
+    let mut pose: HashMap<&str, [f64; 3]> = HashMap::new();
+    for i in 0..ep.rows.len() {
+        pose.insert(ep.str(i, "token")?, ep.nums::<3>(i, "translation")?);
+    }
+    for i in 0..sd.rows.len() {
+        let key = sd.rows[i]
+            .get("is_key_frame")
+            .and_then(Value::as_bool)
+            .unwrap_or(true);
+        if !key {
+            continue;
+        }
+        let s = sd.str(i, "sample_token")?;
+        let e = sd.str(i, "ego_pose_token")?;
+        if let Some(p) = pose.get(e) {
+            out.entry(s.to_string()).or_insert(*p);
+        }
+    }
+    Ok(out)
+}
+
+/// Each object's annotations per scene in time order, and every annotation's velocity as the
+/// devkit computes it (set on the frames' objects too).
+fn tracks_with_velocities(
+    frames: &mut [GtFrame],
+    scenes: usize,
+) -> Vec<BTreeMap<u32, Vec<TrackPoint>>> {
+    let mut tracks: Vec<BTreeMap<u32, Vec<TrackPoint>>> = vec![BTreeMap::new(); scenes];
+    for f in frames.iter() {
         for o in &f.objects {
             tracks[f.scene].entry(o.id).or_default().push(TrackPoint {
                 t_us: f.timestamp_us,
@@ -543,22 +572,12 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
                 .map(move |p| ((sc, p.object.id, p.t_us), p.object.velocity))
         })
         .collect();
-    for f in &mut frames {
+    for f in frames.iter_mut() {
         for o in &mut f.objects {
             o.velocity = velocity[&(f.scene, o.id, f.timestamp_us)];
         }
     }
-    frames.sort_by(|a, b| {
-        (a.scene, a.timestamp_us, &a.sample_token).cmp(&(b.scene, b.timestamp_us, &b.sample_token))
-    });
-    Ok(GroundTruth {
-        scenes,
-        frames,
-        tokens,
-        skipped,
-        motion: Motion::Tracks(tracks),
-        recorded: None,
-    })
+    tracks
 }
 
 #[cfg(test)]

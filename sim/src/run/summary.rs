@@ -3,7 +3,7 @@
 
 use super::roles::{agent_captures, agent_view, FuserOutcome};
 use super::schedule::Schedule;
-use crate::dataset::GroundTruth;
+use crate::dataset::{GroundTruth, GtObject};
 use crate::metrics::{Accumulator, Metrics};
 use crate::scenario::Scenario;
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
@@ -14,6 +14,7 @@ use v2x_fuser::ingest::AgentStats;
 use v2x_fuser::node::Latency;
 use v2x_protocol::nuscenes_json::Results;
 use v2x_protocol::traffic::{Flow, Traffic};
+use v2x_protocol::Detection;
 
 /// Bandwidth of one agent: its own side (what its session sent, when the agent ran in this
 /// process) and the fuser's (what arrived, when the fuser ran here), from Zenoh's statistics.
@@ -248,70 +249,128 @@ pub fn summarize(
     totals: &BTreeMap<String, AgentSide>,
     wall_s: f64,
 ) -> Summary {
-    // Fused output is scored at its reference time against the ground truth of that instant;
-    // a scheduled frame that the run reached but no fused window came near counts as missed.
-    // Boxes of recorded agents (DAIR-V2X) carry no ground-truth ids: they match by distance.
-    let score = |acc: &mut Accumulator,
-                 objects: &[crate::dataset::GtObject],
-                 dets: &[v2x_protocol::Detection]| {
-        if gt.recorded.is_some() {
-            acc.add_frame(
-                objects,
-                &crate::metrics::ids_by_distance(objects, dets, 2.0),
-            );
-        } else {
-            acc.add_frame(objects, dets);
-        }
-    };
-    let mut fused_acc = Accumulator::new();
+    let (fused, covered) = fused_metrics(gt, schedule, outcome);
+    let tracking = scenario
+        .fuser
+        .track
+        .then(|| tracking_metrics(gt, schedule, outcome, &covered));
+    let (bandwidth, counts) = agent_traffic(scenario, schedule, outcome, totals);
+    Summary {
+        namespace: scenario.namespace.clone(),
+        method: scenario.method().name(),
+        noise: scenario.noise().name,
+        frames_scheduled: schedule.frames.len(),
+        windows: outcome.stats.windows,
+        windows_incomplete: outcome.stats.windows_incomplete,
+        wall_s,
+        fused,
+        tracking,
+        agents: agent_metrics(scenario, gt, schedule, outcome.reached_us),
+        bandwidth,
+        counts,
+        fuser_traffic: outcome.traffic.last().map(|(_, tr)| tr.total),
+        fuser_keys: outcome
+            .traffic
+            .last()
+            .map(|(_, tr)| tr.keys.clone())
+            .unwrap_or_default(),
+        e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
+        fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
+        security: SecurityReport {
+            mode: scenario.security.mode.name().into(),
+            session_setup_ms: None,
+        },
+        regions: Vec::new(),
+    }
+}
+
+/// Scores one frame; boxes of recorded agents (DAIR-V2X) carry no ground-truth ids and match by
+/// distance.
+fn score(gt: &GroundTruth, acc: &mut Accumulator, objects: &[GtObject], dets: &[Detection]) {
+    if gt.recorded.is_some() {
+        acc.add_frame(
+            objects,
+            &crate::metrics::ids_by_distance(objects, dets, 2.0),
+        );
+    } else {
+        acc.add_frame(objects, dets);
+    }
+}
+
+/// The fused output scored at its reference times against the ground truth of those instants;
+/// a scheduled frame the run reached but no fused window came near counts as missed. Also which
+/// scheduled frames a window came near.
+fn fused_metrics(
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+) -> (Metrics, Vec<bool>) {
+    let mut acc = Accumulator::new();
     let mut covered = vec![false; schedule.frames.len()];
     for (&t, dets) in &outcome.fused {
-        score(&mut fused_acc, &gt.objects_at(schedule.scene, t), dets);
+        score(gt, &mut acc, &gt.objects_at(schedule.scene, t), dets);
         if let Some(k) = schedule.frame_near(t) {
             covered[k] = true;
         }
     }
-    let reached = outcome.reached_us;
     for (k, &gi) in schedule.frames.iter().enumerate() {
         let f = &gt.frames[gi];
-        if !covered[k] && f.timestamp_us <= reached {
-            fused_acc.add_frame(&f.objects, &[]);
+        if !covered[k] && f.timestamp_us <= outcome.reached_us {
+            acc.add_frame(&f.objects, &[]);
         }
     }
-    let tracking = scenario.fuser.track.then(|| {
-        // each window's tracks at its time, and every reached frame no window came near empty
-        let mut frames: BTreeMap<u64, (Vec<crate::dataset::GtObject>, Vec<TrackBox>)> = outcome
-            .tracks
-            .iter()
-            .map(|(&t, dets)| {
-                let boxes = dets
-                    .iter()
-                    .map(|d| TrackBox {
-                        track: d.id.to_string(),
-                        class: d.class,
-                        center: [d.center[0], d.center[1]],
-                        score: d.score,
-                    })
-                    .collect();
-                (t, (gt.objects_at(schedule.scene, t), boxes))
-            })
-            .collect();
-        for (k, &gi) in schedule.frames.iter().enumerate() {
-            let f = &gt.frames[gi];
-            if !covered[k] && f.timestamp_us <= reached {
-                frames.insert(f.timestamp_us, (f.objects.clone(), Vec::new()));
-            }
+    (acc.summary(), covered)
+}
+
+/// The tracks scored as the tracking benchmark does: each window's tracks at its time, and
+/// every reached frame no window came near as empty.
+fn tracking_metrics(
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+    covered: &[bool],
+) -> TrackingMetrics {
+    let mut frames: BTreeMap<u64, (Vec<GtObject>, Vec<TrackBox>)> = outcome
+        .tracks
+        .iter()
+        .map(|(&t, dets)| {
+            let boxes = dets
+                .iter()
+                .map(|d| TrackBox {
+                    track: d.id.to_string(),
+                    class: d.class,
+                    center: [d.center[0], d.center[1]],
+                    score: d.score,
+                })
+                .collect();
+            (t, (gt.objects_at(schedule.scene, t), boxes))
+        })
+        .collect();
+    for (k, &gi) in schedule.frames.iter().enumerate() {
+        let f = &gt.frames[gi];
+        if !covered[k] && f.timestamp_us <= outcome.reached_us {
+            frames.insert(f.timestamp_us, (f.objects.clone(), Vec::new()));
         }
-        let mut eval = TrackingEval::new();
-        for (t, (objects, boxes)) in &frames {
-            eval.add_frame(schedule.scene, *t, objects, boxes);
-        }
-        eval.summary()
-    });
-    // Each agent alone, at its own capture times.
-    let mut agent_acc: Vec<Accumulator> = vec![Accumulator::new(); scenario.agents.len()];
-    for (idx, acc) in agent_acc.iter_mut().enumerate() {
-        let mut timeline = scenario.agents[idx].timeline(&scenario.events);
+    }
+    let mut eval = TrackingEval::new();
+    for (t, (objects, boxes)) in &frames {
+        eval.add_frame(schedule.scene, *t, objects, boxes);
+    }
+    eval.summary()
+}
+
+/// Each agent alone, at its own capture times up to `reached`, as it saw them: absent while it
+/// had left, with the noise of the moment.
+fn agent_metrics(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    reached: u64,
+) -> BTreeMap<String, Metrics> {
+    let mut out = BTreeMap::new();
+    for (idx, a) in scenario.agents.iter().enumerate() {
+        let mut acc = Accumulator::new();
+        let mut timeline = a.timeline(&scenario.events);
         for (j, t) in agent_captures(scenario, gt, schedule, idx)
             .into_iter()
             .enumerate()
@@ -319,16 +378,26 @@ pub fn summarize(
             if t > reached {
                 break;
             }
-            // as the agent saw it: absent while it had left, with the noise of the moment
             let state = timeline.at(t.saturating_sub(schedule.t0_us));
             if !state.present {
                 continue;
             }
             let objects = gt.objects_at(schedule.scene, t);
             let view = agent_view(scenario, gt, schedule, idx, j, t, &state.noise).0;
-            score(acc, &objects, &view);
+            score(gt, &mut acc, &objects, &view);
         }
+        out.insert(a.name.clone(), acc.summary());
     }
+    out
+}
+
+/// Each agent's bandwidth and frame counts, from its own side and the fuser's.
+fn agent_traffic(
+    scenario: &Scenario,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+    totals: &BTreeMap<String, AgentSide>,
+) -> (BTreeMap<String, Bandwidth>, BTreeMap<String, Counts>) {
     let mut bandwidth = BTreeMap::new();
     let mut counts = BTreeMap::new();
     for a in &scenario.agents {
@@ -369,38 +438,7 @@ pub fn summarize(
             },
         );
     }
-    Summary {
-        namespace: scenario.namespace.clone(),
-        method: scenario.method().name(),
-        noise: scenario.noise().name,
-        frames_scheduled: schedule.frames.len(),
-        windows: outcome.stats.windows,
-        windows_incomplete: outcome.stats.windows_incomplete,
-        wall_s,
-        fused: fused_acc.summary(),
-        tracking,
-        agents: scenario
-            .agents
-            .iter()
-            .zip(&agent_acc)
-            .map(|(a, acc)| (a.name.clone(), acc.summary()))
-            .collect(),
-        bandwidth,
-        counts,
-        fuser_traffic: outcome.traffic.last().map(|(_, tr)| tr.total),
-        fuser_keys: outcome
-            .traffic
-            .last()
-            .map(|(_, tr)| tr.keys.clone())
-            .unwrap_or_default(),
-        e2e_latency_ms: outcome.stats.e2e_latency_ms.clone(),
-        fusion_latency_ms: outcome.stats.fusion_latency_ms.clone(),
-        security: SecurityReport {
-            mode: scenario.security.mode.name().into(),
-            session_setup_ms: None,
-        },
-        regions: Vec::new(),
-    }
+    (bandwidth, counts)
 }
 
 /// The fused output as a results file keyed by the ground truth's sample tokens.
