@@ -361,42 +361,63 @@ pub fn detect(
         });
     }
     if f.false_positives > 0.0 {
-        let radius = range.map_or(FALSE_POSITIVE_RADIUS, |r| r.min(FALSE_POSITIVE_RADIUS));
-        let n = Poisson::new(f.false_positives).map_or(0.0, |p| p.sample(&mut frng)) as usize;
         let with_velocity = objects.iter().any(|o| o.velocity.is_some());
-        for _ in 0..n {
-            let class = false_positive_class(frng.gen());
-            // uniform over the disc's area
-            let r = radius * frng.gen::<f64>().sqrt();
-            let a = frng.gen_range(0.0..std::f64::consts::TAU);
-            let e: [f64; 4] = std::array::from_fn(|_| StandardNormal.sample(&mut frng));
-            let size = class.typical_size();
-            out.push(Detection {
-                class,
-                center: [
-                    position[0] + r * a.cos(),
-                    position[1] + r * a.sin(),
-                    position[2] + size[2] / 2.0,
-                ],
-                size: std::array::from_fn(|k| (size[k] * (1.0 + 0.1 * e[k])).max(0.05)),
-                yaw: wrap_angle(frng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)),
-                score: (noise.base_confidence - FALSE_POSITIVE_SCORE_DROP + 0.05 * e[3])
-                    .clamp(0.01, 1.0),
-                std: *s,
-                pos_cov: None,
-                velocity: with_velocity.then_some(Velocity {
-                    v: [0.0, 0.0],
-                    std: [sv, sv],
-                }),
-                id: NO_ID,
-            });
-        }
+        out.extend(false_positives(
+            noise,
+            position,
+            range,
+            with_velocity,
+            &mut frng,
+        ));
     }
     let [dx, dy, dyaw] = f.pose_error(seed, agent, capture.scene, capture.t_us);
     if dx != 0.0 || dy != 0.0 || dyaw != 0.0 {
         for d in &mut out {
             mislocate(d, position, [dx, dy, dyaw]);
         }
+    }
+    out
+}
+
+/// An agent's false positives of one capture (a Poisson count at its faults' rate): classes as
+/// detectors confuse them, placed uniformly over the disc around the agent within its range.
+fn false_positives(
+    noise: &AgentNoise,
+    position: [f64; 3],
+    range: Option<f64>,
+    with_velocity: bool,
+    frng: &mut ChaCha8Rng,
+) -> Vec<Detection> {
+    let (f, s, sv) = (&noise.faults, &noise.std, noise.velocity_std);
+    let mut out = Vec::new();
+    let radius = range.map_or(FALSE_POSITIVE_RADIUS, |r| r.min(FALSE_POSITIVE_RADIUS));
+    let n = Poisson::new(f.false_positives).map_or(0.0, |p| p.sample(frng)) as usize;
+    for _ in 0..n {
+        let class = false_positive_class(frng.gen());
+        // uniform over the disc's area
+        let r = radius * frng.gen::<f64>().sqrt();
+        let a = frng.gen_range(0.0..std::f64::consts::TAU);
+        let e: [f64; 4] = std::array::from_fn(|_| StandardNormal.sample(frng));
+        let size = class.typical_size();
+        out.push(Detection {
+            class,
+            center: [
+                position[0] + r * a.cos(),
+                position[1] + r * a.sin(),
+                position[2] + size[2] / 2.0,
+            ],
+            size: std::array::from_fn(|k| (size[k] * (1.0 + 0.1 * e[k])).max(0.05)),
+            yaw: wrap_angle(frng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)),
+            score: (noise.base_confidence - FALSE_POSITIVE_SCORE_DROP + 0.05 * e[3])
+                .clamp(0.01, 1.0),
+            std: *s,
+            pos_cov: None,
+            velocity: with_velocity.then_some(Velocity {
+                v: [0.0, 0.0],
+                std: [sv, sv],
+            }),
+            id: NO_ID,
+        });
     }
     out
 }
