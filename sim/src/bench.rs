@@ -309,47 +309,12 @@ pub fn run_tracking(
                     )
                 },
                 |(mut accs, mut evals), frames| {
-                    let mut trackers = vec![Tracker::new(params); slots];
-                    if gt_wls.is_some() {
-                        let by_id = TrackerParams {
-                            by_id: true,
-                            ..params
-                        };
-                        trackers[slots - 1] = Tracker::new(by_id);
+                    let (a, e) = track_scene(gt, &frames, setting, cfg, params, gt_wls);
+                    for (x, y) in accs.iter_mut().zip(&a) {
+                        x.merge(y);
                     }
-                    let scene = gt.frames[frames[0]].scene;
-                    for i in frames {
-                        let f = &gt.frames[i];
-                        let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                        let mut tracked = |slot: usize, boxes: &[Detection]| {
-                            let out = trackers[slot].step(f.timestamp_us, boxes);
-                            let marks: Vec<TrackBox> = out
-                                .iter()
-                                .map(|t| TrackBox {
-                                    track: format!("{scene}-{}", t.tracking_id),
-                                    class: t.det.class,
-                                    center: [t.det.center[0], t.det.center[1]],
-                                    score: t.det.score,
-                                })
-                                .collect();
-                            let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
-                            accs[slot].add_frame(&f.objects, &boxes);
-                            evals[slot].add_frame(scene, f.timestamp_us, &f.objects, &marks);
-                        };
-                        for (a, d) in dets.iter().enumerate() {
-                            tracked(a, d);
-                        }
-                        let fused: Vec<Vec<Detection>> =
-                            cfg.methods.iter().map(|m| m.fuse(&dets)).collect();
-                        for (m, fused) in fused.iter().enumerate() {
-                            tracked(n_agents + 2 * m + 1, fused);
-                        }
-                        if let Some(m) = gt_wls {
-                            tracked(slots - 1, &fused[m]);
-                        }
-                        for (m, fused) in fused.iter().enumerate() {
-                            accs[n_agents + 2 * m].add_frame(&f.objects, fused);
-                        }
+                    for (x, y) in evals.iter_mut().zip(e) {
+                        x.merge(y);
                     }
                     (accs, evals)
                 },
@@ -389,6 +354,64 @@ pub fn run_tracking(
         }
     }
     rows
+}
+
+/// One scene of the tracking table: its frames in order, each agent's boxes and each method's
+/// fused boxes tracked (and, with gt-wls, its fused boxes tracked by id), scored per slot.
+fn track_scene(
+    gt: &GroundTruth,
+    frames: &[usize],
+    setting: &NoiseSetting,
+    cfg: &BenchConfig,
+    params: TrackerParams,
+    gt_wls: Option<usize>,
+) -> (Vec<Accumulator>, Vec<TrackingEval>) {
+    let n_agents = setting.agents.len();
+    let slots = n_agents + 2 * cfg.methods.len() + usize::from(gt_wls.is_some());
+    let mut accs = vec![Accumulator::new(); slots];
+    let mut evals = vec![TrackingEval::new(); slots];
+    let mut trackers = vec![Tracker::new(params); slots];
+    if gt_wls.is_some() {
+        let by_id = TrackerParams {
+            by_id: true,
+            ..params
+        };
+        trackers[slots - 1] = Tracker::new(by_id);
+    }
+    let scene = gt.frames[frames[0]].scene;
+    for &i in frames {
+        let f = &gt.frames[i];
+        let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+        let mut tracked = |slot: usize, boxes: &[Detection]| {
+            let out = trackers[slot].step(f.timestamp_us, boxes);
+            let marks: Vec<TrackBox> = out
+                .iter()
+                .map(|t| TrackBox {
+                    track: format!("{scene}-{}", t.tracking_id),
+                    class: t.det.class,
+                    center: [t.det.center[0], t.det.center[1]],
+                    score: t.det.score,
+                })
+                .collect();
+            let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
+            accs[slot].add_frame(&f.objects, &boxes);
+            evals[slot].add_frame(scene, f.timestamp_us, &f.objects, &marks);
+        };
+        for (a, d) in dets.iter().enumerate() {
+            tracked(a, d);
+        }
+        let fused: Vec<Vec<Detection>> = cfg.methods.iter().map(|m| m.fuse(&dets)).collect();
+        for (m, fused) in fused.iter().enumerate() {
+            tracked(n_agents + 2 * m + 1, fused);
+        }
+        if let Some(m) = gt_wls {
+            tracked(slots - 1, &fused[m]);
+        }
+        for (m, fused) in fused.iter().enumerate() {
+            accs[n_agents + 2 * m].add_frame(&f.objects, fused);
+        }
+    }
+    (accs, evals)
 }
 
 /// The tracking rows as a Markdown table.

@@ -141,36 +141,7 @@ fn scene_actors(rng: &mut ChaCha8Rng) -> Vec<Actor> {
         .exp()
         .round() as usize)
         .clamp(8, 80);
-    // Lane slots: 8 lanes (two roads x four lanes), a speed each, slots 12 m apart.
-    let lane_speed: Vec<f64> = (0..8).map(|_| rng.gen_range(5.0..12.0)).collect();
-    let mut lane_slots: Vec<Vec<f64>> = (0..8)
-        .map(|_| (0..15).map(|k| -HALF_SPAN + 12.0 * k as f64).collect())
-        .collect();
-    let mut parking: Vec<(usize, f64, f64)> = Vec::new(); // (road, side, s)
-    for road in 0..2 {
-        for side in [-1.0, 1.0] {
-            for k in 0..24 {
-                let s = -HALF_SPAN + 7.0 * k as f64 + 3.5;
-                if s.abs() > 16.0 {
-                    parking.push((road, side, s));
-                }
-            }
-        }
-    }
-    // Work zone: on one road's kerb, away from the intersection.
-    let zone_road = rng.gen_range(0..2);
-    let zone_side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-    let zone_s = rng.gen_range(25.0..70.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-    let mut zone_k = 0usize;
-
-    let road_frame = |road: usize| -> ([f64; 2], [f64; 2]) {
-        // (along, across) unit vectors
-        if road == 0 {
-            ([1.0, 0.0], [0.0, 1.0])
-        } else {
-            ([0.0, 1.0], [-1.0, 0.0])
-        }
-    };
+    let mut layout = Layout::draw(rng);
     let mut actors = Vec::with_capacity(count);
     for _ in 0..count {
         let class = pick_class(rng);
@@ -182,150 +153,231 @@ fn scene_actors(rng: &mut ChaCha8Rng) -> Vec<Actor> {
             | Class::Truck
             | Class::Bus
             | Class::Trailer
-            | Class::ConstructionVehicle => {
-                let parked = class == Class::Car && rng.gen_bool(0.4)
-                    || class == Class::ConstructionVehicle
-                    || class == Class::Trailer && rng.gen_bool(0.5);
-                let mut free_lanes: Vec<usize> =
-                    (0..8).filter(|&l| !lane_slots[l].is_empty()).collect();
-                if parked || free_lanes.is_empty() {
-                    if parking.is_empty() {
-                        continue;
-                    }
-                    let (road, side, s) = parking.swap_remove(rng.gen_range(0..parking.len()));
-                    let (along, across) = road_frame(road);
-                    let off = side * KERB;
-                    let heading = if side > 0.0 {
-                        0.0
-                    } else {
-                        std::f64::consts::PI
-                    };
-                    Actor {
-                        class,
-                        size,
-                        origin: [
-                            across[0] * off + along[0] * s,
-                            across[1] * off + along[1] * s,
-                        ],
-                        dir: along,
-                        s0: 0.0,
-                        speed: 0.0,
-                        wraps: false,
-                        yaw: wrap_angle(
-                            along[1].atan2(along[0]) + heading + rng.gen_range(-0.05..0.05),
-                        ),
-                    }
-                } else {
-                    let lane = free_lanes.swap_remove(rng.gen_range(0..free_lanes.len()));
-                    let slots = &mut lane_slots[lane];
-                    let s0 = slots.swap_remove(rng.gen_range(0..slots.len()));
-                    let (along, across) = road_frame(lane / 4);
-                    let off = LANES[lane % 4];
-                    // right-hand traffic: lanes on the positive side drive against `along`
-                    let sign = if off > 0.0 { -1.0 } else { 1.0 };
-                    let dir = [along[0] * sign, along[1] * sign];
-                    Actor {
-                        class,
-                        size,
-                        origin: [across[0] * off, across[1] * off],
-                        dir,
-                        s0,
-                        speed: lane_speed[lane],
-                        wraps: true,
-                        yaw: dir[1].atan2(dir[0]),
-                    }
-                }
-            }
-            Class::Pedestrian => {
-                if rng.gen_bool(0.3) {
-                    // crossing at a crosswalk, back and forth over the road width
-                    let at = if rng.gen_bool(0.5) { 13.0 } else { -13.0 };
-                    let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                    let dir = [across[0] * sign, across[1] * sign];
-                    Actor {
-                        class,
-                        size,
-                        origin: [along[0] * at, along[1] * at],
-                        dir,
-                        s0: rng.gen_range(-9.0..9.0),
-                        speed: rng.gen_range(1.0..1.6),
-                        wraps: false,
-                        yaw: dir[1].atan2(dir[0]),
-                    }
-                } else {
-                    let side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                    let off = side * (SIDEWALK + rng.gen_range(-1.0..1.0));
-                    let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                    let dir = [along[0] * sign, along[1] * sign];
-                    let standing = rng.gen_bool(0.2);
-                    Actor {
-                        class,
-                        size,
-                        origin: [across[0] * off, across[1] * off],
-                        dir,
-                        s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
-                        speed: if standing {
-                            0.0
-                        } else {
-                            rng.gen_range(1.0..1.7)
-                        },
-                        wraps: true,
-                        yaw: dir[1].atan2(dir[0]),
-                    }
-                }
-            }
-            Class::Bicycle | Class::Motorcycle => {
-                let parked = rng.gen_bool(0.3);
-                let side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-                let off = side * if parked { SIDEWALK - 1.2 } else { 6.6 };
-                let sign = -side;
-                let dir = [along[0] * sign, along[1] * sign];
-                let speed = match (parked, class) {
-                    (true, _) => 0.0,
-                    (false, Class::Bicycle) => rng.gen_range(3.0..7.0),
-                    _ => rng.gen_range(6.0..12.0),
-                };
-                Actor {
-                    class,
-                    size,
-                    origin: [across[0] * off, across[1] * off],
-                    dir,
-                    s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
-                    speed,
-                    wraps: true,
-                    yaw: dir[1].atan2(dir[0]),
-                }
-            }
-            Class::Barrier | Class::TrafficCone => {
-                let (along, across) = road_frame(zone_road);
-                let s =
-                    zone_s + 1.2 * zone_k as f64 * if class == Class::Barrier { 2.2 } else { 1.0 };
-                let off = zone_side
-                    * (KERB - 1.5
-                        + if class == Class::TrafficCone {
-                            -1.0
-                        } else {
-                            0.0
-                        });
-                zone_k += 1;
-                Actor {
-                    class,
-                    size,
-                    origin: [
-                        across[0] * off + along[0] * s,
-                        across[1] * off + along[1] * s,
-                    ],
-                    dir: along,
-                    s0: 0.0,
-                    speed: 0.0,
-                    wraps: false,
-                    yaw: along[1].atan2(along[0]) + rng.gen_range(-0.1..0.1),
-                }
-            }
+            | Class::ConstructionVehicle => match layout.vehicle(rng, class, size) {
+                Some(a) => a,
+                None => continue,
+            },
+            Class::Pedestrian => pedestrian(rng, size, along, across),
+            Class::Bicycle | Class::Motorcycle => two_wheeler(rng, class, size, along, across),
+            Class::Barrier | Class::TrafficCone => layout.work_zone(rng, class, size),
         };
         actors.push(actor);
     }
     actors
+}
+
+/// A road's (along, across) unit vectors.
+fn road_frame(road: usize) -> ([f64; 2], [f64; 2]) {
+    if road == 0 {
+        ([1.0, 0.0], [0.0, 1.0])
+    } else {
+        ([0.0, 1.0], [-1.0, 0.0])
+    }
+}
+
+/// Where a scene's vehicles and work zone go: lane slots, parking bays and the work zone.
+struct Layout {
+    /// A speed per lane (8 lanes: two roads x four lanes).
+    lane_speed: Vec<f64>,
+    /// Free slots per lane, 12 m apart.
+    lane_slots: Vec<Vec<f64>>,
+    /// Free parking bays: (road, side, s).
+    parking: Vec<(usize, f64, f64)>,
+    zone_road: usize,
+    zone_side: f64,
+    zone_s: f64,
+    /// Work-zone objects placed so far.
+    zone_k: usize,
+}
+
+impl Layout {
+    /// The lanes' speeds and the work zone (on one road's kerb, away from the intersection).
+    fn draw(rng: &mut ChaCha8Rng) -> Layout {
+        let lane_speed: Vec<f64> = (0..8).map(|_| rng.gen_range(5.0..12.0)).collect();
+        let lane_slots: Vec<Vec<f64>> = (0..8)
+            .map(|_| (0..15).map(|k| -HALF_SPAN + 12.0 * k as f64).collect())
+            .collect();
+        let mut parking: Vec<(usize, f64, f64)> = Vec::new();
+        for road in 0..2 {
+            for side in [-1.0, 1.0] {
+                for k in 0..24 {
+                    let s = -HALF_SPAN + 7.0 * k as f64 + 3.5;
+                    if s.abs() > 16.0 {
+                        parking.push((road, side, s));
+                    }
+                }
+            }
+        }
+        let zone_road = rng.gen_range(0..2);
+        let zone_side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let zone_s = rng.gen_range(25.0..70.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        Layout {
+            lane_speed,
+            lane_slots,
+            parking,
+            zone_road,
+            zone_side,
+            zone_s,
+            zone_k: 0,
+        }
+    }
+
+    /// A vehicle: parked in a free bay, or driving in a free lane slot; none when neither is
+    /// left.
+    fn vehicle(&mut self, rng: &mut ChaCha8Rng, class: Class, size: [f64; 3]) -> Option<Actor> {
+        let (lane_slots, parking, lane_speed) =
+            (&mut self.lane_slots, &mut self.parking, &self.lane_speed);
+        let parked = class == Class::Car && rng.gen_bool(0.4)
+            || class == Class::ConstructionVehicle
+            || class == Class::Trailer && rng.gen_bool(0.5);
+        let mut free_lanes: Vec<usize> = (0..8).filter(|&l| !lane_slots[l].is_empty()).collect();
+        let actor = if parked || free_lanes.is_empty() {
+            if parking.is_empty() {
+                return None;
+            }
+            let (road, side, s) = parking.swap_remove(rng.gen_range(0..parking.len()));
+            let (along, across) = road_frame(road);
+            let off = side * KERB;
+            let heading = if side > 0.0 {
+                0.0
+            } else {
+                std::f64::consts::PI
+            };
+            Actor {
+                class,
+                size,
+                origin: [
+                    across[0] * off + along[0] * s,
+                    across[1] * off + along[1] * s,
+                ],
+                dir: along,
+                s0: 0.0,
+                speed: 0.0,
+                wraps: false,
+                yaw: wrap_angle(along[1].atan2(along[0]) + heading + rng.gen_range(-0.05..0.05)),
+            }
+        } else {
+            let lane = free_lanes.swap_remove(rng.gen_range(0..free_lanes.len()));
+            let slots = &mut lane_slots[lane];
+            let s0 = slots.swap_remove(rng.gen_range(0..slots.len()));
+            let (along, across) = road_frame(lane / 4);
+            let off = LANES[lane % 4];
+            // right-hand traffic: lanes on the positive side drive against `along`
+            let sign = if off > 0.0 { -1.0 } else { 1.0 };
+            let dir = [along[0] * sign, along[1] * sign];
+            Actor {
+                class,
+                size,
+                origin: [across[0] * off, across[1] * off],
+                dir,
+                s0,
+                speed: lane_speed[lane],
+                wraps: true,
+                yaw: dir[1].atan2(dir[0]),
+            }
+        };
+        Some(actor)
+    }
+
+    /// A barrier or cone of the work zone, each the next along it.
+    fn work_zone(&mut self, rng: &mut ChaCha8Rng, class: Class, size: [f64; 3]) -> Actor {
+        let (zone_road, zone_side, zone_s) = (self.zone_road, self.zone_side, self.zone_s);
+        let zone_k = &mut self.zone_k;
+        let (along, across) = road_frame(zone_road);
+        let s = zone_s + 1.2 * *zone_k as f64 * if class == Class::Barrier { 2.2 } else { 1.0 };
+        let off = zone_side
+            * (KERB - 1.5
+                + if class == Class::TrafficCone {
+                    -1.0
+                } else {
+                    0.0
+                });
+        *zone_k += 1;
+        Actor {
+            class,
+            size,
+            origin: [
+                across[0] * off + along[0] * s,
+                across[1] * off + along[1] * s,
+            ],
+            dir: along,
+            s0: 0.0,
+            speed: 0.0,
+            wraps: false,
+            yaw: along[1].atan2(along[0]) + rng.gen_range(-0.1..0.1),
+        }
+    }
+}
+
+/// A pedestrian: crossing at a crosswalk, or on a sidewalk, walking or standing.
+fn pedestrian(rng: &mut ChaCha8Rng, size: [f64; 3], along: [f64; 2], across: [f64; 2]) -> Actor {
+    let class = Class::Pedestrian;
+    if rng.gen_bool(0.3) {
+        // crossing at a crosswalk, back and forth over the road width
+        let at = if rng.gen_bool(0.5) { 13.0 } else { -13.0 };
+        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let dir = [across[0] * sign, across[1] * sign];
+        Actor {
+            class,
+            size,
+            origin: [along[0] * at, along[1] * at],
+            dir,
+            s0: rng.gen_range(-9.0..9.0),
+            speed: rng.gen_range(1.0..1.6),
+            wraps: false,
+            yaw: dir[1].atan2(dir[0]),
+        }
+    } else {
+        let side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let off = side * (SIDEWALK + rng.gen_range(-1.0..1.0));
+        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let dir = [along[0] * sign, along[1] * sign];
+        let standing = rng.gen_bool(0.2);
+        Actor {
+            class,
+            size,
+            origin: [across[0] * off, across[1] * off],
+            dir,
+            s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
+            speed: if standing {
+                0.0
+            } else {
+                rng.gen_range(1.0..1.7)
+            },
+            wraps: true,
+            yaw: dir[1].atan2(dir[0]),
+        }
+    }
+}
+
+/// A bicycle or motorcycle: parked at the sidewalk, or riding at the road's edge.
+fn two_wheeler(
+    rng: &mut ChaCha8Rng,
+    class: Class,
+    size: [f64; 3],
+    along: [f64; 2],
+    across: [f64; 2],
+) -> Actor {
+    let parked = rng.gen_bool(0.3);
+    let side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+    let off = side * if parked { SIDEWALK - 1.2 } else { 6.6 };
+    let sign = -side;
+    let dir = [along[0] * sign, along[1] * sign];
+    let speed = match (parked, class) {
+        (true, _) => 0.0,
+        (false, Class::Bicycle) => rng.gen_range(3.0..7.0),
+        _ => rng.gen_range(6.0..12.0),
+    };
+    Actor {
+        class,
+        size,
+        origin: [across[0] * off, across[1] * off],
+        dir,
+        s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
+        speed,
+        wraps: true,
+        yaw: dir[1].atan2(dir[0]),
+    }
 }
 
 /// One scene of the town in continuous time: its actors, their ids, where the scene sits on the
