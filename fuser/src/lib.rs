@@ -18,6 +18,7 @@ pub mod fusion;
 pub mod fuzzing;
 pub mod geometry;
 pub mod ingest;
+pub mod learn;
 pub mod method;
 pub mod motion;
 #[cfg(feature = "node")]

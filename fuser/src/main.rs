@@ -65,6 +65,8 @@ struct FuseArgs {
     default_std: Option<v2x_protocol::Uncertainty>,
     #[command(flatten)]
     motion: MotionArgs,
+    #[command(flatten)]
+    learn: LearnArgs,
     /// Window width delta t (ms) when files carry capture times.
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
@@ -93,6 +95,8 @@ struct TrackArgs {
     default_std: Option<v2x_protocol::Uncertainty>,
     #[command(flatten)]
     motion: MotionArgs,
+    #[command(flatten)]
+    learn: LearnArgs,
     /// Window width delta t (ms).
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
@@ -134,6 +138,8 @@ struct NodeArgs {
     limits: Box<IngestArgs>,
     #[command(flatten)]
     motion: MotionArgs,
+    #[command(flatten)]
+    learn: LearnArgs,
     #[command(flatten)]
     region: RegionArgs,
     #[command(flatten)]
@@ -220,6 +226,63 @@ impl MotionArgs {
                 time_scale: self.time_scale,
             }),
         )
+    }
+}
+
+/// Each agent's stds learned from its own boxes (`docs/method.md` §9).
+#[derive(clap::Args)]
+struct LearnArgs {
+    /// Learn each agent's stds from its boxes as they flow, without ground truth (from how
+    /// each agent's boxes of an object scatter about their track), and fuse with the learned
+    /// stds instead of the stated ones; boxes without stds need no --default-std. Also flags an
+    /// agent whose stated stds are off (the report: fuse and track print it and write
+    /// meta.v2x_learned_std; node: the stats and MCAP).
+    #[arg(long)]
+    learn_std: bool,
+    /// With --learn-std: flag an agent whose stated centre stds are off by more than this
+    /// factor, either way.
+    #[arg(long, requires = "learn_std", default_value_t = v2x_fuser::learn::LearnParams::default().flag_ratio)]
+    std_flag_ratio: f64,
+}
+
+impl LearnArgs {
+    fn params(&self, time_scale: f64) -> anyhow::Result<Option<v2x_fuser::learn::LearnParams>> {
+        if !(self.std_flag_ratio > 1.0 && self.std_flag_ratio.is_finite()) {
+            anyhow::bail!("--std-flag-ratio must be > 1");
+        }
+        let mut p = v2x_fuser::learn::LearnParams {
+            flag_ratio: self.std_flag_ratio,
+            ..Default::default()
+        };
+        p.tracker.time_scale = time_scale;
+        Ok(self.learn_std.then_some(p))
+    }
+
+    /// What to do with a box that states no std: the default given, else the learner's prior
+    /// when learning, else an error.
+    fn missing(&self, default_std: Option<v2x_protocol::Uncertainty>) -> MissingStd {
+        match (default_std, self.learn_std) {
+            (Some(u), _) => MissingStd::Default(u),
+            (None, true) => MissingStd::Default(v2x_fuser::learn::LearnParams::default().prior),
+            (None, false) => MissingStd::Error,
+        }
+    }
+}
+
+/// Prints what was learned of each agent's stds.
+fn print_learned(learned: &std::collections::BTreeMap<String, v2x_fuser::learn::AgentReport>) {
+    for (agent, r) in learned {
+        match &r.all.pos_xy {
+            Some(g) => eprintln!(
+                "learned stds of {agent}: centre {:.2} m where it states {:.2} m (x{:.2}{}) from {} residuals; per class in meta.v2x_learned_std",
+                g.estimated,
+                g.stated,
+                g.ratio,
+                if r.flagged { ", flagged: its stated stds are inconsistent" } else { "" },
+                g.samples
+            ),
+            None => eprintln!("learned stds of {agent}: too few boxes followed over three frames"),
+        }
     }
 }
 
@@ -400,6 +463,7 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
         method,
         default_std,
         motion,
+        learn,
         window_ms,
         align,
         align_to,
@@ -417,11 +481,12 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
             inputs.len()
         );
     }
-    let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
+    let missing = learn.missing(default_std);
     let opts = v2x_fuser::offline::OfflineOptions {
         motion: motion.params()?,
         window_ms,
         align: align_params.map(|p| (p, align_to - 1)),
+        learn: learn.params(motion.time_scale)?,
     };
     let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
     let how = match (report.by_time, opts.motion.is_some()) {
@@ -459,6 +524,7 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
             report.samples
         );
     }
+    print_learned(&report.learned);
     Ok(())
 }
 
@@ -468,6 +534,7 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         method,
         default_std,
         motion,
+        learn,
         window_ms,
         confirm_hits,
         max_misses,
@@ -481,11 +548,12 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
     if confirm_hits == 0 {
         anyhow::bail!("--confirm-hits must be at least 1");
     }
-    let missing = default_std.map_or(MissingStd::Error, MissingStd::Default);
+    let missing = learn.missing(default_std);
     let opts = v2x_fuser::offline::OfflineOptions {
         motion: motion.params()?,
         window_ms,
         align: None,
+        learn: learn.params(motion.time_scale)?,
     };
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
@@ -496,6 +564,9 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
     let tracks = v2x_fuser::offline::track_files(&method, &inputs, &output, missing, &opts, params)
         .map_err(anyhow::Error::msg)?;
     let boxes: usize = tracks.results.samples.values().map(Vec::len).sum();
+    if let Some(v) = tracks.results.meta.get("v2x_learned_std") {
+        print_learned(&serde_json::from_value(v.clone()).unwrap_or_default());
+    }
     eprintln!(
         "{method}: {} windows, {boxes} tracked boxes, {} tracks confirmed, {} ended, {} live at the end -> {}",
         tracks.results.samples.len(),
@@ -516,6 +587,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         max_wait_ms,
         limits,
         motion,
+        learn,
         region,
         align,
         track,
@@ -539,6 +611,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         cfg.motion = motion.params()?;
         cfg.region = region.region()?;
         cfg.align = align.params()?;
+        cfg.learn = learn.params(motion.time_scale)?;
         cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
             time_scale: motion.time_scale,
             all_classes: track_all_classes,

@@ -11,6 +11,7 @@
 //! reference agent: pooled over windows when grouping by time, per sample otherwise.
 
 use crate::align::{AlignParams, Aligner, Registration};
+use crate::learn::{AgentReport, LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Windows;
@@ -41,6 +42,9 @@ pub struct OfflineOptions {
     /// Registration of every agent to agent `reference` (an index into the inputs) by its boxes
     /// before association (`None`: agents' poses are trusted).
     pub align: Option<(AlignParams, usize)>,
+    /// Learn each agent's stds from its boxes as the windows pass ([`crate::learn`]; `None`:
+    /// the stated ones are trusted). Needs capture times.
+    pub learn: Option<LearnParams>,
 }
 
 impl Default for OfflineOptions {
@@ -49,6 +53,7 @@ impl Default for OfflineOptions {
             motion: Some(MotionParams::default()),
             window_ms: 100.0,
             align: None,
+            learn: None,
         }
     }
 }
@@ -197,7 +202,11 @@ fn fuse_by_time(
     let mut stamps = serde_json::Map::new();
     let mut aligner = opts.align.map(|(p, r)| (Aligner::new(p), r));
     let mut registered = serde_json::Map::new();
-    for closed in windows.flush(|_| all.clone()) {
+    let mut learner = opts.learn.map(Learner::new);
+    for mut closed in windows.flush(|_| all.clone()) {
+        if let Some(l) = &mut learner {
+            l.learn_window(&mut closed);
+        }
         let (t_ref, per_agent) = align_window(&closed, opts.motion.as_ref());
         let latest = closed
             .frames
@@ -226,6 +235,18 @@ fn fuse_by_time(
     set_meta(&mut out, "v2x_timestamps", Value::Object(stamps));
     if aligner.is_some() {
         set_meta(&mut out, "v2x_registration", Value::Object(registered));
+    }
+    if let Some(l) = learner {
+        let learned: BTreeMap<String, AgentReport> = l
+            .report()
+            .into_iter()
+            .map(|(name, r)| (input_name(&name), r))
+            .collect();
+        set_meta(
+            &mut out,
+            "v2x_learned_std",
+            serde_json::to_value(learned).expect("reports serialize"),
+        );
     }
     out
 }
@@ -314,6 +335,8 @@ pub struct FuseReport {
     /// With registration, per input registered: `agentN`, the windows it was measured in,
     /// the windows its correction was applied in, and its last estimate.
     pub registration: Vec<(String, usize, usize, Option<Registration>)>,
+    /// With learned stds, what was learned of each input (`agentN`) by the end.
+    pub learned: BTreeMap<String, AgentReport>,
 }
 
 /// Reads, fuses and writes: the `v2x-fuser fuse` command.
@@ -326,6 +349,18 @@ pub fn fuse_files(
 ) -> Result<FuseReport, JsonError> {
     let Inputs { agents, tokens } = read_inputs(inputs, missing)?;
     let by_time = !agents.is_empty() && agents.iter().all(|r| capture_times(r).is_some());
+    if opts.learn.is_some() && !by_time {
+        let without = agents.iter().position(|r| capture_times(r).is_none());
+        return Err(JsonError {
+            file: without.map(|k| inputs[k].clone()).unwrap_or_default(),
+            sample: None,
+            index: None,
+            field: Some("meta.v2x_timestamps".into()),
+            message: "learning stds needs every sample's capture time \
+                      (meta.v2x_timestamps, as `v2x-sim gen` writes it)"
+                .into(),
+        });
+    }
     let fused = fuse_results(method, &agents, opts);
     write_results(output, &fused, &tokens)?;
     let boxes_in = agents
@@ -339,6 +374,11 @@ pub fn fuse_files(
         boxes_out: fused.samples.values().map(Vec::len).sum(),
         by_time,
         registration: registration_summary(&fused),
+        learned: fused
+            .meta
+            .get("v2x_learned_std")
+            .and_then(|v| serde_json::from_value(v.clone()).ok())
+            .unwrap_or_default(),
     })
 }
 

@@ -163,18 +163,26 @@ impl Tracker {
     /// Takes the fused boxes of the window at `t_us` (of the tracking classes only, unless
     /// `all_classes`) and returns the confirmed tracks it updated.
     pub fn step(&mut self, t_us: u64, boxes: &[Detection]) -> Vec<Tracked> {
-        let boxes: std::borrow::Cow<[Detection]> =
-            if self.params.all_classes || boxes.iter().all(|b| b.class.is_tracking()) {
-                boxes.into()
-            } else {
-                boxes
-                    .iter()
-                    .filter(|b| b.class.is_tracking())
-                    .cloned()
-                    .collect::<Vec<_>>()
-                    .into()
-            };
+        self.step_ids(t_us, boxes).0
+    }
+
+    /// [`Tracker::step`], also returning the id of the track (tentative or confirmed) each box
+    /// went to, [`NO_ID`] for a box of a class not tracked.
+    pub fn step_ids(&mut self, t_us: u64, all: &[Detection]) -> (Vec<Tracked>, Vec<u32>) {
+        let index: Vec<usize> = (0..all.len())
+            .filter(|&j| self.params.all_classes || all[j].class.is_tracking())
+            .collect();
+        let boxes: std::borrow::Cow<[Detection]> = if index.len() == all.len() {
+            all.into()
+        } else {
+            index
+                .iter()
+                .map(|&j| all[j].clone())
+                .collect::<Vec<_>>()
+                .into()
+        };
         let boxes = &*boxes;
+        let mut ids = vec![NO_ID; all.len()];
         let scale = self.params.time_scale;
         let dt = match self.last_us {
             Some(last)
@@ -206,6 +214,7 @@ impl Tracker {
         for (i, j) in pairs {
             hit[i] = true;
             used[j] = true;
+            ids[index[j]] = self.tracks[i].id;
             update(&mut self.tracks[i], &boxes[j], dt);
         }
         // 5. lifecycle
@@ -248,10 +257,11 @@ impl Tracker {
             kept.push(t);
         }
         self.tracks = kept;
-        for (b, used) in boxes.iter().zip(used) {
+        for (j, (b, used)) in boxes.iter().zip(used).enumerate() {
             if used {
                 continue;
             }
+            ids[index[j]] = self.next_id;
             let mut t = birth(self.next_id, b, &self.params);
             self.next_id = self.next_id.wrapping_add(1).max(1);
             if t.hits >= self.params.confirm_hits {
@@ -264,7 +274,7 @@ impl Tracker {
             }
             self.tracks.push(t);
         }
-        out
+        (out, ids)
     }
 
     /// Step 2: every (track, box) pair of the same class inside the gate, costed d^2 + ln det S.

@@ -174,7 +174,7 @@ impl std::fmt::Debug for Viz {
 }
 
 /// The JSON schema of a `/stats` message.
-const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"},"registration":{"type":"object","additionalProperties":{"type":"object","properties":{"pivot":{"type":"array","items":{"type":"number"}},"shift_m":{"type":"array","items":{"type":"number"}},"turn_rad":{"type":"number"},"std":{"type":"array","items":{"type":"number"}},"matches":{"type":"integer"},"chi2":{"type":"number"},"turn_chi2":{"type":"number"},"applied":{"type":"boolean"},"turn_applied":{"type":"boolean"}}}}}}"#;
+const STATS_SCHEMA: &str = r#"{"type":"object","properties":{"members":{"type":"array","items":{"type":"string"}},"complete":{"type":"boolean"},"objects":{"type":"integer"},"fusion_ms":{"type":"number"},"e2e_ms":{"type":"number"},"registration":{"type":"object","additionalProperties":{"type":"object","properties":{"pivot":{"type":"array","items":{"type":"number"}},"shift_m":{"type":"array","items":{"type":"number"}},"turn_rad":{"type":"number"},"std":{"type":"array","items":{"type":"number"}},"matches":{"type":"integer"},"chi2":{"type":"number"},"turn_chi2":{"type":"number"},"applied":{"type":"boolean"},"turn_applied":{"type":"boolean"}}}},"learned_std":{"type":"object","additionalProperties":{"type":"object","properties":{"flagged":{"type":"boolean"},"ratio_xy":{"type":["number","null"]},"all":{"type":"object"},"classes":{"type":"object"}}}}}}"#;
 
 impl Viz {
     /// Opens the MCAP file (`mcap`) and/or starts the live server on `live` (host, port); at
@@ -259,6 +259,7 @@ impl Viz {
         fusion_ms: f64,
         e2e_ms: f64,
         registration: &std::collections::BTreeMap<String, crate::align::Registration>,
+        learned: &std::collections::BTreeMap<String, crate::learn::AgentReport>,
     ) {
         let msg = serde_json::json!({
             "members": members,
@@ -267,6 +268,7 @@ impl Viz {
             "fusion_ms": fusion_ms,
             "e2e_ms": e2e_ms,
             "registration": registration,
+            "learned_std": learned,
         });
         self.stats.log_with_meta(
             msg.to_string().as_bytes(),

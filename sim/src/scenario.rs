@@ -5,6 +5,7 @@
 use crate::cli::DataArgs;
 use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
+use v2x_truth::stated::Stated;
 use crate::timeline::fuser_restarts;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -100,6 +101,9 @@ pub struct FuserSpec {
     /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
     /// (`v2x-fuser node --track`).
     pub track: bool,
+    /// Learn each agent's stds from its boxes and fuse with them (`v2x-fuser node
+    /// --learn-std`); the stats say what was learned and flag inconsistent agents.
+    pub learn_std: bool,
     /// Most boxes one agent brings into a window (`v2x-fuser node --max-objects-per-agent`).
     pub max_objects_per_agent: usize,
     /// The area of interest `[x, y, radius]` (m, map frame); unset: learned from the agents
@@ -132,6 +136,7 @@ impl Default for FuserSpec {
             align: false,
             registration: RegistrationSpec::default(),
             track: false,
+            learn_std: false,
             max_objects_per_agent: v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT,
             area: None,
             zenoh: ZenohArgs::default(),
@@ -354,6 +359,10 @@ pub struct AgentSpec {
     /// keys); absent: the noise profile's own (none, except for `realistic`).
     #[serde(default)]
     pub faults: Option<String>,
+    /// The stds it states with its boxes (`v2x-sim gen --stated-std`): honest (absent), xK, a
+    /// profile or "POS,SIZE,YAW_DEG".
+    #[serde(default)]
+    pub stated_std: Option<String>,
     /// Sensing range (m); absent: the agent sees every object.
     #[serde(default)]
     pub range_m: Option<f64>,
@@ -393,6 +402,9 @@ impl AgentSpec {
             .expect("checked when the scenario loaded");
         if let Some(f) = &self.faults {
             n.faults = f.parse().expect("checked when the scenario loaded");
+        }
+        if let Some(s) = &self.stated_std {
+            n.stated = s.parse().expect("checked when the scenario loaded");
         }
         n
     }
@@ -564,6 +576,16 @@ impl Scenario {
             if let Some(f) = &a.faults {
                 f.parse::<Faults>()
                     .map_err(|e| format!("agent {}: faults: {e}", a.name))?;
+            }
+            match a.stated_std.as_deref().map(str::parse::<Stated>) {
+                Some(Err(e)) => return Err(format!("agent {}: stated_std: {e}", a.name)),
+                Some(Ok(Stated::Nothing)) => {
+                    return Err(format!(
+                        "agent {}: stated_std: every box on the wire carries stds; state x1000 for an agent that knows nothing",
+                        a.name
+                    ))
+                }
+                _ => {}
             }
             a.link
                 .validate()

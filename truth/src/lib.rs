@@ -6,11 +6,12 @@
 //!   agents.
 //! - [`town`]: a synthetic town whose actors move continuously.
 //! - [`noise`] and [`faults`]: agents' noisy detections and detector faults drawn from the
-//!   ground truth; [`seed`]: their independent random streams.
+//!   ground truth; [`stated`]: the stds they state; [`seed`]: their independent random streams.
 
 pub mod dair;
 pub mod dataset;
 pub mod faults;
 pub mod noise;
 pub mod seed;
+pub mod stated;
 pub mod town;

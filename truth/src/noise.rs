@@ -11,6 +11,7 @@ use crate::dataset::{GroundTruth, GtFrame, GtObject, Recorded};
 use crate::faults::{false_positive_class, hidden, look_alike, Faults};
 use crate::faults::{FALSE_POSITIVE_RADIUS, FALSE_POSITIVE_SCORE_DROP};
 pub use crate::seed::mix;
+use crate::stated::Stated;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
@@ -34,6 +35,8 @@ pub struct AgentNoise {
     /// Report each object exactly as it is labelled (score 1), stating `std`: what a data
     /// set's own labels are as an agent's detections (profile `labels`).
     pub exact: bool,
+    /// The stds it states with each box (by default its noise's own).
+    pub stated: Stated,
 }
 
 impl AgentNoise {
@@ -46,6 +49,7 @@ impl AgentNoise {
             faults: Faults::NONE,
             label: p.name().into(),
             exact: false,
+            stated: Stated::Honest,
         }
     }
 
@@ -60,6 +64,7 @@ impl AgentNoise {
             faults: Faults::REALISTIC,
             label: "realistic".into(),
             exact: false,
+            stated: Stated::Honest,
         }
     }
 
@@ -87,6 +92,7 @@ impl AgentNoise {
             faults: Faults::NONE,
             label: "custom".into(),
             exact: false,
+            stated: Stated::Honest,
         }
     }
 
@@ -105,6 +111,7 @@ impl AgentNoise {
             faults: Faults::NONE,
             label: "labels".into(),
             exact: true,
+            stated: Stated::Honest,
         }
     }
 }
@@ -200,6 +207,17 @@ impl NoiseSetting {
             agent.faults = parts[a.min(parts.len() - 1)];
         }
         self.name = format!("{} faults {spec}", self.name);
+        Ok(())
+    }
+
+    /// Sets the stds the agents state ([`Stated`]): one for all, or one per agent joined by
+    /// '+' (the last repeats).
+    pub fn set_stated(&mut self, spec: &str) -> Result<(), String> {
+        let parts: Vec<Stated> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
+        for (a, agent) in self.agents.iter_mut().enumerate() {
+            agent.stated = parts[a.min(parts.len() - 1)];
+        }
+        self.name = format!("{} stating {spec}", self.name);
         Ok(())
     }
 
@@ -319,6 +337,7 @@ pub fn detect(
         vec![false; objects.len()]
     };
     let sv = noise.velocity_std;
+    let (stated, stated_v) = noise.stated.apply(*s, sv);
     // The noise drawn is scaled by 0 for an exact agent, so that the streams stay the same.
     let k = if noise.exact { 0.0 } else { 1.0 };
     let mut out = Vec::with_capacity(objects.len());
@@ -351,11 +370,11 @@ pub fn detect(
             size: std::array::from_fn(|i| (o.size[i] + k * s.size[i] * e[3 + i]).max(0.05)),
             yaw: wrap_angle(o.yaw + k * s.yaw * e[6] + flip),
             score: (noise.base_confidence + k * 0.05 * e[7]).clamp(0.01, 1.0),
-            std: *s,
+            std: stated,
             pos_cov: None,
             velocity: o.velocity.map(|v| Velocity {
                 v: [v[0] + k * sv * ev[0], v[1] + k * sv * ev[1]],
-                std: [sv, sv],
+                std: [stated_v; 2],
             }),
             id: o.id,
         });
@@ -388,7 +407,8 @@ fn false_positives(
     with_velocity: bool,
     frng: &mut ChaCha8Rng,
 ) -> Vec<Detection> {
-    let (f, s, sv) = (&noise.faults, &noise.std, noise.velocity_std);
+    let f = &noise.faults;
+    let (s, sv) = noise.stated.apply(noise.std, noise.velocity_std);
     let mut out = Vec::new();
     let radius = range.map_or(FALSE_POSITIVE_RADIUS, |r| r.min(FALSE_POSITIVE_RADIUS));
     let n = Poisson::new(f.false_positives).map_or(0.0, |p| p.sample(frng)) as usize;
@@ -410,7 +430,7 @@ fn false_positives(
             yaw: wrap_angle(frng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)),
             score: (noise.base_confidence - FALSE_POSITIVE_SCORE_DROP + 0.05 * e[3])
                 .clamp(0.01, 1.0),
-            std: *s,
+            std: s,
             pos_cov: None,
             velocity: with_velocity.then_some(Velocity {
                 v: [0.0, 0.0],

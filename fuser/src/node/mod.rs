@@ -61,6 +61,9 @@ pub struct NodeConfig {
     pub align: Option<crate::align::AlignParams>,
     /// Tracking of the fused boxes, published on `v2x/NS/tracks` (`None`: no tracks).
     pub track: Option<crate::tracker::TrackerParams>,
+    /// Each agent's stds learned from its boxes and fused instead of the stated ones (`None`:
+    /// the stated ones are trusted).
+    pub learn: Option<crate::learn::LearnParams>,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
     /// The region this fuser serves (`None`: the single fuser of the namespace, on
@@ -83,6 +86,7 @@ impl NodeConfig {
             motion: Some(MotionParams::default()),
             align: None,
             track: None,
+            learn: None,
             viz: None,
             region: None,
         }
@@ -103,6 +107,8 @@ pub struct Fused {
     pub tracks: Option<Vec<v2x_protocol::Detection>>,
     /// With registration: each registered agent's estimate in this window.
     pub registration: std::collections::BTreeMap<String, crate::align::Registration>,
+    /// With learned stds: what is learned of each agent after this window.
+    pub learned: std::collections::BTreeMap<String, crate::learn::AgentReport>,
 }
 
 /// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in
@@ -363,6 +369,7 @@ impl State {
                 self.windows.forget_agent(&agent);
                 self.parts.forget_agent(&agent);
                 self.stats.registration.remove(&agent);
+                self.stats.learned_std.remove(&agent);
             }
         }
         for line in self.log.tick(now) {
@@ -401,6 +408,9 @@ impl State {
         for (agent, r) in &d.fused.registration {
             self.stats.registration.insert(agent.clone(), *r);
         }
+        for (agent, r) in &d.fused.learned {
+            self.stats.learned_std.insert(agent.clone(), r.clone());
+        }
         self.stats.windows += 1;
         if !d.fused.provenance.complete {
             self.stats.windows_incomplete += 1;
@@ -419,6 +429,7 @@ impl State {
                 fusion_us as f64 / 1000.0,
                 e2e_ms,
                 &f.registration,
+                &f.learned,
             );
         }
         self.fusion_hist.record(fusion_us as i64);
@@ -570,6 +581,7 @@ pub async fn run(
         motion: cfg.motion,
         align: cfg.align,
         track: cfg.track,
+        learn: cfg.learn,
         region: cfg.region,
     };
     let worker = tokio::spawn(worker::run(

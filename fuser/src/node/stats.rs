@@ -169,6 +169,9 @@ pub struct NodeStats {
     /// With registration (`--align`): each agent's latest estimate, its stds, its matches and
     /// whether it is applied.
     pub registration: BTreeMap<String, crate::align::Registration>,
+    /// With learned stds (`--learn-std`): per agent, the stds it states and the ones learned,
+    /// over all its classes and per class, and whether it is flagged as inconsistent.
+    pub learned_std: BTreeMap<String, crate::learn::AgentReport>,
     /// Tracks (live, confirmed so far, ended so far), when the node tracks.
     pub tracks: Option<crate::tracker::TrackStats>,
     /// Windows open now.

@@ -6,6 +6,7 @@
 
 use super::{Clock, Fused};
 use crate::align::{reference_agent, AlignParams, Aligner};
+use crate::learn::{LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
@@ -36,14 +37,23 @@ pub(super) struct Done {
 /// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire),
 /// stamped with the window's reference time: its latest capture. With `motion`, every frame is
 /// first predicted to that time; with an `aligner`, every agent is then registered to the
-/// roadside unit (`crate::align`).
+/// roadside unit (`crate::align`). With a `learner`, the boxes are first given the stds learned
+/// for their agent (`crate::learn`).
 pub fn fuse_window(
     method: &Method,
     motion: Option<&MotionParams>,
     aligner: Option<&mut Aligner>,
-    closed: Closed,
+    learner: Option<&mut Learner>,
+    mut closed: Closed,
     seq: u32,
 ) -> Fused {
+    let learned = match learner {
+        Some(l) => {
+            l.learn_window(&mut closed);
+            l.report()
+        }
+        None => Default::default(),
+    };
     let agents: Vec<String> = closed.frames.keys().cloned().collect();
     let (t_ref, mut lists) = align_window(&closed, motion);
     let mut registration = std::collections::BTreeMap::new();
@@ -77,6 +87,7 @@ pub fn fuse_window(
         },
         tracks: None,
         registration,
+        learned,
     }
 }
 
@@ -102,6 +113,7 @@ pub(super) struct Fusion {
     pub motion: Option<MotionParams>,
     pub align: Option<AlignParams>,
     pub track: Option<TrackerParams>,
+    pub learn: Option<LearnParams>,
     pub region: Option<crate::region::Region>,
 }
 
@@ -109,6 +121,7 @@ pub(super) struct Fusion {
 struct Carried {
     aligner: Option<Aligner>,
     tracker: Option<Tracker>,
+    learner: Option<Learner>,
 }
 
 impl Fusion {
@@ -116,6 +129,7 @@ impl Fusion {
         Carried {
             aligner: self.align.map(Aligner::new),
             tracker: self.track.map(Tracker::new),
+            learner: self.learn.map(Learner::new),
         }
     }
 }
@@ -168,6 +182,7 @@ pub(super) async fn run(
             Carried {
                 aligner: None,
                 tracker: None,
+                learner: None,
             },
         );
         let work = tokio::task::spawn_blocking(move || {
@@ -175,6 +190,7 @@ pub(super) async fn run(
                 &fusion.method,
                 fusion.motion.as_ref(),
                 state.aligner.as_mut(),
+                state.learner.as_mut(),
                 closed,
                 this_seq,
             );
@@ -233,6 +249,7 @@ pub(super) async fn run(
                     },
                     tracks: None,
                     registration: Default::default(),
+                    learned: Default::default(),
                 },
                 Fit::default(),
                 Some(format!("fusion failed: {e}")),

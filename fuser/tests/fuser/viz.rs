@@ -69,6 +69,8 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
             },
         )]
         .into();
+        let mut learner = v2x_fuser::learn::Learner::new(Default::default());
+        learner.observe("veh", t, &[]);
         viz.window(
             t,
             &["rsu".into(), "veh".into()],
@@ -77,6 +79,7 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
             0.2,
             25.0,
             &registration,
+            &learner.report(),
         );
     }
     viz.close().unwrap();
@@ -100,6 +103,8 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
                     serde_json::json!([0.66, -0.5])
                 );
                 assert_eq!(v["registration"]["veh"]["applied"], true);
+                assert_eq!(v["learned_std"]["veh"]["flagged"], false);
+                assert!(v["learned_std"]["veh"]["ratio_xy"].is_null(), "nothing learned yet");
             }
             _ => {
                 assert_eq!(schema.name, "foxglove.SceneUpdate");

@@ -21,6 +21,13 @@ pub struct GenArgs {
     /// agent joined by '+'.
     #[arg(long)]
     pub faults: Option<String>,
+    /// The stds each agent states with its boxes, replacing its noise's own: `honest` (the
+    /// default), `xK` (the noise's stds times K: x6 six times too wide, x0.17 six times too
+    /// narrow), a profile or POS,SIZE,YAW_DEG (e.g. `mild` for a large-noise agent: an
+    /// overconfident detector), or `none` (no std fields in its file); one for all agents or
+    /// one per agent joined by '+'.
+    #[arg(long)]
+    pub stated_std: Option<String>,
     /// Number of agents.
     #[arg(long, default_value_t = 2)]
     pub agents: usize,
@@ -49,6 +56,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         data,
         noise,
         faults,
+        stated_std,
         agents,
         seed,
         range,
@@ -62,13 +70,13 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         }
         let d = data.load_dair()?;
         let noise = noise.as_deref().unwrap_or("labels");
-        let setting = setting_with_faults(noise, faults.as_deref(), 2)?;
+        let setting = setting_with_faults(noise, faults.as_deref(), stated_std.as_deref(), 2)?;
         std::fs::create_dir_all(&out)
             .with_context(|| format!("cannot create {}", out.display()))?;
         let files = v2x_sim::gen::generate_dair(&d, &setting, seed, range);
         for (a, r) in files.iter().enumerate() {
             let p = out.join(format!("agent{}.json", a + 1));
-            write_results(&p, r, &d.gt.tokens)?;
+            write_agent(&p, r, &d.gt.tokens, &setting.agents[a])?;
             eprintln!(
                 "wrote {} ({}, noise {})",
                 p.display(),
@@ -81,7 +89,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
     }
     let gt = data.load()?;
     let noise = noise.as_deref().unwrap_or("mild+large");
-    let setting = setting_with_faults(noise, faults.as_deref(), agents)?;
+    let setting = setting_with_faults(noise, faults.as_deref(), stated_std.as_deref(), agents)?;
     let timings = v2x_sim::gen::Timing::parse(
         agent_hz.as_deref(),
         phase_ms.as_deref(),
@@ -92,17 +100,18 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
     let files = v2x_sim::gen::generate(&gt, &setting, &timings, seed, range);
     for (a, r) in files.iter().enumerate() {
         let p = out.join(format!("agent{}.json", a + 1));
-        write_results(&p, r, &gt.tokens)?;
+        write_agent(&p, r, &gt.tokens, &setting.agents[a])?;
         eprintln!("wrote {} ({} noise)", p.display(), setting.agents[a].label);
     }
     eprintln!("{}", data.describe(&gt));
     Ok(())
 }
 
-/// A noise setting for `agents` agents with the faults given, if any.
+/// A noise setting for `agents` agents with the faults and stated stds given, if any.
 fn setting_with_faults(
     noise: &str,
     faults: Option<&str>,
+    stated: Option<&str>,
     agents: usize,
 ) -> anyhow::Result<NoiseSetting> {
     let mut setting = NoiseSetting::parse(noise, agents).map_err(anyhow::Error::msg)?;
@@ -111,5 +120,37 @@ fn setting_with_faults(
             .set_faults(f)
             .map_err(|e| anyhow::anyhow!("--faults: {e}"))?;
     }
+    if let Some(s) = stated {
+        setting
+            .set_stated(s)
+            .map_err(|e| anyhow::anyhow!("--stated-std: {e}"))?;
+    }
     Ok(setting)
+}
+
+/// Writes one agent's results file, without std fields when the agent states none.
+fn write_agent(
+    path: &std::path::Path,
+    r: &v2x_protocol::nuscenes_json::Results,
+    tokens: &v2x_protocol::nuscenes_json::TokenTable,
+    noise: &v2x_sim::noise::AgentNoise,
+) -> anyhow::Result<()> {
+    if noise.stated != v2x_truth::stated::Stated::Nothing {
+        return Ok(write_results(path, r, tokens)?);
+    }
+    let mut doc = v2x_protocol::nuscenes_json::results_json(r, tokens);
+    for b in doc["results"]
+        .as_object_mut()
+        .into_iter()
+        .flat_map(|m| m.values_mut())
+        .filter_map(|v| v.as_array_mut())
+        .flatten()
+        .filter_map(|b| b.as_object_mut())
+    {
+        for k in ["translation_std", "size_std", "yaw_std", "velocity_std"] {
+            b.remove(k);
+        }
+    }
+    std::fs::write(path, serde_json::to_string(&doc)?)
+        .with_context(|| format!("cannot write {}", path.display()))
 }

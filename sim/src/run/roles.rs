@@ -235,6 +235,8 @@ pub struct WindowRecord {
     pub complete: bool,
     /// Capture (the window's reference time) to publish, on this host's clock (ms).
     pub e2e_ms: f64,
+    /// With learned stds: the agents flagged as stating inconsistent stds after it.
+    pub flagged: Vec<String>,
 }
 
 /// Runs the fuser role until `stop` resolves.
@@ -280,6 +282,11 @@ pub async fn regional_fuser_role(
             time_scale: scenario.speed,
             ..Default::default()
         });
+    cfg.learn = scenario.fuser.learn_std.then(|| {
+        let mut p = v2x_fuser::learn::LearnParams::default();
+        p.tracker.time_scale = scenario.speed;
+        p
+    });
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;
@@ -341,6 +348,12 @@ pub async fn regional_fuser_role(
                         objects,
                         complete: p.complete,
                         e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
+                        flagged: f
+                            .learned
+                            .iter()
+                            .filter(|(_, r)| r.flagged)
+                            .map(|(a, _)| a.clone())
+                            .collect(),
                     },
                 );
             },

@@ -273,6 +273,7 @@ mod tests {
                     agents,
                     complete: second != 1,
                     e2e_ms: 10.0 + k as f64 % 10.0 + if second == 1 { 100.0 } else { 0.0 },
+                    flagged: Vec::new(),
                 },
             );
             let boxes = f.objects.iter().map(|o| o.as_detection()).collect();

@@ -228,6 +228,13 @@ pub struct Summary {
     /// A city's regions, each with its own figures (absent for one fuser).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub regions: Vec<RegionReport>,
+    /// With learned stds (`fuser.learn_std`): what the fuser learned of each agent by the end.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub learned_std: BTreeMap<String, v2x_fuser::learn::AgentReport>,
+    /// With learned stds: each agent flagged as stating inconsistent stds, and how long after
+    /// the first fused window (s of data) it was first flagged.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub std_flagged_after_s: BTreeMap<String, f64>,
 }
 
 /// The security mode of a run and what it cost to connect.
@@ -281,7 +288,24 @@ pub fn summarize(
             session_setup_ms: None,
         },
         regions: Vec::new(),
+        learned_std: outcome.stats.learned_std.clone(),
+        std_flagged_after_s: first_flagged(outcome),
     }
+}
+
+/// Each agent ever flagged, with how long after the first window (s of data) it first was.
+fn first_flagged(outcome: &FuserOutcome) -> BTreeMap<String, f64> {
+    let Some(&start) = outcome.windows.keys().next() else {
+        return BTreeMap::new();
+    };
+    let mut out = BTreeMap::new();
+    for (t, w) in &outcome.windows {
+        for a in &w.flagged {
+            out.entry(a.clone())
+                .or_insert((t - start) as f64 / 1e6);
+        }
+    }
+    out
 }
 
 /// Scores one frame; boxes of recorded agents (DAIR-V2X) carry no ground-truth ids and match by

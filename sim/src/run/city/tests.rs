@@ -8,6 +8,7 @@ fn window(agents: &[&str], objects: &[u64], complete: bool, e2e_ms: f64) -> Wind
         objects: objects.to_vec(),
         complete,
         e2e_ms,
+        flagged: Vec::new(),
     }
 }
 
