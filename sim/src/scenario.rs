@@ -5,7 +5,6 @@
 use crate::cli::DataArgs;
 use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
-use v2x_truth::stated::Stated;
 use crate::timeline::fuser_restarts;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -15,6 +14,7 @@ use v2x_fuser::Method;
 use v2x_protocol::net::ZenohArgs;
 use v2x_protocol::tiles::{Tile, Tiling};
 use v2x_protocol::{keys, AgentKind};
+use v2x_truth::stated::Stated;
 
 /// The embedded default scenario (`scenarios/default.toml`).
 pub const DEFAULT: &str = include_str!("../../scenarios/default.toml");

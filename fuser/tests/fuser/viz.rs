@@ -104,7 +104,10 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
                 );
                 assert_eq!(v["registration"]["veh"]["applied"], true);
                 assert_eq!(v["learned_std"]["veh"]["flagged"], false);
-                assert!(v["learned_std"]["veh"]["ratio_xy"].is_null(), "nothing learned yet");
+                assert!(
+                    v["learned_std"]["veh"]["ratio_xy"].is_null(),
+                    "nothing learned yet"
+                );
             }
             _ => {
                 assert_eq!(schema.name, "foxglove.SceneUpdate");

@@ -301,8 +301,7 @@ fn first_flagged(outcome: &FuserOutcome) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     for (t, w) in &outcome.windows {
         for a in &w.flagged {
-            out.entry(a.clone())
-                .or_insert((t - start) as f64 / 1e6);
+            out.entry(a.clone()).or_insert((t - start) as f64 / 1e6);
         }
     }
     out

@@ -7,6 +7,7 @@ mod cli;
 mod dair;
 mod docs;
 mod ingest;
+mod learn;
 mod loopback;
 mod motion;
 mod processes;
