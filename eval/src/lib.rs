@@ -6,8 +6,10 @@
 //! - [`detection_eval`]: the nuScenes detection protocol (mAP, TP errors, NDS).
 //! - [`dair_eval`]: the DAIR-V2X cooperative protocol (3D and BEV AP at fixed IoU thresholds).
 //! - [`file_eval`]: a results file scored against the ground truth, by either matching.
+//! - [`calibrate`]: an agent's errors against the ground truth, for its error model.
 //! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
 
+pub mod calibrate;
 pub mod dair_eval;
 pub mod detection_eval;
 pub mod file_eval;

@@ -27,6 +27,7 @@ pub mod offline;
 pub mod parts;
 pub mod ratelog;
 pub mod region;
+pub mod stdmodel;
 pub mod tracker;
 #[cfg(feature = "node")]
 pub mod viz;

@@ -66,7 +66,7 @@ struct FuseArgs {
     #[command(flatten)]
     motion: MotionArgs,
     #[command(flatten)]
-    learn: LearnArgs,
+    stds: StdArgs,
     /// Window width delta t (ms) when files carry capture times.
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
@@ -96,7 +96,7 @@ struct TrackArgs {
     #[command(flatten)]
     motion: MotionArgs,
     #[command(flatten)]
-    learn: LearnArgs,
+    stds: StdArgs,
     /// Window width delta t (ms).
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
@@ -139,7 +139,7 @@ struct NodeArgs {
     #[command(flatten)]
     motion: MotionArgs,
     #[command(flatten)]
-    learn: LearnArgs,
+    stds: StdArgs,
     #[command(flatten)]
     region: RegionArgs,
     #[command(flatten)]
@@ -229,9 +229,15 @@ impl MotionArgs {
     }
 }
 
-/// Each agent's stds learned from its own boxes (`docs/method.md` §9).
+/// Where each agent's stds come from: as stated, a calibrated model, or learned
+/// (`docs/method.md` §9).
 #[derive(clap::Args)]
-struct LearnArgs {
+struct StdArgs {
+    /// An agent's error model, as `v2x-sim calibrate` writes it: its bias is taken off the
+    /// agent's boxes and its stds replace the stated ones (per class and score bin). AGENT is
+    /// the agent's name (fuse and track: agentN, N its input's position from 1). Repeatable.
+    #[arg(long, value_name = "AGENT=FILE", value_parser = parse_model_arg)]
+    std_model: Vec<(String, PathBuf)>,
     /// Learn each agent's stds from its boxes as they flow, without ground truth (from how
     /// each agent's boxes of an object scatter about their track), and fuse with the learned
     /// stds instead of the stated ones; boxes without stds need no --default-std. Also flags an
@@ -245,7 +251,56 @@ struct LearnArgs {
     std_flag_ratio: f64,
 }
 
-impl LearnArgs {
+/// Splits AGENT=FILE.
+fn parse_model_arg(s: &str) -> Result<(String, PathBuf), String> {
+    match s.split_once('=') {
+        Some((a, f)) if !a.is_empty() && !f.is_empty() => Ok((a.to_owned(), f.into())),
+        _ => Err(format!(
+            "'{s}': expected AGENT=FILE, e.g. agent2=rsu-model.json"
+        )),
+    }
+}
+
+impl StdArgs {
+    /// The models by agent name, each file read and checked.
+    fn models(&self) -> anyhow::Result<v2x_fuser::stdmodel::Models> {
+        let mut models = v2x_fuser::stdmodel::Models::default();
+        for (agent, path) in &self.std_model {
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                anyhow::anyhow!("--std-model {agent}: cannot read {}: {e}", path.display())
+            })?;
+            let m = v2x_fuser::stdmodel::ErrorModel::from_json(&text)
+                .map_err(|e| anyhow::anyhow!("--std-model {agent}: {}: {e}", path.display()))?;
+            if models.0.insert(agent.clone(), m).is_some() {
+                anyhow::bail!("--std-model {agent}: given twice");
+            }
+        }
+        Ok(models)
+    }
+
+    /// The models by input position, for files: AGENT must be agentN with 1 <= N <= `inputs`.
+    fn models_by_input(
+        &self,
+        inputs: usize,
+    ) -> anyhow::Result<std::collections::BTreeMap<usize, v2x_fuser::stdmodel::ErrorModel>> {
+        self.models()?
+            .0
+            .into_iter()
+            .map(|(agent, m)| {
+                let n = agent
+                    .strip_prefix("agent")
+                    .and_then(|n| n.parse::<usize>().ok())
+                    .filter(|n| (1..=inputs).contains(n))
+                    .ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "--std-model {agent}: name the input as agentN, N from 1 to {inputs} (its position)"
+                        )
+                    })?;
+                Ok((n - 1, m))
+            })
+            .collect()
+    }
+
     fn params(&self, time_scale: f64) -> anyhow::Result<Option<v2x_fuser::learn::LearnParams>> {
         if !(self.std_flag_ratio > 1.0 && self.std_flag_ratio.is_finite()) {
             anyhow::bail!("--std-flag-ratio must be > 1");
@@ -259,9 +314,11 @@ impl LearnArgs {
     }
 
     /// What to do with a box that states no std: the default given, else the learner's prior
-    /// when learning, else an error.
-    fn missing(&self, default_std: Option<v2x_protocol::Uncertainty>) -> MissingStd {
-        match (default_std, self.learn_std) {
+    /// when learning or when every one of the `inputs` has a model (which replaces the stds),
+    /// else an error.
+    fn missing(&self, default_std: Option<v2x_protocol::Uncertainty>, inputs: usize) -> MissingStd {
+        let replaced = self.learn_std || (inputs > 0 && self.std_model.len() >= inputs);
+        match (default_std, replaced) {
             (Some(u), _) => MissingStd::Default(u),
             (None, true) => MissingStd::Default(v2x_fuser::learn::LearnParams::default().prior),
             (None, false) => MissingStd::Error,
@@ -463,7 +520,7 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
         method,
         default_std,
         motion,
-        learn,
+        stds,
         window_ms,
         align,
         align_to,
@@ -481,12 +538,13 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
             inputs.len()
         );
     }
-    let missing = learn.missing(default_std);
+    let missing = stds.missing(default_std, inputs.len());
     let opts = v2x_fuser::offline::OfflineOptions {
         motion: motion.params()?,
         window_ms,
         align: align_params.map(|p| (p, align_to - 1)),
-        learn: learn.params(motion.time_scale)?,
+        learn: stds.params(motion.time_scale)?,
+        models: stds.models_by_input(inputs.len())?,
     };
     let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
     let how = match (report.by_time, opts.motion.is_some()) {
@@ -534,7 +592,7 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         method,
         default_std,
         motion,
-        learn,
+        stds,
         window_ms,
         confirm_hits,
         max_misses,
@@ -548,12 +606,13 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
     if confirm_hits == 0 {
         anyhow::bail!("--confirm-hits must be at least 1");
     }
-    let missing = learn.missing(default_std);
+    let missing = stds.missing(default_std, inputs.len());
     let opts = v2x_fuser::offline::OfflineOptions {
         motion: motion.params()?,
         window_ms,
         align: None,
-        learn: learn.params(motion.time_scale)?,
+        learn: stds.params(motion.time_scale)?,
+        models: stds.models_by_input(inputs.len())?,
     };
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
@@ -587,7 +646,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         max_wait_ms,
         limits,
         motion,
-        learn,
+        stds,
         region,
         align,
         track,
@@ -611,7 +670,8 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         cfg.motion = motion.params()?;
         cfg.region = region.region()?;
         cfg.align = align.params()?;
-        cfg.learn = learn.params(motion.time_scale)?;
+        cfg.learn = stds.params(motion.time_scale)?;
+        cfg.models = stds.models()?;
         cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
             time_scale: motion.time_scale,
             all_classes: track_all_classes,

@@ -13,6 +13,7 @@
 use crate::align::{AlignParams, Aligner, Registration};
 use crate::learn::{AgentReport, LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
+use crate::stdmodel::{ErrorModel, Models};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Windows;
 use crate::Method;
@@ -33,7 +34,7 @@ pub struct Inputs {
 }
 
 /// How to fuse files.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct OfflineOptions {
     /// Motion compensation to each window's reference time (`None`: fuse boxes as captured).
     pub motion: Option<MotionParams>,
@@ -45,6 +46,9 @@ pub struct OfflineOptions {
     /// Learn each agent's stds from its boxes as the windows pass ([`crate::learn`]; `None`:
     /// the stated ones are trusted). Needs capture times.
     pub learn: Option<LearnParams>,
+    /// Calibrated error models by input (an index into the inputs), applied to that input's
+    /// boxes before anything else ([`crate::stdmodel`]).
+    pub models: BTreeMap<usize, ErrorModel>,
 }
 
 impl Default for OfflineOptions {
@@ -54,6 +58,7 @@ impl Default for OfflineOptions {
             window_ms: 100.0,
             align: None,
             learn: None,
+            models: BTreeMap::new(),
         }
     }
 }
@@ -147,7 +152,14 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
     for s in samples {
         let per_agent: Vec<Vec<_>> = agents
             .iter()
-            .map(|r| r.samples.get(s).cloned().unwrap_or_default())
+            .enumerate()
+            .map(|(a, r)| {
+                let mut dets = r.samples.get(s).cloned().unwrap_or_default();
+                if let Some(m) = opts.models.get(&a) {
+                    dets.iter_mut().for_each(|d| m.apply(d));
+                }
+                dets
+            })
             .collect();
         let per_agent = match &mut aligner {
             Some((a, reference)) => {
@@ -203,7 +215,14 @@ fn fuse_by_time(
     let mut aligner = opts.align.map(|(p, r)| (Aligner::new(p), r));
     let mut registered = serde_json::Map::new();
     let mut learner = opts.learn.map(Learner::new);
+    let models = Models(
+        opts.models
+            .iter()
+            .map(|(a, m)| (name(*a), m.clone()))
+            .collect(),
+    );
     for mut closed in windows.flush(|_| all.clone()) {
+        models.apply_window(&mut closed);
         if let Some(l) = &mut learner {
             l.learn_window(&mut closed);
         }

@@ -23,6 +23,10 @@ enum Command {
     Gen(commands::gen::GenArgs),
     /// Score a results file against the ground truth.
     Eval(commands::eval::EvalArgs),
+    /// Fit an agent's error model against the ground truth: the bias and std of its boxes'
+    /// centre, size, yaw and velocity per class and score bin, with counts and 95% intervals,
+    /// written as JSON for `v2x-fuser fuse/track/node --std-model AGENT=FILE`.
+    Calibrate(commands::calibrate::CalibrateArgs),
     /// Reproduce the paper's Table 2: every method under each noise setting, with the single
     /// agents and the lower bound.
     Bench(commands::bench::BenchArgs),
@@ -52,6 +56,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Gen(args) => commands::gen::run(args)?,
         Command::Eval(args) => commands::eval::run(args)?,
+        Command::Calibrate(args) => commands::calibrate::run(args)?,
         Command::Bench(args) => commands::bench::run(args)?,
         Command::Mcap(args) => commands::mcap::run(args)?,
         Command::Load(args) => commands::load::run(args)?,

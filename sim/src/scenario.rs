@@ -7,6 +7,7 @@ use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
 use crate::timeline::fuser_restarts;
 use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use v2x_agent::Link;
 use v2x_fuser::region::Region;
@@ -104,6 +105,9 @@ pub struct FuserSpec {
     /// Learn each agent's stds from its boxes and fuse with them (`v2x-fuser node
     /// --learn-std`); the stats say what was learned and flag inconsistent agents.
     pub learn_std: bool,
+    /// Calibrated error models by agent name (`v2x-sim calibrate`; `v2x-fuser node --std-model
+    /// AGENT=FILE`), paths relative to the scenario file.
+    pub std_models: BTreeMap<String, PathBuf>,
     /// Most boxes one agent brings into a window (`v2x-fuser node --max-objects-per-agent`).
     pub max_objects_per_agent: usize,
     /// The area of interest `[x, y, radius]` (m, map frame); unset: learned from the agents
@@ -114,6 +118,18 @@ pub struct FuserSpec {
 }
 
 impl FuserSpec {
+    /// The calibrated error models, each file read and checked.
+    pub fn models(&self) -> Result<v2x_fuser::stdmodel::Models, String> {
+        let mut models = v2x_fuser::stdmodel::Models::default();
+        for (agent, path) in &self.std_models {
+            let at = |e: String| format!("fuser.std_models.{agent}: {}: {e}", path.display());
+            let text = std::fs::read_to_string(path).map_err(|e| at(e.to_string()))?;
+            let m = v2x_fuser::stdmodel::ErrorModel::from_json(&text).map_err(at)?;
+            models.0.insert(agent.clone(), m);
+        }
+        Ok(models)
+    }
+
     /// The area of interest the node admits boxes in.
     pub fn area(&self) -> v2x_fuser::ingest::Area {
         match self.area {
@@ -137,6 +153,7 @@ impl Default for FuserSpec {
             registration: RegistrationSpec::default(),
             track: false,
             learn_std: false,
+            std_models: BTreeMap::new(),
             max_objects_per_agent: v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT,
             area: None,
             zenoh: ZenohArgs::default(),
@@ -467,6 +484,13 @@ impl Scenario {
                 s.dataset.dataroot = Some(base.join(root));
             }
         }
+        if let Some(base) = base {
+            for path in s.fuser.std_models.values_mut() {
+                if path.is_relative() {
+                    *path = base.join(&*path);
+                }
+            }
+        }
         if let (Some(certs), Some(base)) = (&s.security.certs, base) {
             if certs.is_relative() {
                 s.security.certs = Some(base.join(certs));
@@ -545,6 +569,17 @@ impl Scenario {
             .area()
             .validate()
             .map_err(|e| format!("fuser.area: {e}"))?;
+        if let Some(a) = self
+            .fuser
+            .std_models
+            .keys()
+            .find(|a| !self.agents.iter().any(|s| &s.name == *a))
+        {
+            return Err(format!(
+                "fuser.std_models: '{a}' is not an agent of this scenario"
+            ));
+        }
+        self.fuser.models()?;
         if !(self.fuser.window_ms > 0.0) || !(self.fuser.max_wait_ms >= 0.0) {
             return Err("fuser.window_ms must be > 0 and fuser.max_wait_ms >= 0".into());
         }
@@ -712,6 +747,21 @@ mod tests {
         assert_eq!((p.chi2, p.min_matches), (30.0, 5));
         assert_eq!(p.tau_s, v2x_fuser::align::AlignParams::default().tau_s);
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
+        let stated = |v: &str| {
+            bad(&format!(
+                "[[agents]]\nname = \"a\"\nnoise = \"mild\"\nstated_std = \"{v}\""
+            ))
+        };
+        assert!(stated("loud").contains("agent a: stated_std"));
+        assert!(stated("none").contains("every box on the wire carries stds"));
+        let models = |m: &str| {
+            bad(&format!(
+                "[fuser]\nstd_models = {{ {m} }}\n[[agents]]\nname = \"a\"\nnoise = \"mild\""
+            ))
+        };
+        assert!(models("ghost = \"m.json\"").contains("'ghost' is not an agent"));
+        assert!(models("a = \"/nonexistent/m.json\"")
+            .contains("fuser.std_models.a: /nonexistent/m.json"));
         let agent = "[[agents]]\nname = \"a\"\nnoise = \"mild\"";
         assert!(bad(&format!("[fuser]\narea = [0, 0, 0]\n{agent}"))
             .contains("fuser.area: the area's radius must be finite and > 0"));

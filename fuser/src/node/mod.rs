@@ -64,6 +64,9 @@ pub struct NodeConfig {
     /// Each agent's stds learned from its boxes and fused instead of the stated ones (`None`:
     /// the stated ones are trusted).
     pub learn: Option<crate::learn::LearnParams>,
+    /// Calibrated error models by agent name, applied to the agents' boxes before anything
+    /// else (`--std-model`).
+    pub models: crate::stdmodel::Models,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
     /// The region this fuser serves (`None`: the single fuser of the namespace, on
@@ -87,6 +90,7 @@ impl NodeConfig {
             align: None,
             track: None,
             learn: None,
+            models: Default::default(),
             viz: None,
             region: None,
         }
@@ -582,6 +586,7 @@ pub async fn run(
         align: cfg.align,
         track: cfg.track,
         learn: cfg.learn,
+        models: std::sync::Arc::new(cfg.models.clone()),
         region: cfg.region,
     };
     let worker = tokio::spawn(worker::run(

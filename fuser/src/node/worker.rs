@@ -107,13 +107,14 @@ fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
 }
 
 /// How the worker fuses: the method and the optional steps around it.
-#[derive(Copy, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub(super) struct Fusion {
     pub method: Method,
     pub motion: Option<MotionParams>,
     pub align: Option<AlignParams>,
     pub track: Option<TrackerParams>,
     pub learn: Option<LearnParams>,
+    pub models: std::sync::Arc<crate::stdmodel::Models>,
     pub region: Option<crate::region::Region>,
 }
 
@@ -185,16 +186,19 @@ pub(super) async fn run(
                 learner: None,
             },
         );
+        let f = fusion.clone();
         let work = tokio::task::spawn_blocking(move || {
+            let mut closed = closed;
+            f.models.apply_window(&mut closed);
             let mut fused = fuse_window(
-                &fusion.method,
-                fusion.motion.as_ref(),
+                &f.method,
+                f.motion.as_ref(),
                 state.aligner.as_mut(),
                 state.learner.as_mut(),
                 closed,
                 this_seq,
             );
-            if let Some(r) = &fusion.region {
+            if let Some(r) = &f.region {
                 keep_owned(r, &mut fused);
             }
             let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));

@@ -8,6 +8,7 @@ use v2x_sim::bench::BenchConfig;
 use v2x_sim::noise::{place_agents, NoiseSetting};
 
 pub mod bench;
+pub mod calibrate;
 pub mod certs;
 pub mod eval;
 pub mod gen;

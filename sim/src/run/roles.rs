@@ -287,6 +287,7 @@ pub async fn regional_fuser_role(
         p.tracker.time_scale = scenario.speed;
         p
     });
+    cfg.models = scenario.fuser.models().map_err(anyhow::Error::msg)?;
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;

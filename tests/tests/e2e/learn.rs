@@ -8,7 +8,7 @@ use v2x_sim::scenario::Scenario;
 use v2x_tests::{bin, tempdir, within};
 
 /// The scenario file for 8 s of data at twice real time, in its own namespace, edited by `edit`.
-fn scenario(ns: &str, edit: impl Fn(String) -> String) -> Scenario {
+fn scenario(ns: &str, edit: &dyn Fn(String) -> String) -> Scenario {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/learn-std.toml");
     let toml = std::fs::read_to_string(path)
         .unwrap()
@@ -23,29 +23,69 @@ fn scenario(ns: &str, edit: impl Fn(String) -> String) -> Scenario {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_overconfident_agent_is_learned_and_flagged_over_the_network() {
+    // A calibrated model of the roadside unit, from another draw of the same town.
+    let dir = tempdir("learn-net-model");
+    let town = [
+        "--scenes",
+        "1",
+        "--seconds",
+        "20",
+        "--hz",
+        "10",
+        "--town-seed",
+        "7",
+    ];
+    let (ok, _, err) = run(std::process::Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild+large", "--seed", "2", "--out"])
+        .arg(&dir)
+        .args(town));
+    assert!(ok, "{err}");
+    let model = dir.join("rsu.json");
+    let (ok, _, err) = run(std::process::Command::new(bin("v2x-sim"))
+        .arg("calibrate")
+        .args(town)
+        .arg(dir.join("agent2.json"))
+        .arg("-o")
+        .arg(&model));
+    assert!(ok, "{err}");
+    let with_model = format!(
+        "learn_std = false\nstd_models = {{ rsu = {:?} }}",
+        model.display().to_string()
+    );
     let mut runs = Vec::new();
     for (ns, edit) in [
-        ("learn-on", (|t| t) as fn(String) -> String),
-        ("learn-off", |t: String| {
-            t.replace("learn_std = true", "learn_std = false")
-        }),
-        ("learn-honest", |t: String| {
-            t.replace("learn_std = true", "learn_std = false")
-                .replace("stated_std = \"mild\"", "")
-        }),
+        ("learn-on", Box::new(|t| t) as Box<dyn Fn(String) -> String>),
+        (
+            "learn-off",
+            Box::new(|t: String| t.replace("learn_std = true", "learn_std = false")),
+        ),
+        (
+            "learn-honest",
+            Box::new(|t: String| {
+                t.replace("learn_std = true", "learn_std = false")
+                    .replace("stated_std = \"mild\"", "")
+            }),
+        ),
+        (
+            "learn-model",
+            Box::new(move |t: String| t.replace("learn_std = true", &with_model)),
+        ),
     ] {
-        let s = scenario(ns, edit);
+        let s = scenario(ns, &*edit);
         let gt = s.dataset.data_args().load().unwrap();
         let (summary, _) = within(90, ns, run_local(&s, &gt)).await.unwrap();
         runs.push(summary);
     }
-    let [learned, stated, honest] = &runs[..] else {
+    let [learned, stated, honest, modelled] = &runs[..] else {
         unreachable!()
     };
     let fig =
         |s: &v2x_sim::run::summary::Summary| (s.fused.precision.unwrap(), s.fused.m_ate.unwrap());
-    let ((p_learned, e_learned), (p_stated, e_stated), (_, e_honest)) =
-        (fig(learned), fig(stated), fig(honest));
+    let ((p_learned, e_learned), (p_stated, e_stated), (_, e_honest), (p_model, e_model)) =
+        (fig(learned), fig(stated), fig(honest), fig(modelled));
+    // Calibrated: as good as honest stds.
+    assert!(p_model >= 0.98, "{p_model}");
+    assert!(e_model <= 1.05 * e_honest, "{e_model} vs {e_honest}");
     // What the stated stds do: groups split, the fused error triples.
     assert!(p_stated < 0.8, "{p_stated}");
     assert!(e_stated > 2.0 * e_honest, "{e_stated} vs {e_honest}");
@@ -162,6 +202,92 @@ fn fuse_learns_stds_stated_wrong_or_not_at_all() {
     assert!(!text.contains("translation_std"));
     let (p, e, _) = fuse(&none, &["--learn-std"]);
     assert!(p >= 0.98 && e <= 1.1 * e_honest, "{p} {e} vs {e_honest}");
+
+    // A calibrated model of the roadside unit, from another draw: as good as honest stds.
+    let other = tempdir("learn-calibrate");
+    let (ok, _, err) = run(std::process::Command::new(bin("v2x-sim"))
+        .args(["gen", "--noise", "mild+large", "--seed", "5", "--out"])
+        .arg(&other)
+        .args(TOWN));
+    assert!(ok, "{err}");
+    let model = other.join("rsu-model.json");
+    let (ok, table, err) = run(std::process::Command::new(bin("v2x-sim"))
+        .arg("calibrate")
+        .args(TOWN)
+        .arg(other.join("agent2.json"))
+        .arg("--output")
+        .arg(&model));
+    assert!(ok && err.contains("matched by ground-truth id"), "{err}");
+    assert!(
+        table.contains("| car |") && table.contains("| all |"),
+        "{table}"
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let s = m["all"]["std"]["center"][0].as_f64().unwrap();
+    assert!((s / 3.0 - 1.0).abs() < 0.05, "{s}");
+    let arg = format!("agent2={}", model.display());
+    let (p, e, _) = fuse(&over, &["--std-model", &arg]);
+    assert!(p >= 0.98 && e <= 1.05 * e_honest, "{p} {e} vs {e_honest}");
+    // With a model for every input, boxes need no stds.
+    let veh = other.join("veh-model.json");
+    let (ok, _, err) = run(std::process::Command::new(bin("v2x-sim"))
+        .args(["calibrate", "--score-bins", "1"])
+        .args(TOWN)
+        .arg(other.join("agent1.json"))
+        .arg("-o")
+        .arg(&veh));
+    assert!(ok, "{err}");
+    let veh_arg = format!("agent1={}", veh.display());
+    let (p, e, _) = fuse(&none, &["--std-model", &arg, "--std-model", &veh_arg]);
+    assert!(p >= 0.98 && e <= 1.05 * e_honest, "{p} {e} vs {e_honest}");
+    // Bad models and names are named.
+    let fail = |args: &[&str]| {
+        let (ok, _, err) = run(std::process::Command::new(bin("v2x-fuser"))
+            .arg("fuse")
+            .args(args)
+            .arg("--output")
+            .arg(over.join("x.json"))
+            .arg(over.join("agent1.json"))
+            .arg(over.join("agent2.json")));
+        assert!(!ok);
+        err
+    };
+    let err = fail(&["--std-model", &format!("rsu={}", model.display())]);
+    assert!(
+        err.contains("--std-model rsu") && err.contains("agentN"),
+        "{err}"
+    );
+    let err = fail(&["--std-model", "agent2=/nonexistent/m.json"]);
+    assert!(err.contains("/nonexistent/m.json"), "{err}");
+    let not_a_model = format!("agent2={}", over.join("agent1.json").display());
+    let err = fail(&["--std-model", &not_a_model]);
+    assert!(err.contains("agent1.json"), "{err}");
+    // A detector's own boxes carry no ground-truth ids to calibrate by: matched by distance.
+    let mut plain: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(other.join("agent2.json")).unwrap()).unwrap();
+    for boxes in plain["results"].as_object_mut().unwrap().values_mut() {
+        for b in boxes.as_array_mut().unwrap() {
+            b.as_object_mut().unwrap().remove("instance_token");
+        }
+    }
+    let plain_path = other.join("plain.json");
+    std::fs::write(&plain_path, plain.to_string()).unwrap();
+    let calibrate = |how: &str| {
+        run(std::process::Command::new(bin("v2x-sim"))
+            .args(["calibrate", "--match", how])
+            .args(TOWN)
+            .arg(&plain_path)
+            .arg("-o")
+            .arg(other.join("x.json")))
+    };
+    let (ok, _, err) = calibrate("id");
+    assert!(
+        !ok && err.contains("plain.json") && err.contains("--match distance"),
+        "{err}"
+    );
+    let (ok, _, err) = calibrate("auto");
+    assert!(ok && err.contains("centre distance within 4 m"), "{err}");
 
     // Learning follows capture times: a file without them is named.
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();

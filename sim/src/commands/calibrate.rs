@@ -1,0 +1,92 @@
+//! `v2x-sim calibrate`.
+
+use anyhow::Context;
+use std::path::PathBuf;
+use v2x_eval::calibrate::{error_samples, CalibrateOptions};
+use v2x_fuser::stdmodel::{Cell, ErrorModel};
+use v2x_sim::cli::DataArgs;
+
+/// The options of `v2x-sim calibrate`.
+#[derive(clap::Args)]
+pub struct CalibrateArgs {
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// How boxes are matched to the objects they detected: `id` (by ground-truth id, the
+    /// instance_token each box carries), `distance` (the nearest object of the box's class
+    /// within --max-distance-m), or `auto`: by id when the boxes carry ids.
+    #[arg(long = "match", value_enum, default_value = "auto")]
+    pub matching: v2x_sim::cli::Match,
+    /// With matching by distance: the largest centre distance (m) of a match. Errors beyond
+    /// it are not seen, so give several times the agent's std.
+    #[arg(long, default_value_t = 4.0)]
+    pub max_distance_m: f64,
+    /// Score bins per class, at the scores' quantiles (1: no bins).
+    #[arg(long, default_value_t = 3)]
+    pub score_bins: usize,
+    /// Where to write the model (JSON), for `v2x-fuser fuse/track/node --std-model AGENT=FILE`.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// The agent's results file (nuScenes detection results, as scored by `v2x-sim eval`).
+    pub results: PathBuf,
+}
+
+/// Runs `v2x-sim calibrate`.
+pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
+    let CalibrateArgs {
+        data,
+        matching,
+        max_distance_m,
+        score_bins,
+        output,
+        results,
+    } = args;
+    if !(1..=20).contains(&score_bins) {
+        anyhow::bail!("--score-bins must be 1 to 20");
+    }
+    let gt = data.load()?;
+    let opts = CalibrateOptions {
+        how: matching,
+        max_distance_m,
+        ..Default::default()
+    };
+    let (samples, how) = error_samples(&gt, &results, &opts)?;
+    let model = ErrorModel::fit(&samples, score_bins, &how).with_context(|| {
+        format!(
+            "{}: fewer than two of its boxes matched an object: nothing to calibrate",
+            results.display()
+        )
+    })?;
+    let text = serde_json::to_string_pretty(&model)?;
+    std::fs::write(&output, text).with_context(|| format!("cannot write {}", output.display()))?;
+    eprintln!(
+        "{}: {} boxes matched by {how} -> {}",
+        results.display(),
+        samples.len(),
+        output.display()
+    );
+    println!("| class | boxes | bias x, y (m) | std x, y (m) | 95% of std x | std size l (m) | std yaw (deg) | std velocity (m/s) |");
+    println!("|---|---:|---|---|---|---:|---:|---:|");
+    let row = |name: &str, c: &Cell| {
+        let v = c
+            .std
+            .velocity
+            .map_or("-".into(), |v| format!("{:.3}", 0.5 * (v[0] + v[1])));
+        println!(
+            "| {name} | {} | {:.3}, {:.3} | {:.3}, {:.3} | {:.3}-{:.3} | {:.3} | {:.2} | {v} |",
+            c.count,
+            c.bias.center[0],
+            c.bias.center[1],
+            c.std.center[0],
+            c.std.center[1],
+            c.std_low.center[0],
+            c.std_high.center[0],
+            c.std.size[0],
+            c.std.yaw.to_degrees()
+        );
+    };
+    for (name, c) in &model.classes {
+        row(name, &c.all);
+    }
+    row("all", &model.all);
+    Ok(())
+}
