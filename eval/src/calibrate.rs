@@ -71,7 +71,8 @@ pub fn error_samples(
             path.display()
         )));
     }
-    if !by_id && !(opts.max_distance_m > 0.0 && opts.max_distance_m.is_finite()) {
+    let reach_ok = opts.max_distance_m > 0.0 && opts.max_distance_m.is_finite();
+    if !by_id && !reach_ok {
         return Err(EvalError("--max-distance-m must be > 0".into()));
     }
     let mut out = Vec::new();
