@@ -710,6 +710,9 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         if let Some(path) = &record {
             let mut meta = default_meta();
             meta["v2x_provenance"] = serde_json::Value::Object(provenance);
+            if !stats.learned_std.is_empty() {
+                meta["v2x_learned_std"] = serde_json::to_value(&stats.learned_std)?;
+            }
             recorded.meta = meta;
             write_results(path, &recorded, &TokenTable::new())?;
             eprintln!(

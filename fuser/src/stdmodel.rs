@@ -10,7 +10,7 @@
 //! 95% interval of the std: std sqrt((N - 1) / chi2_{0.975, N-1}) .. std sqrt((N - 1) / chi2_{0.025, N-1})
 //! ```
 //!
-//! (chi-square quantiles by the Wilson-Hilferty approximation). A box takes its class's score
+//! (chi-square quantiles from its CDF, the regularized incomplete gamma). A box takes its class's score
 //! bin when that holds at least [`MIN_COUNT`] boxes, else its class's cell, else the cell of all
 //! classes. Sans-IO: the model is read and written as text by the shells.
 
@@ -133,10 +133,77 @@ impl ErrorSample {
     }
 }
 
-/// The upper `p` quantile of chi-square with `k` degrees of freedom (Wilson-Hilferty).
-fn chi2_quantile(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
+/// ln Gamma(a) for a > 0 (Lanczos, g = 7: 15 digits).
+fn ln_gamma(a: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = a - 1.0;
+    let t = x + 7.5;
+    let sum = C[0] + (1..9).map(|i| C[i] / (x + i as f64)).sum::<f64>();
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
+/// The regularized lower incomplete gamma P(a, x): a series below a + 1, a continued fraction
+/// above.
+fn gamma_p(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    let front = (a * x.ln() - x - ln_gamma(a)).exp();
+    if x < a + 1.0 {
+        let (mut term, mut sum, mut n) = (1.0 / a, 1.0 / a, a);
+        while term.abs() > sum.abs() * 1e-15 {
+            n += 1.0;
+            term *= x / n;
+            sum += term;
+        }
+        return sum * front;
+    }
+    // Lentz's continued fraction for Q(a, x).
+    let tiny = 1e-300;
+    let mut b = x + 1.0 - a;
+    let mut c = 1.0 / tiny;
+    let mut d = 1.0 / b;
+    let mut h = d;
+    for i in 1..1000 {
+        let an = -(i as f64) * (i as f64 - a);
+        b += 2.0;
+        d = an * d + b;
+        d = if d.abs() < tiny { tiny } else { d };
+        c = b + an / c;
+        c = if c.abs() < tiny { tiny } else { c };
+        d = 1.0 / d;
+        let delta = d * c;
+        h *= delta;
+        if (delta - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    1.0 - front * h
+}
+
+/// The `p` quantile of chi-square with `k` degrees of freedom, by bisection of its CDF.
+fn chi2_quantile(k: f64, p: f64) -> f64 {
+    let cdf = |x: f64| gamma_p(k / 2.0, x / 2.0);
+    let (mut lo, mut hi) = (0.0, k + 10.0 * (2.0 * k).sqrt() + 100.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if cdf(mid) < p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Mean and std (N - 1) of some numbers, with the std's 95% interval.
@@ -149,8 +216,8 @@ fn moments(x: &[f64]) -> (f64, f64, f64, f64) {
     let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     let s = var.sqrt();
     let k = n - 1.0;
-    let low = s * (k / chi2_quantile(k, 1.959_964)).sqrt();
-    let high = s * (k / chi2_quantile(k, -1.959_964).max(1e-12)).sqrt();
+    let low = s * (k / chi2_quantile(k, 0.975)).sqrt();
+    let high = s * (k / chi2_quantile(k, 0.025)).sqrt();
     (mean, s, low, high)
 }
 

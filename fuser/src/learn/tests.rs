@@ -215,3 +215,41 @@ fn an_agent_that_changes_is_followed() {
     l.forget("a");
     assert!(l.report().is_empty());
 }
+
+#[test]
+fn stds_three_times_off_are_flagged_within_ten_seconds() {
+    // At 10 Hz: the first frame after which each agent is flagged.
+    let scene = Scene::new(40);
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut l = Learner::new(LearnParams::default());
+    let agents = [
+        ("narrow", 1.5, 0.5),
+        ("wide", 0.5, 1.5),
+        ("honest", 1.0, 1.0),
+    ];
+    let mut first = [None; 3];
+    for k in 0..100u64 {
+        let t_us = k * 100_000;
+        for (name, sigma, stated) in agents {
+            l.observe(
+                name,
+                t_us,
+                &scene.detect(t_us as f64 / 1e6, sigma, stated, &mut rng),
+            );
+        }
+        let r = l.report();
+        for (i, (name, ..)) in agents.iter().enumerate() {
+            if r[*name].flagged && first[i].is_none() {
+                first[i] = Some(k);
+            }
+        }
+    }
+    // Flagged after the first residuals are in: well within 100 frames, 10 s.
+    assert!(first[0].is_some_and(|k| k < 10), "{first:?}");
+    assert!(first[1].is_some_and(|k| k < 10), "{first:?}");
+    assert_eq!(first[2], None, "an honest agent is never flagged");
+    let r = l.report();
+    let narrow = r["narrow"].ratio_xy.unwrap();
+    assert!((narrow / 3.0 - 1.0).abs() < 0.15, "{narrow}");
+    assert!((r["wide"].ratio_xy.unwrap() * 3.0 - 1.0).abs() < 0.15);
+}

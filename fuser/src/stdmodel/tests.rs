@@ -48,11 +48,21 @@ fn the_std_interval_matches_chi_square_tables() {
         .collect();
     let (mean, s, low, high) = moments(&x);
     assert_eq!(mean, 0.0);
-    assert!((low / s - (99.0f64 / 128.422).sqrt()).abs() < 1e-3, "{low}");
+    assert!((low / s - (99.0f64 / 128.422).sqrt()).abs() < 1e-5, "{low}");
     assert!(
-        (high / s - (99.0f64 / 73.361).sqrt()).abs() < 1e-3,
+        (high / s - (99.0f64 / 73.361).sqrt()).abs() < 1e-5,
         "{high}"
     );
+    // Small counts, where approximations fail (tables: k = 1, 2, 5, 30).
+    for (k, lo, hi) in [
+        (1.0, 0.000982069, 5.023886),
+        (2.0, 0.0506356, 7.377759),
+        (5.0, 0.8312116, 12.832502),
+        (30.0, 16.790772, 46.979242),
+    ] {
+        assert!((chi2_quantile(k, 0.025) / lo - 1.0).abs() < 1e-5, "{k}");
+        assert!((chi2_quantile(k, 0.975) / hi - 1.0).abs() < 1e-6, "{k}");
+    }
 }
 
 #[test]
