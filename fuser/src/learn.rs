@@ -1,5 +1,5 @@
 //! Each agent's error model learned from its own boxes as they flow, without ground truth
-//! (`docs/method.md` §9), and the consistency monitor that flags an agent whose stated stds
+//! (`docs/method.md` §10), and the consistency monitor that flags an agent whose stated stds
 //! are wrong.
 //!
 //! An agent's detection errors are independent from frame to frame; the objects it sees move

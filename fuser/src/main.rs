@@ -230,7 +230,7 @@ impl MotionArgs {
 }
 
 /// Where each agent's stds come from: as stated, a calibrated model, or learned
-/// (`docs/method.md` §9).
+/// (`docs/method.md` §10).
 #[derive(clap::Args)]
 struct StdArgs {
     /// An agent's error model, as `v2x-sim calibrate` writes it: its bias is taken off the
