@@ -4,11 +4,10 @@
 //! unclaimed object of its class within a distance (boxes taken by descending score, as the
 //! nuScenes benchmark matches), and the difference taken.
 
-use crate::file_eval::{sample_times, EvalError, Match, ReplayMap, Timing};
+use crate::file_eval::{read_scored, sample_times, EvalError, Match, ReplayMap, Timing};
 use std::path::Path;
 use v2x_fuser::stdmodel::ErrorSample;
-use v2x_protocol::nuscenes_json::{read_results, MissingStd};
-use v2x_protocol::{Detection, Uncertainty, NO_ID};
+use v2x_protocol::{Detection, NO_ID};
 use v2x_truth::dataset::GroundTruth;
 
 /// How boxes are matched to the objects they detected.
@@ -43,14 +42,7 @@ pub fn error_samples(
     path: &Path,
     opts: &CalibrateOptions,
 ) -> Result<(Vec<ErrorSample>, String), EvalError> {
-    let mut tokens = gt.tokens.clone();
-    // Stated stds play no part: a file without them is as good.
-    let results = read_results(
-        path,
-        &mut tokens,
-        MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
-    )
-    .map_err(|e| EvalError(e.to_string()))?;
+    let results = read_scored(gt, path)?;
     let (samples, unknown) = sample_times(gt, &results, opts.replay, opts.timing);
     if let Some(k) = unknown.first() {
         return Err(EvalError(format!(
@@ -150,7 +142,7 @@ fn match_by_distance(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use v2x_protocol::Class;
+    use v2x_protocol::{Class, Uncertainty};
 
     fn at(class: Class, x: f64, score: f64, id: u32) -> Detection {
         Detection {

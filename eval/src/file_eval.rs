@@ -179,13 +179,7 @@ pub fn evaluate_file(
     path: &Path,
     opts: &EvalOptions,
 ) -> Result<(Evaluation, String), EvalError> {
-    let mut tokens = gt.tokens.clone();
-    let results = read_results(
-        path,
-        &mut tokens,
-        MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
-    )
-    .map_err(|e| EvalError(e.to_string()))?;
+    let results = read_scored(gt, path)?;
     let tracked = gt.tracked_across_frames();
     if opts.timing == Timing::Capture && !tracked {
         return Err(EvalError(format!(
@@ -273,6 +267,21 @@ pub fn evaluate_file(
     };
     note += &classes_note(&t, scored_classes.as_deref());
     Ok((evaluation, note))
+}
+
+/// Reads a results file to score against `gt`: stated stds play no part, so boxes without them
+/// are read too.
+pub fn read_scored(
+    gt: &GroundTruth,
+    path: &Path,
+) -> Result<v2x_protocol::nuscenes_json::Results, EvalError> {
+    let mut tokens = gt.tokens.clone();
+    read_results(
+        path,
+        &mut tokens,
+        MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
+    )
+    .map_err(|e| EvalError(e.to_string()))
 }
 
 /// What scoring a file counted.

@@ -202,10 +202,7 @@ impl NoiseSetting {
     /// Replaces the agents' faults: one spec for all, or one per agent joined by '+' (the last
     /// repeats).
     pub fn set_faults(&mut self, spec: &str) -> Result<(), String> {
-        let parts: Vec<Faults> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
-        for (a, agent) in self.agents.iter_mut().enumerate() {
-            agent.faults = parts[a.min(parts.len() - 1)];
-        }
+        self.set_each(spec, |agent, f| agent.faults = f)?;
         self.name = format!("{} faults {spec}", self.name);
         Ok(())
     }
@@ -213,11 +210,22 @@ impl NoiseSetting {
     /// Sets the stds the agents state ([`Stated`]): one for all, or one per agent joined by
     /// '+' (the last repeats).
     pub fn set_stated(&mut self, spec: &str) -> Result<(), String> {
-        let parts: Vec<Stated> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
-        for (a, agent) in self.agents.iter_mut().enumerate() {
-            agent.stated = parts[a.min(parts.len() - 1)];
-        }
+        self.set_each(spec, |agent, s: Stated| agent.stated = s)?;
         self.name = format!("{} stating {spec}", self.name);
+        Ok(())
+    }
+
+    /// Parses one value for all agents, or one per agent joined by '+' (the last repeats), and
+    /// sets each agent's.
+    fn set_each<T: FromStr<Err = String> + Copy>(
+        &mut self,
+        spec: &str,
+        set: impl Fn(&mut AgentNoise, T),
+    ) -> Result<(), String> {
+        let parts: Vec<T> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
+        for (a, agent) in self.agents.iter_mut().enumerate() {
+            set(agent, parts[a.min(parts.len() - 1)]);
+        }
         Ok(())
     }
 
