@@ -188,6 +188,66 @@ impl Inbox {
 }
 
 impl State {
+    /// The loop's state at the start: no agent, no window.
+    fn new(cfg: &NodeConfig, clock: Clock, subscribed: &[v2x_protocol::tiles::Tile]) -> Self {
+        let now = clock.now_us();
+        State {
+            viz: cfg.viz.clone(),
+            ns: cfg.ns.clone(),
+            clock,
+            ingest: Ingest::new(IngestConfig {
+                max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
+                ahead_us: (cfg.window_ms * 500.0) as u64,
+                ..cfg.ingest.clone()
+            }),
+            windows: Windows::new(
+                (cfg.window_ms * 1000.0) as u64,
+                (cfg.max_wait_ms * 1000.0) as u64,
+            ),
+            log: RateLog::new((cfg.log_interval_s.max(0.1) * 1e6) as u64, now),
+            stats: NodeStats {
+                ns: cfg.ns.clone(),
+                method: cfg.method.name(),
+                region: cfg.region.map(|r| r.tile.to_string()),
+                ..Default::default()
+            },
+            e2e: Default::default(),
+            fusion_hist: Default::default(),
+            fusion: Vec::new(),
+            queued: 0,
+            last_prune_us: now,
+            region: cfg.region,
+            // A capture's parts leave its agent together: waiting half the window's wait for
+            // a missing one leaves the other half for the capture to make its window.
+            parts: Parts::new(
+                subscribed,
+                (cfg.max_wait_ms * 500.0) as u64,
+                cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
+            ),
+            bounds_at_start: crate::association::bounds_applied(),
+        }
+    }
+
+    /// At a stop: every waiting capture and open window goes to the worker, whose queue then
+    /// closes.
+    async fn flush(&mut self, job_tx: mpsc::Sender<worker::Job>) {
+        let expired = self.parts.expire(u64::MAX);
+        self.admit_parts(expired, self.clock.now_us());
+        self.stats.open_windows_at_stop = self.windows.open_windows();
+        let now = self.clock.now_us();
+        for closed in self.close_ready(u64::MAX) {
+            self.queued += 1;
+            let job = worker::Job {
+                closed,
+                closed_at_us: now,
+            };
+            if job_tx.send(job).await.is_err() {
+                self.queued -= 1;
+                self.stats.windows_dropped += 1;
+            }
+        }
+    }
+
     fn snapshot(&self) -> NodeStats {
         let now = self.clock.now_us();
         let mut s = self.stats.clone();
@@ -491,62 +551,11 @@ pub async fn run(
     mut on_fused: impl FnMut(&Fused),
     shutdown: impl Future<Output = ()>,
 ) -> anyhow::Result<NodeStats> {
-    keys::validate_chunk("namespace", &cfg.ns).map_err(|e| anyhow!(e))?;
-    let window_ok = cfg.window_ms > 0.0 && cfg.window_ms.is_finite();
-    let wait_ok = cfg.max_wait_ms >= 0.0 && cfg.max_wait_ms.is_finite();
-    if !window_ok || !wait_ok {
-        anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
-    }
-    if cfg.ingest.max_agents == 0 || cfg.queue == 0 || cfg.ingest.max_objects == 0 {
-        anyhow::bail!(
-            "the agent table, the fusion queue and the budget of boxes per agent must hold at least one entry"
-        );
-    }
-    cfg.ingest.area.validate().map_err(|e| anyhow!(e))?;
-    if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
-        anyhow::bail!(
-            "the agent table may hold at most {} agents (the most a fused frame can name)",
-            v2x_protocol::limits::MAX_WINDOW_AGENTS
-        );
-    }
+    check(&cfg)?;
     let ns = cfg.ns.clone();
-    // Zenoh's errors say what failed, not where: each names its operation and key.
-    let z = |what: &'static str, key: String| {
-        move |e: zenoh::Error| anyhow!("cannot declare the {what} on {key}: {e}")
-    };
     let fk = keys::FuserKeys::of(&ns, cfg.region.map(|r| r.tile));
     let overflow = Arc::new(std::sync::atomic::AtomicU64::new(0));
-    let (mut det, subscribed) = match &cfg.region {
-        None => (
-            Inbox::Whole(
-                session
-                    .declare_subscriber(keys::all_detections(&ns))
-                    .await
-                    .map_err(z("detections subscriber", keys::all_detections(&ns)))?,
-            ),
-            Vec::new(),
-        ),
-        Some(r) => {
-            let tiles = r.tiling.with_halo(r.tile, r.halo_m);
-            let (tx, rx) = mpsc::channel(INBOX);
-            let mut subs = Vec::new();
-            for t in &tiles {
-                let (tx, overflow) = (tx.clone(), overflow.clone());
-                subs.push(
-                    session
-                        .declare_subscriber(keys::tile_detections(&ns, *t))
-                        .callback(move |s| {
-                            if tx.try_send(s).is_err() {
-                                overflow.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            }
-                        })
-                        .await
-                        .map_err(z("detections subscriber", keys::tile_detections(&ns, *t)))?,
-                );
-            }
-            (Inbox::Tiles { rx, _subs: subs }, tiles)
-        }
-    };
+    let (mut det, subscribed) = subscribe_detections(session, &cfg, overflow.clone()).await?;
     let alive = session
         .liveliness()
         .declare_subscriber(keys::all_alive(&ns))
@@ -557,11 +566,7 @@ pub async fn run(
         .declare_queryable(fk.stats.clone())
         .await
         .map_err(z("statistics queryable", fk.stats.clone()))?;
-    let publisher = session
-        .declare_publisher(fk.fused.clone())
-        .encoding(v2x_protocol::net::frame_encoding())
-        .await
-        .map_err(z("fused-frame publisher", fk.fused.clone()))?;
+    let publisher = declare_frames(session, &fk.fused, "fused-frame publisher").await?;
     let _token = session
         .liveliness()
         .declare_token(fk.alive.clone())
@@ -571,13 +576,7 @@ pub async fn run(
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
     let tracks = match cfg.track {
-        Some(_) => Some(
-            session
-                .declare_publisher(fk.tracks.clone())
-                .encoding(v2x_protocol::net::frame_encoding())
-                .await
-                .map_err(z("tracks publisher", fk.tracks.clone()))?,
-        ),
+        Some(_) => Some(declare_frames(session, &fk.tracks, "tracks publisher").await?),
         None => None,
     };
     let fusion = worker::Fusion {
@@ -592,57 +591,8 @@ pub async fn run(
     let worker = tokio::spawn(worker::run(
         fusion, publisher, tracks, clock, job_rx, done_tx,
     ));
-    let now = clock.now_us();
-    let mut st = State {
-        viz: cfg.viz.clone(),
-        ns: ns.clone(),
-        clock,
-        ingest: Ingest::new(IngestConfig {
-            max_wait_us: (cfg.max_wait_ms * 1000.0) as u64,
-            ahead_us: (cfg.window_ms * 500.0) as u64,
-            ..cfg.ingest.clone()
-        }),
-        windows: Windows::new(
-            (cfg.window_ms * 1000.0) as u64,
-            (cfg.max_wait_ms * 1000.0) as u64,
-        ),
-        log: RateLog::new((cfg.log_interval_s.max(0.1) * 1e6) as u64, now),
-        stats: NodeStats {
-            ns: ns.clone(),
-            method: cfg.method.name(),
-            region: cfg.region.map(|r| r.tile.to_string()),
-            ..Default::default()
-        },
-        e2e: Default::default(),
-        fusion_hist: Default::default(),
-        fusion: Vec::new(),
-        queued: 0,
-        last_prune_us: now,
-        region: cfg.region,
-        // A capture's parts leave its agent together: waiting half the window's wait for a
-        // missing one leaves the other half for the capture to make its window.
-        parts: Parts::new(
-            &subscribed,
-            (cfg.max_wait_ms * 500.0) as u64,
-            cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
-        ),
-        bounds_at_start: crate::association::bounds_applied(),
-    };
-    match &cfg.region {
-        None => tracing::info!(
-            "fuser on v2x/{ns}: method {}, window {} ms",
-            st.stats.method,
-            cfg.window_ms
-        ),
-        Some(r) => tracing::info!(
-            "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {}, window {} ms",
-            r.tile,
-            r.tiling.size_m(),
-            r.halo_m,
-            st.stats.method,
-            cfg.window_ms
-        ),
-    }
+    let mut st = State::new(&cfg, clock, &subscribed);
+    log_start(&cfg, &st.stats.method);
     tokio::pin!(shutdown);
     loop {
         // Wake for the next deadline, and at least once a second for housekeeping.
@@ -665,18 +615,7 @@ pub async fn run(
                 Err(_) => break,
             },
             q = queryable.recv_async() => if let Ok(q) = q {
-                match serde_json::to_vec(&st.snapshot()) {
-                    Ok(body) => {
-                        if let Err(e) = q
-                            .reply(fk.stats.clone(), body)
-                            .encoding(Encoding::APPLICATION_JSON)
-                            .await
-                        {
-                            tracing::warn!("stats reply failed: {e}");
-                        }
-                    }
-                    Err(e) => tracing::warn!("stats do not serialize: {e}"),
-                }
+                reply_stats(&q, &fk.stats, &st.snapshot()).await;
             },
             d = done_rx.recv() => if let Some(d) = d {
                 st.on_done(d, &mut on_fused);
@@ -692,27 +631,7 @@ pub async fn run(
         st.enqueue(ready, &job_tx);
         st.housekeeping();
     }
-    // Stop: flush every waiting capture and open window through the worker, then let it
-    // finish.
-    let expired = st.parts.expire(u64::MAX);
-    st.admit_parts(expired, st.clock.now_us());
-    st.stats.open_windows_at_stop = st.windows.open_windows();
-    let now = st.clock.now_us();
-    for closed in st.close_ready(u64::MAX) {
-        st.queued += 1;
-        if job_tx
-            .send(worker::Job {
-                closed,
-                closed_at_us: now,
-            })
-            .await
-            .is_err()
-        {
-            st.queued -= 1;
-            st.stats.windows_dropped += 1;
-        }
-    }
-    drop(job_tx);
+    st.flush(job_tx).await;
     while let Some(d) = done_rx.recv().await {
         st.on_done(d, &mut on_fused);
     }
@@ -723,6 +642,118 @@ pub async fn run(
     let mut stats = st.snapshot();
     stats.fusion_samples = std::mem::take(&mut st.fusion);
     Ok(stats)
+}
+
+/// Refuses a configuration the node cannot run with.
+fn check(cfg: &NodeConfig) -> anyhow::Result<()> {
+    keys::validate_chunk("namespace", &cfg.ns).map_err(|e| anyhow!(e))?;
+    let window_ok = cfg.window_ms > 0.0 && cfg.window_ms.is_finite();
+    let wait_ok = cfg.max_wait_ms >= 0.0 && cfg.max_wait_ms.is_finite();
+    if !window_ok || !wait_ok {
+        anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
+    }
+    if cfg.ingest.max_agents == 0 || cfg.queue == 0 || cfg.ingest.max_objects == 0 {
+        anyhow::bail!(
+            "the agent table, the fusion queue and the budget of boxes per agent must hold at least one entry"
+        );
+    }
+    cfg.ingest.area.validate().map_err(|e| anyhow!(e))?;
+    if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
+        anyhow::bail!(
+            "the agent table may hold at most {} agents (the most a fused frame can name)",
+            v2x_protocol::limits::MAX_WINDOW_AGENTS
+        );
+    }
+    Ok(())
+}
+
+/// Zenoh's errors say what failed, not where: each names its operation and key.
+fn z(what: &'static str, key: String) -> impl FnOnce(zenoh::Error) -> anyhow::Error {
+    move |e| anyhow!("cannot declare the {what} on {key}: {e}")
+}
+
+/// A publisher of encoded frames on `key`.
+async fn declare_frames(
+    session: &zenoh::Session,
+    key: &str,
+    what: &'static str,
+) -> anyhow::Result<zenoh::pubsub::Publisher<'static>> {
+    session
+        .declare_publisher(key.to_owned())
+        .encoding(v2x_protocol::net::frame_encoding())
+        .await
+        .map_err(z(what, key.to_owned()))
+}
+
+/// The detections' subscription: every agent's key, or (a region) one per tile within the
+/// halo feeding one queue, whose overflow is counted; with the tiles subscribed.
+async fn subscribe_detections(
+    session: &zenoh::Session,
+    cfg: &NodeConfig,
+    overflow: Arc<std::sync::atomic::AtomicU64>,
+) -> anyhow::Result<(Inbox, Vec<v2x_protocol::tiles::Tile>)> {
+    let ns = &cfg.ns;
+    let Some(r) = &cfg.region else {
+        let key = keys::all_detections(ns);
+        let sub = session
+            .declare_subscriber(key.clone())
+            .await
+            .map_err(z("detections subscriber", key))?;
+        return Ok((Inbox::Whole(sub), Vec::new()));
+    };
+    let tiles = r.tiling.with_halo(r.tile, r.halo_m);
+    let (tx, rx) = mpsc::channel(INBOX);
+    let mut subs = Vec::new();
+    for t in &tiles {
+        let (tx, overflow) = (tx.clone(), overflow.clone());
+        let key = keys::tile_detections(ns, *t);
+        subs.push(
+            session
+                .declare_subscriber(key.clone())
+                .callback(move |s| {
+                    if tx.try_send(s).is_err() {
+                        overflow.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    }
+                })
+                .await
+                .map_err(z("detections subscriber", key))?,
+        );
+    }
+    Ok((Inbox::Tiles { rx, _subs: subs }, tiles))
+}
+
+/// Says what the node serves.
+fn log_start(cfg: &NodeConfig, method: &str) {
+    let ns = &cfg.ns;
+    match &cfg.region {
+        None => tracing::info!(
+            "fuser on v2x/{ns}: method {method}, window {} ms",
+            cfg.window_ms
+        ),
+        Some(r) => tracing::info!(
+            "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {method}, window {} ms",
+            r.tile,
+            r.tiling.size_m(),
+            r.halo_m,
+            cfg.window_ms
+        ),
+    }
+}
+
+/// Answers a statistics query with `stats` as JSON.
+async fn reply_stats(q: &zenoh::query::Query, key: &str, stats: &NodeStats) {
+    match serde_json::to_vec(stats) {
+        Ok(body) => {
+            if let Err(e) = q
+                .reply(key.to_owned(), body)
+                .encoding(Encoding::APPLICATION_JSON)
+                .await
+            {
+                tracing::warn!("stats reply failed: {e}");
+            }
+        }
+        Err(e) => tracing::warn!("stats do not serialize: {e}"),
+    }
 }
 
 /// Asks a running fuser for its statistics.

@@ -154,6 +154,64 @@ fn tracks_frame(tracker: &mut Tracker, fused: &Frame) -> Frame {
     frame
 }
 
+/// What fusing one job gives: the fused window, how it was fitted, its bytes, the tracks frame's
+/// bytes with the tracker's counters, and the state carried to the next job.
+type JobOutput = (
+    Fused,
+    Fit,
+    Result<Vec<u8>, wire::EncodeError>,
+    Option<(Result<Vec<u8>, wire::EncodeError>, TrackStats)>,
+    Carried,
+);
+
+/// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
+/// fusion, the region's share, the wire's domain, then the tracks.
+fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> JobOutput {
+    f.models.apply_window(&mut closed);
+    let mut fused = fuse_window(
+        &f.method,
+        f.motion.as_ref(),
+        state.aligner.as_mut(),
+        state.learner.as_mut(),
+        closed,
+        seq,
+    );
+    if let Some(r) = &f.region {
+        keep_owned(r, &mut fused);
+    }
+    let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
+    let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
+    let tracked = state.tracker.as_mut().map(|t| {
+        let frame = tracks_frame(t, &fused.frame);
+        let bytes = wire::encode(&frame);
+        fused.tracks = Some(frame.detections);
+        (bytes, t.stats())
+    });
+    (fused, fit, bytes, tracked, state)
+}
+
+/// The empty window reported in place of one whose fusion panicked.
+fn lost_window(seq: u32, anchor_us: u64, agents: Vec<String>, complete: bool) -> Fused {
+    Fused {
+        frame: Frame {
+            agent: "fuser".into(),
+            kind: AgentKind::Infrastructure,
+            seq,
+            capture_us: anchor_us,
+            origin: [0.0; 3],
+            detections: Vec::new(),
+        },
+        provenance: Provenance {
+            agents,
+            complete,
+            sources: Vec::new(),
+        },
+        tracks: None,
+        registration: Default::default(),
+        learned: Default::default(),
+    }
+}
+
 /// Runs the worker until its queue closes; with `tracks`, tracks go out on it after each
 /// fused window.
 pub(super) async fn run(
@@ -178,7 +236,7 @@ pub(super) async fn run(
             closed.frames.keys().cloned().collect::<Vec<_>>(),
             closed.complete,
         );
-        let mut state = std::mem::replace(
+        let state = std::mem::replace(
             &mut carried,
             Carried {
                 aligner: None,
@@ -187,31 +245,7 @@ pub(super) async fn run(
             },
         );
         let f = fusion.clone();
-        let work = tokio::task::spawn_blocking(move || {
-            let mut closed = closed;
-            f.models.apply_window(&mut closed);
-            let mut fused = fuse_window(
-                &f.method,
-                f.motion.as_ref(),
-                state.aligner.as_mut(),
-                state.learner.as_mut(),
-                closed,
-                this_seq,
-            );
-            if let Some(r) = &f.region {
-                keep_owned(r, &mut fused);
-            }
-            let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
-            let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
-            let tracked = state.tracker.as_mut().map(|t| {
-                let frame = tracks_frame(t, &fused.frame);
-                let bytes = wire::encode(&frame);
-                fused.tracks = Some(frame.detections);
-                (bytes, t.stats())
-            });
-            (fused, fit, bytes, tracked, state)
-        })
-        .await;
+        let work = tokio::task::spawn_blocking(move || fuse_job(&f, state, closed, this_seq)).await;
         // A fusion that panicked took the aligner and the tracks with it: start afresh.
         let (work, tracked) = match work {
             Ok((fused, fit, bytes, tracked, state)) => {
@@ -237,24 +271,7 @@ pub(super) async fn run(
             Ok((fused, fit, Err(e))) => (fused, fit, Some(format!("does not encode: {e}"))),
             // The fusion panicked: the window is lost (and counted), the worker goes on.
             Err(e) => (
-                Fused {
-                    frame: Frame {
-                        agent: "fuser".into(),
-                        kind: AgentKind::Infrastructure,
-                        seq: this_seq,
-                        capture_us: anchor,
-                        origin: [0.0; 3],
-                        detections: Vec::new(),
-                    },
-                    provenance: Provenance {
-                        agents,
-                        complete,
-                        sources: Vec::new(),
-                    },
-                    tracks: None,
-                    registration: Default::default(),
-                    learned: Default::default(),
-                },
+                lost_window(this_seq, anchor, agents, complete),
                 Fit::default(),
                 Some(format!("fusion failed: {e}")),
             ),
