@@ -121,59 +121,9 @@ async fn run_local_until(
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<(Summary, FuserOutcome)> {
     let schedule = Schedule::of(gt, scenario.duration_s);
-    // Plain: the fuser listens and agents connect to it. Mutual TLS: a router listens, holding
-    // the access-control policy, and the fuser and the agents are its clients.
     let hub_port = free_port()?;
-    let (router_session, fuser_session, certs) = match scenario.security.mode {
-        SecurityMode::Plain => {
-            let hub = format!("tcp/127.0.0.1:{hub_port}");
-            let args = ZenohArgs::loopback(&[hub], &[]);
-            (
-                None,
-                meter::open_role_session(&args, scenario, Role::Fuser).await?,
-                None,
-            )
-        }
-        SecurityMode::Mtls => {
-            let hub = format!("tls/127.0.0.1:{hub_port}");
-            let dir = secure::local_certs(scenario, &hub)?;
-            let listen = ZenohArgs {
-                listen: vec![hub.clone()],
-                ..Default::default()
-            };
-            let args = secure::with_certs(&listen, &dir, Role::Router)?;
-            let router = meter::open_role_session(&args, scenario, Role::Router).await?;
-            let connect = ZenohArgs {
-                connect: vec![hub],
-                ..Default::default()
-            };
-            let args = secure::with_certs(&connect, &dir, Role::Fuser)?;
-            let fuser = meter::open_role_session(&args, scenario, Role::Fuser).await?;
-            (Some(router), fuser, Some(dir))
-        }
-    };
-    let mut agent_sessions = Vec::new();
-    let mut wire = Vec::new();
-    let mut setup = Vec::new();
-    for a in &scenario.agents {
-        let counter = Arc::new(AtomicU64::new(0));
-        let port = counting_relay(hub_port, counter.clone()).await?;
-        let opened = std::time::Instant::now();
-        let args = match &certs {
-            None => ZenohArgs::loopback(&[], &[format!("tcp/127.0.0.1:{port}")]),
-            Some(dir) => {
-                let connect = ZenohArgs {
-                    connect: vec![format!("tls/127.0.0.1:{port}")],
-                    ..Default::default()
-                };
-                secure::with_certs(&connect, dir, Role::Agent(&a.name))?
-            }
-        };
-        let session = meter::open_role_session(&args, scenario, Role::Agent(&a.name)).await?;
-        setup.push(opened.elapsed().as_secs_f64() * 1000.0);
-        agent_sessions.push(session);
-        wire.push(counter);
-    }
+    let (router_session, fuser_session, certs) = open_hub(scenario, hub_port).await?;
+    let (agent_sessions, wire, setup) = open_agents(scenario, hub_port, certs.as_deref()).await?;
     let start = std::time::Instant::now();
     let epoch = now_us() + 1_000_000;
     let (done_tx, done_rx) = tokio::sync::oneshot::channel::<()>();
@@ -237,6 +187,81 @@ async fn run_local_until(
     );
     summary.security.session_setup_ms = Some(setup.iter().sum::<f64>() / setup.len() as f64);
     Ok((summary, outcome))
+}
+
+/// The sessions every agent connects to, on `hub_port`: plain, the fuser's (listening); with
+/// mutual TLS, a router's holding the access-control policy and the fuser's as its client, with
+/// the certificates' folder.
+async fn open_hub(
+    scenario: &Scenario,
+    hub_port: u16,
+) -> anyhow::Result<(
+    Option<zenoh::Session>,
+    zenoh::Session,
+    Option<std::path::PathBuf>,
+)> {
+    // Plain: the fuser listens and agents connect to it. Mutual TLS: a router listens, holding
+    // the access-control policy, and the fuser and the agents are its clients.
+    Ok(match scenario.security.mode {
+        SecurityMode::Plain => {
+            let hub = format!("tcp/127.0.0.1:{hub_port}");
+            let args = ZenohArgs::loopback(&[hub], &[]);
+            (
+                None,
+                meter::open_role_session(&args, scenario, Role::Fuser).await?,
+                None,
+            )
+        }
+        SecurityMode::Mtls => {
+            let hub = format!("tls/127.0.0.1:{hub_port}");
+            let dir = secure::local_certs(scenario, &hub)?;
+            let listen = ZenohArgs {
+                listen: vec![hub.clone()],
+                ..Default::default()
+            };
+            let args = secure::with_certs(&listen, &dir, Role::Router)?;
+            let router = meter::open_role_session(&args, scenario, Role::Router).await?;
+            let connect = ZenohArgs {
+                connect: vec![hub],
+                ..Default::default()
+            };
+            let args = secure::with_certs(&connect, &dir, Role::Fuser)?;
+            let fuser = meter::open_role_session(&args, scenario, Role::Fuser).await?;
+            (Some(router), fuser, Some(dir))
+        }
+    })
+}
+
+/// Each agent's session, through a relay counting its bytes to the hub, with those counters
+/// and the set-up time of each (ms).
+async fn open_agents(
+    scenario: &Scenario,
+    hub_port: u16,
+    certs: Option<&std::path::Path>,
+) -> anyhow::Result<(Vec<zenoh::Session>, Vec<Arc<AtomicU64>>, Vec<f64>)> {
+    let mut agent_sessions = Vec::new();
+    let mut wire = Vec::new();
+    let mut setup = Vec::new();
+    for a in &scenario.agents {
+        let counter = Arc::new(AtomicU64::new(0));
+        let port = counting_relay(hub_port, counter.clone()).await?;
+        let opened = std::time::Instant::now();
+        let args = match certs {
+            None => ZenohArgs::loopback(&[], &[format!("tcp/127.0.0.1:{port}")]),
+            Some(dir) => {
+                let connect = ZenohArgs {
+                    connect: vec![format!("tls/127.0.0.1:{port}")],
+                    ..Default::default()
+                };
+                secure::with_certs(&connect, dir, Role::Agent(&a.name))?
+            }
+        };
+        let session = meter::open_role_session(&args, scenario, Role::Agent(&a.name)).await?;
+        setup.push(opened.elapsed().as_secs_f64() * 1000.0);
+        agent_sessions.push(session);
+        wire.push(counter);
+    }
+    Ok((agent_sessions, wire, setup))
 }
 
 /// Entry point of `v2x-sim run`.
@@ -464,33 +489,13 @@ async fn run_roles(
     } else {
         None
     };
-    let fuser_stop = stop.clone();
     let fuser = async {
         if !run_fuser {
             return anyhow::Ok(None);
         }
-        let args = secure::role_args(scenario, Role::Fuser)?;
-        let session = meter::open_role_session(&args, scenario, Role::Fuser).await?;
-        let epoch = now_us() + 3_000_000;
-        let end = schedule.wall_us(
-            epoch,
-            schedule.t0_us + schedule.duration_us(),
-            scenario.speed,
-        ) + 2_000_000
-            + (scenario.fuser.max_wait_ms * 1000.0) as u64;
-        eprintln!(
-            "fuser: epoch in 3 s, running for {:.1} s",
-            (end - now_us()) as f64 / 1e6
-        );
-        let until = async move {
-            tokio::select! {
-                _ = tokio::time::sleep(Duration::from_micros(end.saturating_sub(now_us()))) => {}
-                _ = stopped(fuser_stop) => {}
-            }
-        };
-        let outcome = fuser_role(&session, scenario, schedule, epoch, viz, until).await?;
-        let _ = session.close().await;
-        Ok(Some(outcome))
+        Ok(Some(
+            fuser_side(scenario, schedule, viz, stop.clone()).await?,
+        ))
     };
     let agents = async {
         let mut out = BTreeMap::new();
@@ -499,43 +504,7 @@ async fn run_roles(
             .iter()
             .enumerate()
             .filter(|(_, a)| roles.contains(&a.name))
-            .map(|(idx, a)| {
-                let stop = stop.clone();
-                async move {
-                    let opened = std::time::Instant::now();
-                    let args = secure::role_args(scenario, Role::Agent(&a.name))?;
-                    let session =
-                        meter::open_role_session(&args, scenario, Role::Agent(&a.name)).await?;
-                    eprintln!(
-                        "agent {}: session open in {:.1} ms",
-                        a.name,
-                        opened.elapsed().as_secs_f64() * 1000.0
-                    );
-                    let epoch =
-                        epoch::query_epoch(&session, &scenario.namespace, Duration::from_secs(60))
-                            .await?;
-                    let t = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
-                    let sent = meter::snapshot(&session, &a.name).await;
-                    let _ = session.close().await;
-                    eprintln!(
-                        "agent {}: sent {} frames ({} dropped by the link), {} payload bytes, {} bytes on the wire",
-                        a.name,
-                        t.frames,
-                        t.dropped,
-                        t.payload_bytes,
-                        sent.as_ref().map_or("?".into(), |tr| {
-                            let key = meter::agent_key(scenario, &a.name);
-                            tr.sent_with(&key).bytes.to_string()
-                        })
-                    );
-                    let side = AgentSide {
-                        totals: t,
-                        sent,
-                        socket_bytes: None,
-                    };
-                    anyhow::Ok((a.name.clone(), side))
-                }
-            });
+            .map(|(idx, a)| agent_side(scenario, gt, schedule, idx, &a.name, stop.clone()));
         for r in futures::future::join_all(runs).await {
             let (name, side) = r?;
             out.insert(name, side);
@@ -567,25 +536,7 @@ async fn run_roles(
         o.router_traffic = router_traffic;
     }
     if outcome.is_none() && !totals.is_empty() {
-        // Agents without the fuser: each reports its own side.
-        let report = AgentReport {
-            namespace: scenario.namespace.clone(),
-            bandwidth: totals
-                .iter()
-                .map(|(n, side)| {
-                    let b = agent_bandwidth(scenario, schedule, n, side, None);
-                    (n.clone(), b)
-                })
-                .collect(),
-            sent: totals
-                .iter()
-                .map(|(n, side)| (n.clone(), (side.totals.frames, side.totals.dropped)))
-                .collect(),
-        };
-        match format {
-            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-            RunFormat::Table => print_agent_table(&report),
-        }
+        report_agents_alone(scenario, schedule, &totals, format)?;
     }
     Ok(outcome.map(|o| {
         let s = summarize(
@@ -598,4 +549,103 @@ async fn run_roles(
         );
         (s, o)
     }))
+}
+
+/// The fuser's role in a run: its session, the run's shared start 3 s ahead, and the fuser until
+/// the schedule's end (plus the windows' wait and 2 s) or a stop.
+async fn fuser_side(
+    scenario: &Scenario,
+    schedule: &Schedule,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<FuserOutcome> {
+    let args = secure::role_args(scenario, Role::Fuser)?;
+    let session = meter::open_role_session(&args, scenario, Role::Fuser).await?;
+    let epoch = now_us() + 3_000_000;
+    let end = schedule.wall_us(
+        epoch,
+        schedule.t0_us + schedule.duration_us(),
+        scenario.speed,
+    ) + 2_000_000
+        + (scenario.fuser.max_wait_ms * 1000.0) as u64;
+    eprintln!(
+        "fuser: epoch in 3 s, running for {:.1} s",
+        (end - now_us()) as f64 / 1e6
+    );
+    let until = async move {
+        tokio::select! {
+            _ = tokio::time::sleep(Duration::from_micros(end.saturating_sub(now_us()))) => {}
+            _ = stopped(stop) => {}
+        }
+    };
+    let outcome = fuser_role(&session, scenario, schedule, epoch, viz, until).await?;
+    let _ = session.close().await;
+    Ok(outcome)
+}
+
+/// One agent's role in a run: its session, the run's shared start from the fuser, its frames,
+/// and what it sent.
+async fn agent_side(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    idx: usize,
+    name: &str,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<(String, AgentSide)> {
+    let opened = std::time::Instant::now();
+    let args = secure::role_args(scenario, Role::Agent(name))?;
+    let session = meter::open_role_session(&args, scenario, Role::Agent(name)).await?;
+    eprintln!(
+        "agent {name}: session open in {:.1} ms",
+        opened.elapsed().as_secs_f64() * 1000.0
+    );
+    let epoch = epoch::query_epoch(&session, &scenario.namespace, Duration::from_secs(60)).await?;
+    let t = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
+    let sent = meter::snapshot(&session, name).await;
+    let _ = session.close().await;
+    eprintln!(
+        "agent {name}: sent {} frames ({} dropped by the link), {} payload bytes, {} bytes on the wire",
+        t.frames,
+        t.dropped,
+        t.payload_bytes,
+        sent.as_ref().map_or("?".into(), |tr| {
+            let key = meter::agent_key(scenario, name);
+            tr.sent_with(&key).bytes.to_string()
+        })
+    );
+    let side = AgentSide {
+        totals: t,
+        sent,
+        socket_bytes: None,
+    };
+    Ok((name.to_owned(), side))
+}
+
+/// Agents run without the fuser: each reports its own side.
+fn report_agents_alone(
+    scenario: &Scenario,
+    schedule: &Schedule,
+    totals: &BTreeMap<String, AgentSide>,
+    format: RunFormat,
+) -> anyhow::Result<()> {
+    let report = AgentReport {
+        namespace: scenario.namespace.clone(),
+        bandwidth: totals
+            .iter()
+            .map(|(n, side)| {
+                let b = agent_bandwidth(scenario, schedule, n, side, None);
+                (n.clone(), b)
+            })
+            .collect(),
+        sent: totals
+            .iter()
+            .map(|(n, side)| (n.clone(), (side.totals.frames, side.totals.dropped)))
+            .collect(),
+    };
+    match format {
+        RunFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
+        RunFormat::Table => print_agent_table(&report),
+    }
+    Ok(())
 }

@@ -251,19 +251,12 @@ pub async fn fuser_role(
     regional_fuser_role(session, scenario, schedule, epoch_us, None, true, viz, stop).await
 }
 
-/// Runs a fuser role, the single fuser or (with `region`) a regional one, until `stop`
-/// resolves; `serves_epoch`: it answers the run's shared start.
-#[allow(clippy::too_many_arguments)]
-pub async fn regional_fuser_role(
-    session: &zenoh::Session,
+/// The fuser node's configuration for a scenario (a region's, with `region`).
+fn node_config(
     scenario: &Scenario,
-    schedule: &Schedule,
-    epoch_us: u64,
     region: Option<v2x_fuser::region::Region>,
-    serves_epoch: bool,
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
-    stop: impl std::future::Future<Output = ()>,
-) -> anyhow::Result<FuserOutcome> {
+) -> anyhow::Result<NodeConfig> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
     cfg.region = region;
     cfg.viz = viz;
@@ -292,6 +285,48 @@ pub async fn regional_fuser_role(
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;
     cfg.ingest.area = scenario.fuser.area();
+    Ok(cfg)
+}
+
+/// What a run keeps of a fused window.
+fn window_record(f: &node::Fused) -> WindowRecord {
+    let p = &f.provenance;
+    let mut objects = vec![0u64; p.agents.len()];
+    for set in &p.sources {
+        for i in set.iter() {
+            if let Some(n) = objects.get_mut(i) {
+                *n += 1;
+            }
+        }
+    }
+    WindowRecord {
+        agents: p.agents.clone(),
+        objects,
+        complete: p.complete,
+        e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
+        flagged: f
+            .learned
+            .iter()
+            .filter(|(_, r)| r.flagged)
+            .map(|(a, _)| a.clone())
+            .collect(),
+    }
+}
+
+/// Runs a fuser role, the single fuser or (with `region`) a regional one, until `stop`
+/// resolves; `serves_epoch`: it answers the run's shared start.
+#[allow(clippy::too_many_arguments)]
+pub async fn regional_fuser_role(
+    session: &zenoh::Session,
+    scenario: &Scenario,
+    schedule: &Schedule,
+    epoch_us: u64,
+    region: Option<v2x_fuser::region::Region>,
+    serves_epoch: bool,
+    viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<FuserOutcome> {
+    let cfg = node_config(scenario, region, viz)?;
     let answer = match serves_epoch {
         true => Some(serve_epoch(session, &scenario.namespace, epoch_us).await?),
         false => None,
@@ -333,30 +368,7 @@ pub async fn regional_fuser_role(
                 if let Some(tracked) = &f.tracks {
                     tracks.insert(t, tracked.clone());
                 }
-                let p = &f.provenance;
-                let mut objects = vec![0u64; p.agents.len()];
-                for set in &p.sources {
-                    for i in set.iter() {
-                        if let Some(n) = objects.get_mut(i) {
-                            *n += 1;
-                        }
-                    }
-                }
-                windows.insert(
-                    t,
-                    WindowRecord {
-                        agents: p.agents.clone(),
-                        objects,
-                        complete: p.complete,
-                        e2e_ms: (now_us() as f64 - f.frame.capture_us as f64) / 1000.0,
-                        flagged: f
-                            .learned
-                            .iter()
-                            .filter(|(_, r)| r.flagged)
-                            .map(|(a, _)| a.clone())
-                            .collect(),
-                    },
-                );
+                windows.insert(t, window_record(f));
             },
             segment_stop,
         )
