@@ -363,7 +363,7 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         }
     };
     let mut fusers = Vec::new();
-    for cfg in layout.fusers {
+    for cfg in layout.fusers.iter().cloned() {
         let session = open_session(&fuser_args).await?;
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
         let task = tokio::spawn(async move {
@@ -376,33 +376,7 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         });
         fusers.push((stop_tx, task));
     }
-    let mut sessions = Vec::new();
-    let mut agents = Vec::new();
-    for i in 0..args.agents {
-        let s = open_session(&agent_args).await?;
-        let kind = if i % 4 == 1 {
-            AgentKind::Infrastructure
-        } else {
-            AgentKind::Vehicle
-        };
-        let mut agent =
-            Agent::start(&s, ns, &format!("a{i:02}"), kind, Link::default(), i as u64).await?;
-        let site = layout.sites[i % layout.sites.len()];
-        match layout.tiling {
-            None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
-            Some(t) => {
-                agent = agent.with_tiling(t);
-                agent
-                    .wait_for_subscriber_in(
-                        t.tile_of([site[0], site[1], 0.0]),
-                        Duration::from_secs(30),
-                    )
-                    .await?;
-            }
-        }
-        agents.push(agent);
-        sessions.push(s);
-    }
+    let (mut agents, sessions) = start_agents(args, ns, &layout, &agent_args).await?;
     // Let liveliness settle so that windows close on completion.
     tokio::time::sleep(Duration::from_millis(500)).await;
     let frames = (args.seconds * args.hz).round() as usize;
@@ -427,25 +401,7 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         for (i, agent) in agents.iter_mut().enumerate() {
             let site = layout.sites[i % sites];
             let truth = &truths[i % sites];
-            let mut rng = ChaCha8Rng::seed_from_u64(mix(5, i as u64, k as u64));
-            let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
-            let detections = truth
-                .iter()
-                .enumerate()
-                .map(|(j, (class, c, s, yaw))| Detection {
-                    class: *class,
-                    center: std::array::from_fn(|d| {
-                        c[d] + site.get(d).copied().unwrap_or(0.0) + noise.pos[d] * g()
-                    }),
-                    size: std::array::from_fn(|d| (s[d] + noise.size[d] * g()).max(0.05)),
-                    yaw: wrap_angle(yaw + noise.yaw * g()),
-                    score: 0.9,
-                    std: noise,
-                    pos_cov: None,
-                    velocity: None,
-                    id: j as u32,
-                })
-                .collect();
+            let detections = noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64));
             agent.send(Frame {
                 agent: String::new(),
                 kind: AgentKind::Vehicle,
@@ -483,4 +439,70 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         rss_start_mib: rss_start,
         rss_end_mib: rss_end,
     })
+}
+
+/// Starts the load's agents (every fourth a roadside unit), each waiting for a fuser of its site:
+/// the agents and their sessions.
+async fn start_agents(
+    args: &LoadArgs,
+    ns: &str,
+    layout: &Layout,
+    agent_args: &ZenohArgs,
+) -> anyhow::Result<(Vec<Agent>, Vec<zenoh::Session>)> {
+    let mut sessions = Vec::new();
+    let mut agents = Vec::new();
+    for i in 0..args.agents {
+        let s = open_session(agent_args).await?;
+        let kind = if i % 4 == 1 {
+            AgentKind::Infrastructure
+        } else {
+            AgentKind::Vehicle
+        };
+        let mut agent =
+            Agent::start(&s, ns, &format!("a{i:02}"), kind, Link::default(), i as u64).await?;
+        let site = layout.sites[i % layout.sites.len()];
+        match layout.tiling {
+            None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
+            Some(t) => {
+                agent = agent.with_tiling(t);
+                agent
+                    .wait_for_subscriber_in(
+                        t.tile_of([site[0], site[1], 0.0]),
+                        Duration::from_secs(30),
+                    )
+                    .await?;
+            }
+        }
+        agents.push(agent);
+        sessions.push(s);
+    }
+    Ok((agents, sessions))
+}
+
+/// One agent's boxes of `truth` around `site`: mild noise from the stream `seed`, stating it.
+fn noisy_boxes(
+    truth: &[(Class, [f64; 3], [f64; 3], f64)],
+    site: [f64; 2],
+    noise: &v2x_protocol::Uncertainty,
+    seed: u64,
+) -> Vec<Detection> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
+    truth
+        .iter()
+        .enumerate()
+        .map(|(j, (class, c, s, yaw))| Detection {
+            class: *class,
+            center: std::array::from_fn(|d| {
+                c[d] + site.get(d).copied().unwrap_or(0.0) + noise.pos[d] * g()
+            }),
+            size: std::array::from_fn(|d| (s[d] + noise.size[d] * g()).max(0.05)),
+            yaw: wrap_angle(yaw + noise.yaw * g()),
+            score: 0.9,
+            std: *noise,
+            pos_cov: None,
+            velocity: None,
+            id: j as u32,
+        })
+        .collect()
 }

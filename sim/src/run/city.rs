@@ -101,26 +101,7 @@ pub async fn run_city_local(
     let regions = scenario.regions.as_ref().context("not a city scenario")?;
     let schedule = Schedule::of(gt, scenario.duration_s);
     let start = std::time::Instant::now();
-    // Routers: each listens on a free port; every other router meshes with the first.
-    let mut endpoints = Vec::new();
-    let mut routers = Vec::new();
-    for i in 0..regions.routers.len() {
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
-        let args = ZenohArgs {
-            mode: Some("router".into()),
-            listen: vec![endpoint.clone()],
-            connect: endpoints.first().cloned().into_iter().collect(),
-            no_multicast_scouting: true,
-            zenoh_config: None,
-        };
-        let name = &regions.routers[i].name;
-        routers.push(
-            open_session(&args)
-                .await
-                .with_context(|| format!("router {name}"))?,
-        );
-        endpoints.push(endpoint);
-    }
+    let (routers, endpoints) = open_routers(regions).await?;
     let client = |router: usize| ZenohArgs {
         mode: Some("client".into()),
         connect: vec![endpoints[router].clone()],
@@ -159,30 +140,7 @@ pub async fn run_city_local(
             o
         }));
     }
-    // Every regional fuser is up (its liveliness token reaches the first router) before the
-    // agents start.
-    for f in &regions.fusers {
-        let tile = f.tile.parse().expect("checked");
-        let key = FuserKeys::of(&scenario.namespace, Some(tile)).alive;
-        let up = async {
-            loop {
-                let replies = routers[0]
-                    .liveliness()
-                    .get(&key)
-                    .timeout(Duration::from_secs(1))
-                    .await;
-                if let Ok(r) = replies {
-                    if r.recv_async().await.is_ok() {
-                        return;
-                    }
-                }
-                tokio::time::sleep(Duration::from_millis(20)).await;
-            }
-        };
-        tokio::time::timeout(Duration::from_secs(20), up)
-            .await
-            .with_context(|| format!("the fuser of tile {tile} did not come up within 20 s"))?;
-    }
+    wait_for_fusers(&routers[0], scenario, regions).await?;
     let homes = agent_routers(scenario, regions, gt, &schedule);
     let mut sessions = Vec::new();
     for (a, &r) in scenario.agents.iter().zip(&homes) {
@@ -231,6 +189,66 @@ pub async fn run_city_local(
     );
     summary.regions = reports.clone();
     Ok((summary, outcome, reports))
+}
+
+/// The city's routers: each listens on a free port and every other one meshes with the first;
+/// with their endpoints.
+async fn open_routers(regions: &RegionsSpec) -> anyhow::Result<(Vec<zenoh::Session>, Vec<String>)> {
+    // Routers: each listens on a free port; every other router meshes with the first.
+    let mut endpoints = Vec::new();
+    let mut routers = Vec::new();
+    for i in 0..regions.routers.len() {
+        let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+        let args = ZenohArgs {
+            mode: Some("router".into()),
+            listen: vec![endpoint.clone()],
+            connect: endpoints.first().cloned().into_iter().collect(),
+            no_multicast_scouting: true,
+            zenoh_config: None,
+        };
+        let name = &regions.routers[i].name;
+        routers.push(
+            open_session(&args)
+                .await
+                .with_context(|| format!("router {name}"))?,
+        );
+        endpoints.push(endpoint);
+    }
+    Ok((routers, endpoints))
+}
+
+/// Waits until every regional fuser is up (its liveliness token reaches `router`), 20 s at most
+/// each.
+async fn wait_for_fusers(
+    router: &zenoh::Session,
+    scenario: &Scenario,
+    regions: &RegionsSpec,
+) -> anyhow::Result<()> {
+    // Every regional fuser is up (its liveliness token reaches the first router) before the
+    // agents start.
+    for f in &regions.fusers {
+        let tile = f.tile.parse().expect("checked");
+        let key = FuserKeys::of(&scenario.namespace, Some(tile)).alive;
+        let up = async {
+            loop {
+                let replies = router
+                    .liveliness()
+                    .get(&key)
+                    .timeout(Duration::from_secs(1))
+                    .await;
+                if let Ok(r) = replies {
+                    if r.recv_async().await.is_ok() {
+                        return;
+                    }
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        };
+        tokio::time::timeout(Duration::from_secs(20), up)
+            .await
+            .with_context(|| format!("the fuser of tile {tile} did not come up within 20 s"))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
