@@ -372,6 +372,32 @@ fn parse_box(
     if q.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
         return Err(ctx.err(Some("rotation"), "zero quaternion"));
     }
+    let (class, score) = class_and_score(ctx, obj)?;
+    let std = stds(ctx, obj, missing)?;
+    let pos_cov = match ctx.numbers::<9>(obj, "translation_cov")? {
+        None => None,
+        Some(c) => Some(covariance(ctx, c)?),
+    };
+    let id = object_id(ctx, obj, tokens)?;
+    let velocity = velocity(ctx, obj)?;
+    Ok(Detection {
+        class,
+        center,
+        size: [l, w, h],
+        yaw: wrap_angle(quaternion_yaw(q)),
+        score,
+        std,
+        pos_cov: pos_cov.map(Box::new),
+        velocity,
+        id,
+    })
+}
+
+/// A box's class (`detection_name`) and score (`detection_score`).
+fn class_and_score(
+    ctx: &Ctx,
+    obj: &serde_json::Map<String, Value>,
+) -> Result<(Class, f64), JsonError> {
     let name = obj
         .get("detection_name")
         .ok_or_else(|| ctx.err(Some("detection_name"), "missing"))?
@@ -390,6 +416,15 @@ fn parse_box(
             .filter(|s| (0.0..=1.0).contains(s))
             .ok_or_else(|| ctx.err(Some("detection_score"), "expected a number in [0, 1]"))?,
     };
+    Ok((class, score))
+}
+
+/// A box's stds, from its fields or, where it has none, the default `missing` gives.
+fn stds(
+    ctx: &Ctx,
+    obj: &serde_json::Map<String, Value>,
+    missing: MissingStd,
+) -> Result<Uncertainty, JsonError> {
     let default = match missing {
         MissingStd::Default(u) => Some(u),
         MissingStd::Error => None,
@@ -436,11 +471,16 @@ fn parse_box(
         ][k];
         return Err(ctx.err(Some(field), std_range_message()));
     }
-    let pos_cov = match ctx.numbers::<9>(obj, "translation_cov")? {
-        None => None,
-        Some(c) => Some(covariance(ctx, c)?),
-    };
-    let id = match (obj.get("instance_token"), obj.get("instance_id")) {
+    Ok(std)
+}
+
+/// A box's object id: its `instance_token` interned, else its `instance_id`, else none.
+fn object_id(
+    ctx: &Ctx,
+    obj: &serde_json::Map<String, Value>,
+    tokens: &mut TokenTable,
+) -> Result<u32, JsonError> {
+    Ok(match (obj.get("instance_token"), obj.get("instance_id")) {
         (Some(v), _) if !v.is_null() => tokens.intern(
             v.as_str()
                 .ok_or_else(|| ctx.err(Some("instance_token"), "expected a string"))?,
@@ -451,10 +491,17 @@ fn parse_box(
             })? as u32
         }
         _ => NO_ID,
-    };
-    // A velocity counts only with its precision: without `velocity_std` it is treated as absent
-    // (many detectors write [0, 0] when they do not estimate it).
-    let velocity = match ctx.numbers::<2>(obj, "velocity_std")? {
+    })
+}
+
+/// A box's velocity with its stds. A velocity counts only with its precision: without
+/// `velocity_std` it is treated as absent (many detectors write [0, 0] when they do not
+/// estimate it).
+fn velocity(
+    ctx: &Ctx,
+    obj: &serde_json::Map<String, Value>,
+) -> Result<Option<Velocity>, JsonError> {
+    Ok(match ctx.numbers::<2>(obj, "velocity_std")? {
         None => None,
         Some(sd) => {
             let v = ctx
@@ -471,17 +518,6 @@ fn parse_box(
             }
             Some(Velocity { v, std: sd })
         }
-    };
-    Ok(Detection {
-        class,
-        center,
-        size: [l, w, h],
-        yaw: wrap_angle(quaternion_yaw(q)),
-        score,
-        std,
-        pos_cov: pos_cov.map(Box::new),
-        velocity,
-        id,
     })
 }
 
