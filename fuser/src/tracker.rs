@@ -218,9 +218,24 @@ impl Tracker {
             update(&mut self.tracks[i], &boxes[j], dt);
         }
         // 5. lifecycle
+        let mut out = self.lifecycle(&hit);
+        for (j, (b, used)) in boxes.iter().zip(used).enumerate() {
+            if !used {
+                ids[index[j]] = self.next_id;
+                out.extend(self.birth(b));
+            }
+        }
+        (out, ids)
+    }
+
+    /// Step 5 for the existing tracks, `hit` saying which got a box: confirmed after
+    /// `confirm_hits` hits, a tentative track dropped at its first miss, a confirmed one after
+    /// `max_misses`; returns the confirmed tracks updated, and those coasting at their
+    /// prediction with their score halved per miss.
+    fn lifecycle(&mut self, hit: &[bool]) -> Vec<Tracked> {
         let mut out = Vec::new();
         let mut kept = Vec::with_capacity(self.tracks.len());
-        for (t, hit) in std::mem::take(&mut self.tracks).into_iter().zip(hit) {
+        for (t, &hit) in std::mem::take(&mut self.tracks).into_iter().zip(hit) {
             let mut t = t;
             if hit {
                 t.hits += 1;
@@ -257,24 +272,23 @@ impl Tracker {
             kept.push(t);
         }
         self.tracks = kept;
-        for (j, (b, used)) in boxes.iter().zip(used).enumerate() {
-            if used {
-                continue;
+        out
+    }
+
+    /// Step 5 for a box no track took: a new track, output at once when one hit confirms it.
+    fn birth(&mut self, b: &Detection) -> Option<Tracked> {
+        let mut t = birth(self.next_id, b, &self.params);
+        self.next_id = self.next_id.wrapping_add(1).max(1);
+        let shown = (t.hits >= self.params.confirm_hits).then(|| {
+            t.confirmed = true;
+            self.births += 1;
+            Tracked {
+                tracking_id: t.id,
+                det: estimate(&t),
             }
-            ids[index[j]] = self.next_id;
-            let mut t = birth(self.next_id, b, &self.params);
-            self.next_id = self.next_id.wrapping_add(1).max(1);
-            if t.hits >= self.params.confirm_hits {
-                t.confirmed = true;
-                self.births += 1;
-                out.push(Tracked {
-                    tracking_id: t.id,
-                    det: estimate(&t),
-                });
-            }
-            self.tracks.push(t);
-        }
-        (out, ids)
+        });
+        self.tracks.push(t);
+        shown
     }
 
     /// Step 2: every (track, box) pair of the same class inside the gate, costed d^2 + ln det S.
