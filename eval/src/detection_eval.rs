@@ -336,7 +336,6 @@ impl DetectionEval {
                 .filter(|c| classes.contains(c))
                 .collect()
         };
-        let first = (100.0 * MIN_RECALL).round() as usize + 1;
         let mut per_class = BTreeMap::new();
         // per class: its mean AP and TP errors, in Class::ALL order
         let mut scored: Vec<(Class, f64, [Option<f64>; 5])> = Vec::new();
@@ -347,12 +346,7 @@ impl DetectionEval {
             let mut at_tp = None;
             for th in DIST_THS {
                 let c = self.accumulate(class, th);
-                let a = c.precision[first..]
-                    .iter()
-                    .map(|p| (p - MIN_PRECISION).max(0.0))
-                    .sum::<f64>()
-                    / (NELEM - first) as f64
-                    / (1.0 - MIN_PRECISION);
+                let a = calc_ap(&c);
                 ap.insert(format!("{th}"), a);
                 class_aps.push(a);
                 if th == DIST_TH_TP {
@@ -360,22 +354,7 @@ impl DetectionEval {
                 }
             }
             let c = at_tp.expect("the TP threshold is one of the thresholds");
-            let last = c.confidence.iter().rposition(|&v| v != 0.0).unwrap_or(0);
-            let errs: [Option<f64>; 5] = std::array::from_fn(|k| {
-                let undefined = match class {
-                    Class::TrafficCone => k >= 2,
-                    Class::Barrier => k >= 3,
-                    _ => false,
-                };
-                if undefined {
-                    None
-                } else if last < first {
-                    Some(1.0)
-                } else {
-                    let v = &c.errors[k][first..=last];
-                    Some(v.iter().sum::<f64>() / v.len() as f64)
-                }
-            });
+            let errs = calc_tp(&c, class);
             let n_gt = self.ground_truth(class);
             if classes.contains(&class) {
                 tp2 += c.tp;
@@ -400,25 +379,8 @@ impl DetectionEval {
                 },
             );
         }
-        let headline = |over: &[Class]| {
-            let rows: Vec<&(Class, f64, [Option<f64>; 5])> =
-                scored.iter().filter(|r| over.contains(&r.0)).collect();
-            let m_ap = rows.iter().map(|r| r.1).sum::<f64>() / rows.len() as f64;
-            let tp_err: [f64; 5] = std::array::from_fn(|k| {
-                let v: Vec<f64> = rows.iter().filter_map(|r| r.2[k]).collect();
-                // a metric no chosen class defines (cones alone: no AVE) counts as worst
-                if v.is_empty() {
-                    1.0
-                } else {
-                    v.iter().sum::<f64>() / v.len() as f64
-                }
-            });
-            let tp_scores: f64 = tp_err.iter().map(|e| (1.0 - e).max(0.0)).sum();
-            let nds = (MEAN_AP_WEIGHT * m_ap + tp_scores) / (MEAN_AP_WEIGHT + 5.0);
-            (m_ap, nds, tp_err)
-        };
-        let (m_ap, nds, tp_err) = headline(&classes);
-        let (m_ap_all, nds_all, _) = headline(&Class::ALL);
+        let (m_ap, nds, tp_err) = headline(&scored, &classes);
+        let (m_ap_all, nds_all, _) = headline(&scored, &Class::ALL);
         DetectionMetrics {
             m_ap,
             nds,
@@ -439,6 +401,66 @@ impl DetectionEval {
             per_class,
         }
     }
+}
+
+/// The first recall step the benchmark counts (recall above `MIN_RECALL`).
+fn first_step() -> usize {
+    (100.0 * MIN_RECALL).round() as usize + 1
+}
+
+/// The devkit's `calc_ap`: the mean of the precision above `MIN_PRECISION` over the recall
+/// steps above `MIN_RECALL`, normalised.
+fn calc_ap(c: &Curves) -> f64 {
+    let first = first_step();
+    c.precision[first..]
+        .iter()
+        .map(|p| (p - MIN_PRECISION).max(0.0))
+        .sum::<f64>()
+        / (NELEM - first) as f64
+        / (1.0 - MIN_PRECISION)
+}
+
+/// The devkit's `calc_tp`: each TP error's mean over the recall steps above `MIN_RECALL` up to
+/// the last with a prediction (1 when there is none); `None` for errors the class does not
+/// define (a cone's orientation, velocity and attribute, a barrier's velocity and attribute).
+fn calc_tp(c: &Curves, class: Class) -> [Option<f64>; 5] {
+    let first = first_step();
+    let last = c.confidence.iter().rposition(|&v| v != 0.0).unwrap_or(0);
+    std::array::from_fn(|k| {
+        let undefined = match class {
+            Class::TrafficCone => k >= 2,
+            Class::Barrier => k >= 3,
+            _ => false,
+        };
+        if undefined {
+            None
+        } else if last < first {
+            Some(1.0)
+        } else {
+            let v = &c.errors[k][first..=last];
+            Some(v.iter().sum::<f64>() / v.len() as f64)
+        }
+    })
+}
+
+/// mAP, NDS and the class-mean TP errors over the classes `over` of the per-class rows
+/// (class, mean AP, TP errors).
+fn headline(scored: &[(Class, f64, [Option<f64>; 5])], over: &[Class]) -> (f64, f64, [f64; 5]) {
+    let rows: Vec<&(Class, f64, [Option<f64>; 5])> =
+        scored.iter().filter(|r| over.contains(&r.0)).collect();
+    let m_ap = rows.iter().map(|r| r.1).sum::<f64>() / rows.len() as f64;
+    let tp_err: [f64; 5] = std::array::from_fn(|k| {
+        let v: Vec<f64> = rows.iter().filter_map(|r| r.2[k]).collect();
+        // a metric no chosen class defines (cones alone: no AVE) counts as worst
+        if v.is_empty() {
+            1.0
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    });
+    let tp_scores: f64 = tp_err.iter().map(|e| (1.0 - e).max(0.0)).sum();
+    let nds = (MEAN_AP_WEIGHT * m_ap + tp_scores) / (MEAN_AP_WEIGHT + 5.0);
+    (m_ap, nds, tp_err)
 }
 
 /// One class's benchmark figures.
