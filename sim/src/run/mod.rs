@@ -392,29 +392,8 @@ async fn run_city_command(
         let start = std::time::Instant::now();
         let here = city::run_city_roles(scenario, gt, &schedule, &args.roles, stop).await?;
         if here.fusers.is_empty() {
-            let report = AgentReport {
-                namespace: scenario.namespace.clone(),
-                bandwidth: here
-                    .agents
-                    .iter()
-                    .map(|(n, side)| {
-                        (
-                            n.clone(),
-                            agent_bandwidth(scenario, &schedule, n, side, None),
-                        )
-                    })
-                    .collect(),
-                sent: here
-                    .agents
-                    .iter()
-                    .map(|(n, side)| (n.clone(), (side.totals.frames, side.totals.dropped)))
-                    .collect(),
-            };
             if !here.agents.is_empty() {
-                match args.format {
-                    RunFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-                    RunFormat::Table => print_agent_table(&report),
-                }
+                report_agents_alone(scenario, &schedule, &here.agents, args.format)?;
             }
             (None, None)
         } else {
