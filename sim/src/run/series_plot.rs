@@ -26,6 +26,48 @@ struct Series<'a> {
 pub fn svg(tl: &Timeline) -> String {
     let n = tl.seconds.len().max(1) as f64;
     let x = |s: f64| LEFT + (W - LEFT - RIGHT) * s / n;
+    let panels = panels(tl);
+    let h = TOP + panels.len() as f64 * (PANEL + GAP);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" font-family="sans-serif" font-size="11">"#
+    );
+    let _ = writeln!(
+        s,
+        r#"<rect width="100%" height="100%" fill="white"/><text x="{LEFT}" y="20" font-size="14">run {} · {} s</text>"#,
+        tl.namespace,
+        tl.seconds.len()
+    );
+    for (p, (title, lines)) in panels.iter().enumerate() {
+        draw_panel(&mut s, p, title, lines, &x);
+    }
+    for (k, e) in tl.events.iter().enumerate() {
+        let ex = x(e.at_s);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{ex:.1}" y1="{}" x2="{ex:.1}" y2="{}" stroke="#444" stroke-dasharray="4,3"/><text x="{:.1}" y="{}" font-size="10">{}</text>"##,
+            TOP - 8.0,
+            h - GAP + 4.0,
+            ex + 2.0,
+            32.0 + 10.0 * (k % 2) as f64,
+            e.label
+        );
+    }
+    for sec in (0..tl.seconds.len()).step_by(5.max(tl.seconds.len() / 10)) {
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{}" text-anchor="middle">{sec} s</text>"#,
+            x(sec as f64),
+            h - GAP + 18.0
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+/// The panels of a run's plot: windows, latency, each agent's frames and bytes, the fused error.
+fn panels(tl: &Timeline) -> Vec<(&'static str, Vec<Series<'_>>)> {
     let col = |f: &dyn Fn(&super::series::Second) -> Option<f64>| -> Vec<Option<f64>> {
         tl.seconds.iter().map(f).collect()
     };
@@ -94,95 +136,64 @@ pub fn svg(tl: &Timeline) -> String {
             }],
         ),
     ];
-    let h = TOP + panels.len() as f64 * (PANEL + GAP);
-    let mut s = String::new();
+    panels
+}
+
+/// Draws panel `p`: its frame, title and scale, and each line with its label.
+fn draw_panel(s: &mut String, p: usize, title: &str, lines: &[Series<'_>], x: &dyn Fn(f64) -> f64) {
+    let y0 = TOP + p as f64 * (PANEL + GAP);
+    let max = lines
+        .iter()
+        .flat_map(|l| l.values.iter().flatten())
+        .fold(0.0f64, |a, &b| a.max(b))
+        .max(1e-9)
+        * 1.1;
+    let y = |v: f64| y0 + PANEL - PANEL * v / max;
+    // the axis top with as many decimals as its size needs
+    let digits = if max >= 100.0 {
+        0
+    } else if max >= 10.0 {
+        1
+    } else {
+        2
+    };
     let _ = writeln!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" font-family="sans-serif" font-size="11">"#
+        r##"<rect x="{LEFT}" y="{y0}" width="{}" height="{PANEL}" fill="none" stroke="#999"/><text x="{LEFT}" y="{}">{title}</text><text x="{}" y="{}" text-anchor="end">{:.digits$}</text><text x="{}" y="{}" text-anchor="end">0</text>"##,
+        W - LEFT - RIGHT,
+        y0 - 4.0,
+        LEFT - 4.0,
+        y0 + 10.0,
+        max,
+        LEFT - 4.0,
+        y0 + PANEL
     );
-    let _ = writeln!(
-        s,
-        r#"<rect width="100%" height="100%" fill="white"/><text x="{LEFT}" y="20" font-size="14">run {} · {} s</text>"#,
-        tl.namespace,
-        tl.seconds.len()
-    );
-    for (p, (title, lines)) in panels.iter().enumerate() {
-        let y0 = TOP + p as f64 * (PANEL + GAP);
-        let max = lines
-            .iter()
-            .flat_map(|l| l.values.iter().flatten())
-            .fold(0.0f64, |a, &b| a.max(b))
-            .max(1e-9)
-            * 1.1;
-        let y = |v: f64| y0 + PANEL - PANEL * v / max;
-        // the axis top with as many decimals as its size needs
-        let digits = if max >= 100.0 {
-            0
-        } else if max >= 10.0 {
-            1
-        } else {
-            2
-        };
-        let _ = writeln!(
-            s,
-            r##"<rect x="{LEFT}" y="{y0}" width="{}" height="{PANEL}" fill="none" stroke="#999"/><text x="{LEFT}" y="{}">{title}</text><text x="{}" y="{}" text-anchor="end">{:.digits$}</text><text x="{}" y="{}" text-anchor="end">0</text>"##,
-            W - LEFT - RIGHT,
-            y0 - 4.0,
-            LEFT - 4.0,
-            y0 + 10.0,
-            max,
-            LEFT - 4.0,
-            y0 + PANEL
-        );
-        for (k, line) in lines.iter().enumerate() {
-            let mut d = String::new();
-            let mut pen = false;
-            for (i, v) in line.values.iter().enumerate() {
-                match v {
-                    Some(v) => {
-                        let _ = write!(
-                            d,
-                            "{}{:.1},{:.1} ",
-                            if pen { "L" } else { "M" },
-                            x(i as f64 + 0.5),
-                            y(*v)
-                        );
-                        pen = true;
-                    }
-                    None => pen = false,
+    for (k, line) in lines.iter().enumerate() {
+        let mut d = String::new();
+        let mut pen = false;
+        for (i, v) in line.values.iter().enumerate() {
+            match v {
+                Some(v) => {
+                    let _ = write!(
+                        d,
+                        "{}{:.1},{:.1} ",
+                        if pen { "L" } else { "M" },
+                        x(i as f64 + 0.5),
+                        y(*v)
+                    );
+                    pen = true;
                 }
+                None => pen = false,
             }
-            let _ = writeln!(
-                s,
-                r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.6"/><text x="{}" y="{}" fill="{}">{}</text>"#,
-                line.colour,
-                W - RIGHT + 8.0,
-                y0 + 14.0 + 14.0 * k as f64,
-                line.colour,
-                line.label
-            );
         }
-    }
-    for (k, e) in tl.events.iter().enumerate() {
-        let ex = x(e.at_s);
         let _ = writeln!(
             s,
-            r##"<line x1="{ex:.1}" y1="{}" x2="{ex:.1}" y2="{}" stroke="#444" stroke-dasharray="4,3"/><text x="{:.1}" y="{}" font-size="10">{}</text>"##,
-            TOP - 8.0,
-            h - GAP + 4.0,
-            ex + 2.0,
-            32.0 + 10.0 * (k % 2) as f64,
-            e.label
+            r#"<path d="{d}" fill="none" stroke="{}" stroke-width="1.6"/><text x="{}" y="{}" fill="{}">{}</text>"#,
+            line.colour,
+            W - RIGHT + 8.0,
+            y0 + 14.0 + 14.0 * k as f64,
+            line.colour,
+            line.label
         );
     }
-    for sec in (0..tl.seconds.len()).step_by(5.max(tl.seconds.len() / 10)) {
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{}" text-anchor="middle">{sec} s</text>"#,
-            x(sec as f64),
-            h - GAP + 18.0
-        );
-    }
-    s.push_str("</svg>\n");
-    s
 }
