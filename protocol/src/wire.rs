@@ -360,24 +360,7 @@ pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec
         return Err(EncodeError::TooManyObjects(frame.detections.len()));
     }
     check_agent_name(&frame.agent).map_err(EncodeError::BadAgentName)?;
-    let mut origin_cm = [0i64; 3];
-    for k in 0..3 {
-        let o = frame.origin[k];
-        if !o.is_finite() {
-            return Err(EncodeError::NonFinite {
-                index: FRAME,
-                field: "origin",
-            });
-        }
-        if !coord_in_range(o) {
-            return Err(EncodeError::OutOfRange {
-                index: FRAME,
-                field: "origin",
-                value: o,
-            });
-        }
-        origin_cm[k] = (o * 100.0).round() as i64;
-    }
+    let origin_cm = origin_code(frame.origin)?;
     let mut codes = Vec::with_capacity(frame.detections.len());
     let mut vel_codes = Vec::new();
     for (i, d) in frame.detections.iter().enumerate() {
@@ -392,91 +375,13 @@ pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec
     let default_std = most_common(&codes.iter().map(|c| c.0).collect::<Vec<_>>()).unwrap_or([1; 7]);
     let default_vel_std = most_common(&vel_codes).unwrap_or([1; 2]);
 
-    let mut objects = Vec::with_capacity(frame.detections.len());
-    for (i, d) in frame.detections.iter().enumerate() {
-        let mut pos_cm = [0i32; 3];
-        for k in 0..3 {
-            let c = d.center[k];
-            if !c.is_finite() {
-                return Err(EncodeError::NonFinite {
-                    index: i,
-                    field: CENTER_FIELDS[k],
-                });
-            }
-            let rel = (c * 100.0).round() - origin_cm[k] as f64;
-            if !coord_in_range(c) || !(i32::MIN as f64..=i32::MAX as f64).contains(&rel) {
-                return Err(EncodeError::OutOfRange {
-                    index: i,
-                    field: CENTER_FIELDS[k],
-                    value: c,
-                });
-            }
-            pos_cm[k] = rel as i32;
-        }
-        let typical = d.class.typical_size();
-        let mut size_delta_cm = [0i32; 3];
-        for k in 0..3 {
-            let s = d.size[k];
-            if !s.is_finite() {
-                return Err(EncodeError::NonFinite {
-                    index: i,
-                    field: SIZE_FIELDS[k],
-                });
-            }
-            if !size_in_range(s) {
-                return Err(EncodeError::OutOfRange {
-                    index: i,
-                    field: SIZE_FIELDS[k],
-                    value: s,
-                });
-            }
-            size_delta_cm[k] = (s * 100.0).round() as i32 - (typical[k] * 100.0).round() as i32;
-        }
-        if !d.yaw.is_finite() {
-            return Err(EncodeError::NonFinite {
-                index: i,
-                field: "yaw",
-            });
-        }
-        let turn = wrap_angle(d.yaw).rem_euclid(2.0 * PI) / (2.0 * PI);
-        let yaw = ((turn * YAW_STEPS).round() as u32 % 65536) as u16;
-        if !d.score.is_finite() {
-            return Err(EncodeError::NonFinite {
-                index: i,
-                field: "score",
-            });
-        }
-        if !(0.0..=1.0).contains(&d.score) {
-            return Err(EncodeError::OutOfRange {
-                index: i,
-                field: "score",
-                value: d.score,
-            });
-        }
-        let (std_codes, vel) = codes[i];
-        let own = std_codes != default_std || vel.is_some_and(|(_, s)| s != default_vel_std);
-        let mut tag = d.class.code();
-        if own {
-            tag |= TAG_STD;
-        }
-        if vel.is_some() {
-            tag |= TAG_VEL;
-        }
-        if d.id != NO_ID {
-            tag |= TAG_ID;
-        }
-        objects.push(Object {
-            tag,
-            pos_cm,
-            size_delta_cm,
-            yaw: yaw.to_le_bytes(),
-            score: (d.score * SCORE_STEPS).round() as u8,
-            id: (d.id != NO_ID).then(|| d.id.to_le_bytes()),
-            vel: vel.map(|(v, _)| v),
-            std: own.then_some(std_codes),
-            vel_std: if own { vel.map(|(_, s)| s) } else { None },
-        });
-    }
+    let objects = frame
+        .detections
+        .iter()
+        .zip(&codes)
+        .enumerate()
+        .map(|(i, (d, c))| object(i, d, origin_cm, *c, (default_std, default_vel_std)))
+        .collect::<Result<Vec<_>, _>>()?;
     let header = Header {
         agent: frame.agent.clone(),
         kind: match frame.kind {
@@ -494,6 +399,126 @@ pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec
         default_vel_std,
     };
     Ok(assemble(&header, provenance, &objects))
+}
+
+/// An object's std codes, and its velocity in steps with the velocity's std codes.
+type ObjectCodes = ([u16; 7], Option<([i32; 2], [u16; 2])>);
+
+/// The frame's origin in centimetres, checked.
+fn origin_code(origin: [f64; 3]) -> Result<[i64; 3], EncodeError> {
+    let mut origin_cm = [0i64; 3];
+    for k in 0..3 {
+        let o = origin[k];
+        if !o.is_finite() {
+            return Err(EncodeError::NonFinite {
+                index: FRAME,
+                field: "origin",
+            });
+        }
+        if !coord_in_range(o) {
+            return Err(EncodeError::OutOfRange {
+                index: FRAME,
+                field: "origin",
+                value: o,
+            });
+        }
+        origin_cm[k] = (o * 100.0).round() as i64;
+    }
+    Ok(origin_cm)
+}
+
+/// One object of the frame, checked and quantized: `codes` are its std and velocity codes,
+/// `defaults` the frame's default std and velocity std codes (an object with others carries its
+/// own).
+fn object(
+    i: usize,
+    d: &Detection,
+    origin_cm: [i64; 3],
+    codes: ObjectCodes,
+    (default_std, default_vel_std): ([u16; 7], [u16; 2]),
+) -> Result<Object, EncodeError> {
+    let mut pos_cm = [0i32; 3];
+    for k in 0..3 {
+        let c = d.center[k];
+        if !c.is_finite() {
+            return Err(EncodeError::NonFinite {
+                index: i,
+                field: CENTER_FIELDS[k],
+            });
+        }
+        let rel = (c * 100.0).round() - origin_cm[k] as f64;
+        if !coord_in_range(c) || !(i32::MIN as f64..=i32::MAX as f64).contains(&rel) {
+            return Err(EncodeError::OutOfRange {
+                index: i,
+                field: CENTER_FIELDS[k],
+                value: c,
+            });
+        }
+        pos_cm[k] = rel as i32;
+    }
+    let typical = d.class.typical_size();
+    let mut size_delta_cm = [0i32; 3];
+    for k in 0..3 {
+        let s = d.size[k];
+        if !s.is_finite() {
+            return Err(EncodeError::NonFinite {
+                index: i,
+                field: SIZE_FIELDS[k],
+            });
+        }
+        if !size_in_range(s) {
+            return Err(EncodeError::OutOfRange {
+                index: i,
+                field: SIZE_FIELDS[k],
+                value: s,
+            });
+        }
+        size_delta_cm[k] = (s * 100.0).round() as i32 - (typical[k] * 100.0).round() as i32;
+    }
+    if !d.yaw.is_finite() {
+        return Err(EncodeError::NonFinite {
+            index: i,
+            field: "yaw",
+        });
+    }
+    let turn = wrap_angle(d.yaw).rem_euclid(2.0 * PI) / (2.0 * PI);
+    let yaw = ((turn * YAW_STEPS).round() as u32 % 65536) as u16;
+    if !d.score.is_finite() {
+        return Err(EncodeError::NonFinite {
+            index: i,
+            field: "score",
+        });
+    }
+    if !(0.0..=1.0).contains(&d.score) {
+        return Err(EncodeError::OutOfRange {
+            index: i,
+            field: "score",
+            value: d.score,
+        });
+    }
+    let (std_codes, vel) = codes;
+    let own = std_codes != default_std || vel.is_some_and(|(_, s)| s != default_vel_std);
+    let mut tag = d.class.code();
+    if own {
+        tag |= TAG_STD;
+    }
+    if vel.is_some() {
+        tag |= TAG_VEL;
+    }
+    if d.id != NO_ID {
+        tag |= TAG_ID;
+    }
+    Ok(Object {
+        tag,
+        pos_cm,
+        size_delta_cm,
+        yaw: yaw.to_le_bytes(),
+        score: (d.score * SCORE_STEPS).round() as u8,
+        id: (d.id != NO_ID).then(|| d.id.to_le_bytes()),
+        vel: vel.map(|(v, _)| v),
+        std: own.then_some(std_codes),
+        vel_std: if own { vel.map(|(_, s)| s) } else { None },
+    })
 }
 
 /// Checks a velocity and quantizes it: (velocity in steps, std codes).
