@@ -727,86 +727,13 @@ pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeEr
     let mut detections = Vec::with_capacity(count);
     for i in 0..count {
         let o = Object::read(&mut r)?;
-        let class = Class::from_code(o.tag & TAG_CLASS).ok_or(DecodeError::OutOfRange {
-            index: i,
-            field: "class",
-            value: (o.tag & TAG_CLASS) as i64,
-        })?;
-        if o.id == Some(NO_ID.to_le_bytes()) {
-            // "No id" is said by leaving the id out.
-            return Err(DecodeError::OutOfRange {
-                index: i,
-                field: "id",
-                value: NO_ID as i64,
-            });
-        }
-        if o.tag & !TAG_KNOWN != 0 {
-            return Err(DecodeError::OutOfRange {
-                index: i,
-                field: "tag",
-                value: o.tag as i64,
-            });
-        }
-        let typical = class.typical_size();
-        let mut size = [0.0; 3];
-        for k in 0..3 {
-            let cm = (typical[k] * 100.0).round() as i64 + o.size_delta_cm[k] as i64;
-            if !size_in_range(cm as f64 / 100.0) {
-                return Err(DecodeError::SizeOutOfRange {
-                    index: i,
-                    field: SIZE_FIELDS[k],
-                    cm,
-                });
-            }
-            size[k] = cm as f64 / 100.0;
-        }
-        if o.score as f64 > SCORE_STEPS {
-            return Err(DecodeError::OutOfRange {
-                index: i,
-                field: "score",
-                value: o.score as i64,
-            });
-        }
-        let std = match o.std {
-            Some(codes) => decode_stds(codes, i)?,
-            None => default_std,
-        };
-        let mut center = [0.0; 3];
-        for k in 0..3 {
-            let cm = header.origin_cm[k] + o.pos_cm[k] as i64;
-            cm_in_range(cm, i, CENTER_FIELDS[k])?;
-            center[k] = cm as f64 / 100.0;
-        }
-        let velocity = match o.vel {
-            None => None,
-            Some(q) => {
-                let v = q.map(|x| x as f64 * VEL_STEP);
-                if let Some(k) = (0..2).find(|&k| !vel_in_range(v[k])) {
-                    return Err(DecodeError::OutOfRange {
-                        index: i,
-                        field: VEL_FIELDS[k],
-                        value: q[k] as i64,
-                    });
-                }
-                let std = match o.vel_std {
-                    Some(c) => decode_vel_stds(c, i)?,
-                    None => default_vel_std,
-                };
-                Some(Velocity { v, std })
-            }
-        };
-        let turn = u16::from_le_bytes(o.yaw) as f64 / YAW_STEPS;
-        detections.push(Detection {
-            class,
-            center,
-            size,
-            yaw: wrap_angle(turn * 2.0 * PI),
-            score: o.score as f64 / SCORE_STEPS,
-            std,
-            pos_cov: None,
-            velocity,
-            id: o.id.map_or(NO_ID, u32::from_le_bytes),
-        });
+        detections.push(decode_object(
+            i,
+            &o,
+            header.origin_cm,
+            default_std,
+            default_vel_std,
+        )?);
         if let (Some(len), Some(h)) = (mask_len, &head) {
             let set = AgentSet::from_bytes(r.take_bytes(len)?);
             if set.is_empty() || set.bound() > h.agents.len() {
@@ -839,6 +766,97 @@ pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeEr
         sources,
     });
     Ok((frame, provenance))
+}
+
+/// Object `i` of a frame whose origin is `origin_cm`, checked and brought back to metres and
+/// radians; objects without stds of their own take the frame's defaults.
+fn decode_object(
+    i: usize,
+    o: &Object,
+    origin_cm: [i64; 3],
+    default_std: Uncertainty,
+    default_vel_std: [f64; 2],
+) -> Result<Detection, DecodeError> {
+    let class = Class::from_code(o.tag & TAG_CLASS).ok_or(DecodeError::OutOfRange {
+        index: i,
+        field: "class",
+        value: (o.tag & TAG_CLASS) as i64,
+    })?;
+    if o.id == Some(NO_ID.to_le_bytes()) {
+        // "No id" is said by leaving the id out.
+        return Err(DecodeError::OutOfRange {
+            index: i,
+            field: "id",
+            value: NO_ID as i64,
+        });
+    }
+    if o.tag & !TAG_KNOWN != 0 {
+        return Err(DecodeError::OutOfRange {
+            index: i,
+            field: "tag",
+            value: o.tag as i64,
+        });
+    }
+    let typical = class.typical_size();
+    let mut size = [0.0; 3];
+    for k in 0..3 {
+        let cm = (typical[k] * 100.0).round() as i64 + o.size_delta_cm[k] as i64;
+        if !size_in_range(cm as f64 / 100.0) {
+            return Err(DecodeError::SizeOutOfRange {
+                index: i,
+                field: SIZE_FIELDS[k],
+                cm,
+            });
+        }
+        size[k] = cm as f64 / 100.0;
+    }
+    if o.score as f64 > SCORE_STEPS {
+        return Err(DecodeError::OutOfRange {
+            index: i,
+            field: "score",
+            value: o.score as i64,
+        });
+    }
+    let std = match o.std {
+        Some(codes) => decode_stds(codes, i)?,
+        None => default_std,
+    };
+    let mut center = [0.0; 3];
+    for k in 0..3 {
+        let cm = origin_cm[k] + o.pos_cm[k] as i64;
+        cm_in_range(cm, i, CENTER_FIELDS[k])?;
+        center[k] = cm as f64 / 100.0;
+    }
+    let velocity = match o.vel {
+        None => None,
+        Some(q) => {
+            let v = q.map(|x| x as f64 * VEL_STEP);
+            if let Some(k) = (0..2).find(|&k| !vel_in_range(v[k])) {
+                return Err(DecodeError::OutOfRange {
+                    index: i,
+                    field: VEL_FIELDS[k],
+                    value: q[k] as i64,
+                });
+            }
+            let std = match o.vel_std {
+                Some(c) => decode_vel_stds(c, i)?,
+                None => default_vel_std,
+            };
+            Some(Velocity { v, std })
+        }
+    };
+    let turn = u16::from_le_bytes(o.yaw) as f64 / YAW_STEPS;
+    Ok(Detection {
+        class,
+        center,
+        size,
+        yaw: wrap_angle(turn * 2.0 * PI),
+        score: o.score as f64 / SCORE_STEPS,
+        std,
+        pos_cov: None,
+        velocity,
+        id: o.id.map_or(NO_ID, u32::from_le_bytes),
+    })
 }
 
 /// What [`fit`] changed to bring a frame into the wire's domain.
