@@ -47,72 +47,109 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
     let mut rules = Vec::new();
     let mut subjects = Vec::new();
     let mut policies = Vec::new();
+    let roles = agents
+        .iter()
+        .map(|a| (format!("agent-{a}"), a.as_str(), agent_rules(ns, a)))
+        .chain([
+            (FUSER.to_owned(), FUSER, fuser_rules(ns)),
+            (OBSERVER.to_owned(), OBSERVER, observer_rules(ns)),
+        ]);
+    for (id, common_name, rs) in roles {
+        subjects.push(json!({"id": id, "cert_common_names": [common_name]}));
+        policies.push(json!({
+            "id": id,
+            "subjects": [id],
+            "rules": rs.iter().map(|r| r["id"].clone()).collect::<Vec<_>>(),
+        }));
+        rules.extend(rs);
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    })
+}
+
+/// An agent's rules: it puts on its own detection keys, holds its own liveliness token, sees the
+/// fuser's subscription to every agent, and asks for and answers the run's shared start.
+fn agent_rules(ns: &str, a: &str) -> Vec<Value> {
+    let id = format!("agent-{a}");
     let (det, tiled) = (keys::all_detections(ns), keys::all_tiled_detections(ns));
     let epoch_key = keys::sim_epoch(ns);
     let epoch = [epoch_key.as_str()];
-    for a in agents {
-        let id = format!("agent-{a}");
-        rules.push(rule(
+    vec![
+        rule(
             &format!("{id}-in"),
             "ingress",
             &["put"],
             &[
                 keys::detections(ns, a).as_str(),
-                format!("{}/{ns}/det/*/{a}", keys::ROOT).as_str(),
+                keys::agent_tiled_detections(ns, a).as_str(),
             ],
-        ));
-        rules.push(rule(
+        ),
+        rule(
             &format!("{id}-token"),
             "ingress",
             &["liveliness_token"],
             &[keys::alive(ns, a).as_str()],
-        ));
+        ),
         // The fuser subscribes to every agent's detections at once (`det/*`, or `det/TILE/*`
         // for a regional fuser): an agent sees that declaration, and so knows a fuser is there.
-        rules.push(rule(
+        rule(
             &format!("{id}-matching"),
             "egress",
             &["declare_subscriber"],
             &[det.as_str(), tiled.as_str()],
-        ));
-        rules.push(rule(
-            &format!("{id}-epoch-in"),
-            "ingress",
-            &["query"],
-            &epoch,
-        ));
-        rules.push(rule(
+        ),
+        rule(&format!("{id}-epoch-in"), "ingress", &["query"], &epoch),
+        rule(
             &format!("{id}-epoch-out"),
             "egress",
             &["reply", "declare_queryable"],
             &epoch,
-        ));
-        subjects.push(json!({"id": id, "cert_common_names": [a]}));
-        policies.push(json!({
-            "id": id,
-            "subjects": [id],
-            "rules": [
-                format!("{id}-in"), format!("{id}-token"), format!("{id}-matching"),
-                format!("{id}-epoch-in"), format!("{id}-epoch-out"),
-            ],
-        }));
+        ),
+    ]
+}
+
+/// The keys as the rules take them.
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
+/// The keys of the fusers' output, statistics and liveliness, single and regional.
+struct FuserSide {
+    output: Vec<String>,
+    stats: Vec<String>,
+    alive: Vec<String>,
+}
+
+impl FuserSide {
+    fn of(ns: &str) -> Self {
+        let (one, any) = (
+            keys::FuserKeys::of(ns, None),
+            keys::FuserKeys::any_region(ns),
+        );
+        FuserSide {
+            output: vec![one.fused, any.fused, one.tracks, any.tracks],
+            stats: vec![one.stats, any.stats],
+            alive: vec![one.alive, any.alive],
+        }
     }
+}
+
+/// The fuser's rules: it subscribes to every agent's detections and liveliness, publishes its
+/// output and liveliness, and answers statistics and the run's shared start.
+fn fuser_rules(ns: &str) -> Vec<Value> {
+    let (det, tiled) = (keys::all_detections(ns), keys::all_tiled_detections(ns));
     let alive = keys::all_alive(ns);
-    let (one, any) = (
-        keys::FuserKeys::of(ns, None),
-        keys::FuserKeys::any_region(ns),
-    );
-    let (fused, tracks, stats, fuser_alive) = (
-        [one.fused.as_str(), any.fused.as_str()],
-        [one.tracks.as_str(), any.tracks.as_str()],
-        [one.stats.as_str(), any.stats.as_str()],
-        [one.alive.as_str(), any.alive.as_str()],
-    );
+    let f = FuserSide::of(ns);
     let dets = [det.as_str(), tiled.as_str()];
-    let output = [fused, tracks].concat();
-    let asked = [&stats[..], &[epoch_key.as_str()]].concat();
-    let watched = [stats, fuser_alive].concat();
-    let fuser_rules = [
+    let output = strs(&f.output);
+    let epoch_key = keys::sim_epoch(ns);
+    let asked = [strs(&f.stats), vec![epoch_key.as_str()]].concat();
+    vec![
         rule("fuser-subscribe", "ingress", &["declare_subscriber"], &dets),
         rule("fuser-detections", "egress", &["put"], &dets),
         rule(
@@ -134,7 +171,7 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             "fuser-alive",
             "ingress",
             &["liveliness_token"],
-            &fuser_alive,
+            &strs(&f.alive),
         ),
         rule(
             "fuser-answer",
@@ -143,8 +180,16 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &asked,
         ),
         rule("fuser-questions", "egress", &["query"], &asked),
-    ];
-    let observer_rules = [
+    ]
+}
+
+/// An observer's rules: it subscribes to the fusers' output and asks for their statistics and
+/// liveliness.
+fn observer_rules(ns: &str) -> Vec<Value> {
+    let f = FuserSide::of(ns);
+    let output = strs(&f.output);
+    let watched = [strs(&f.stats), strs(&f.alive)].concat();
+    vec![
         rule(
             "observer-subscribe",
             "ingress",
@@ -164,23 +209,7 @@ pub fn access_control(ns: &str, agents: &[String]) -> Value {
             &["reply", "liveliness_token", "declare_queryable"],
             &watched,
         ),
-    ];
-    for (who, rs) in [(FUSER, &fuser_rules[..]), (OBSERVER, &observer_rules[..])] {
-        subjects.push(json!({"id": who, "cert_common_names": [who]}));
-        policies.push(json!({
-            "id": who,
-            "subjects": [who],
-            "rules": rs.iter().map(|r| r["id"].clone()).collect::<Vec<_>>(),
-        }));
-        rules.extend(rs.iter().cloned());
-    }
-    json!({
-        "enabled": true,
-        "default_permission": "deny",
-        "rules": rules,
-        "subjects": subjects,
-        "policies": policies,
-    })
+    ]
 }
 
 #[cfg(test)]

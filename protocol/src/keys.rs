@@ -80,6 +80,11 @@ pub fn detections_in(ns: &str, tile: Tile, agent: &str) -> String {
     format!("{ROOT}/{ns}/det/{tile}/{agent}")
 }
 
+/// Detections of one agent in every tile: `v2x/NS/det/*/AGENT`.
+pub fn agent_tiled_detections(ns: &str, agent: &str) -> String {
+    format!("{ROOT}/{ns}/det/*/{agent}")
+}
+
 /// Detections of every agent in one tile: `v2x/NS/det/TILE/*`.
 pub fn tile_detections(ns: &str, tile: Tile) -> String {
     format!("{ROOT}/{ns}/det/{tile}/*")
