@@ -53,23 +53,52 @@ enum Command {
     Stats(StatsArgs),
 }
 
-/// The options of `v2x-fuser fuse`.
+/// How `fuse` and `track` fuse files: method, stds, motion and windows.
 #[derive(clap::Args)]
-struct FuseArgs {
-    /// Fusion method (see the list below).
+struct FilesArgs {
+    /// Fusion method of each window (see the list below).
     #[arg(long, short, default_value = "csba-wls+")]
     method: Method,
     /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
-    /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it, a missing std is an error.
+    /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it (or --learn-std, or a
+    /// --std-model for every input), a missing std is an error.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<v2x_protocol::Uncertainty>,
     #[command(flatten)]
     motion: MotionArgs,
     #[command(flatten)]
     stds: StdArgs,
-    /// Window width delta t (ms) when files carry capture times.
+    /// Window width delta t (ms) when the files carry capture times.
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
+}
+
+impl FilesArgs {
+    /// How boxes without stds are read, and the offline options (without registration) for
+    /// `inputs` files.
+    fn options(
+        &self,
+        inputs: usize,
+    ) -> anyhow::Result<(MissingStd, v2x_fuser::offline::OfflineOptions)> {
+        if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
+            anyhow::bail!("--window-ms must be > 0");
+        }
+        let opts = v2x_fuser::offline::OfflineOptions {
+            motion: self.motion.params()?,
+            window_ms: self.window_ms,
+            align: None,
+            learn: self.stds.params(self.motion.time_scale)?,
+            models: self.stds.models_by_input(inputs)?,
+        };
+        Ok((self.stds.missing(self.default_std, inputs), opts))
+    }
+}
+
+/// The options of `v2x-fuser fuse`.
+#[derive(clap::Args)]
+struct FuseArgs {
+    #[command(flatten)]
+    files: FilesArgs,
     #[command(flatten)]
     align: AlignArgs,
     /// With --align: the reference agent, as its position among the inputs (1 = first).
@@ -87,19 +116,8 @@ struct FuseArgs {
 /// The options of `v2x-fuser track`.
 #[derive(clap::Args)]
 struct TrackArgs {
-    /// Fusion method of each window.
-    #[arg(long, short, default_value = "csba-wls+")]
-    method: Method,
-    /// Stds for boxes that carry none (as `fuse --default-std`).
-    #[arg(long, value_parser = v2x_protocol::parse_std)]
-    default_std: Option<v2x_protocol::Uncertainty>,
     #[command(flatten)]
-    motion: MotionArgs,
-    #[command(flatten)]
-    stds: StdArgs,
-    /// Window width delta t (ms).
-    #[arg(long, default_value_t = 100.0)]
-    window_ms: f64,
+    files: FilesArgs,
     /// Hits in a row that confirm a track (a box seen once never becomes one at 2).
     #[arg(long, default_value_t = 2)]
     confirm_hits: u32,
@@ -517,19 +535,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 /// `v2x-fuser fuse`.
 fn fuse(args: FuseArgs) -> anyhow::Result<()> {
     let FuseArgs {
-        method,
-        default_std,
-        motion,
-        stds,
-        window_ms,
+        files,
         align,
         align_to,
         output,
         inputs,
     } = args;
-    if !(window_ms > 0.0 && window_ms.is_finite()) {
-        anyhow::bail!("--window-ms must be > 0");
-    }
+    let method = files.method;
+    let (missing, mut opts) = files.options(inputs.len())?;
     let align_params = align.params()?;
     if align_params.is_some() && !(1..=inputs.len()).contains(&align_to) {
         anyhow::bail!(
@@ -538,14 +551,7 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
             inputs.len()
         );
     }
-    let missing = stds.missing(default_std, inputs.len());
-    let opts = v2x_fuser::offline::OfflineOptions {
-        motion: motion.params()?,
-        window_ms,
-        align: align_params.map(|p| (p, align_to - 1)),
-        learn: stds.params(motion.time_scale)?,
-        models: stds.models_by_input(inputs.len())?,
-    };
+    opts.align = align_params.map(|p| (p, align_to - 1));
     let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
     let how = match (report.by_time, opts.motion.is_some()) {
         (true, true) => "grouped by capture time, motion-compensated",
@@ -589,31 +595,18 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
 /// `v2x-fuser track`.
 fn track(args: TrackArgs) -> anyhow::Result<()> {
     let TrackArgs {
-        method,
-        default_std,
-        motion,
-        stds,
-        window_ms,
+        files,
         confirm_hits,
         max_misses,
         all_classes,
         output,
         inputs,
     } = args;
-    if !(window_ms > 0.0 && window_ms.is_finite()) {
-        anyhow::bail!("--window-ms must be > 0");
-    }
     if confirm_hits == 0 {
         anyhow::bail!("--confirm-hits must be at least 1");
     }
-    let missing = stds.missing(default_std, inputs.len());
-    let opts = v2x_fuser::offline::OfflineOptions {
-        motion: motion.params()?,
-        window_ms,
-        align: None,
-        learn: stds.params(motion.time_scale)?,
-        models: stds.models_by_input(inputs.len())?,
-    };
+    let method = files.method;
+    let (missing, opts) = files.options(inputs.len())?;
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
         max_misses,

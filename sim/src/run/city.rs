@@ -335,12 +335,7 @@ pub async fn run_city_roles(
                     0 => now_us() + 3_000_000,
                     _ => super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?,
                 };
-                let end = schedule.wall_us(
-                    epoch,
-                    schedule.t0_us + schedule.duration_us(),
-                    scenario.speed,
-                ) + 2_000_000
-                    + (scenario.fuser.max_wait_ms * 1000.0) as u64;
+                let end = super::fuser_end_us(scenario, schedule, epoch);
                 eprintln!(
                     "fuser of tile {}: running for {:.1} s",
                     f.tile,

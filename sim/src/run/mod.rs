@@ -541,12 +541,7 @@ async fn fuser_side(
     let args = secure::role_args(scenario, Role::Fuser)?;
     let session = meter::open_role_session(&args, scenario, Role::Fuser).await?;
     let epoch = now_us() + 3_000_000;
-    let end = schedule.wall_us(
-        epoch,
-        schedule.t0_us + schedule.duration_us(),
-        scenario.speed,
-    ) + 2_000_000
-        + (scenario.fuser.max_wait_ms * 1000.0) as u64;
+    let end = fuser_end_us(scenario, schedule, epoch);
     eprintln!(
         "fuser: epoch in 3 s, running for {:.1} s",
         (end - now_us()) as f64 / 1e6
@@ -560,6 +555,17 @@ async fn fuser_side(
     let outcome = fuser_role(&session, scenario, schedule, epoch, viz, until).await?;
     let _ = session.close().await;
     Ok(outcome)
+}
+
+/// When a fuser whose run starts at `epoch` (wall clock, us) stops: the schedule's end, plus
+/// the windows' wait and 2 s for the last frames.
+pub(crate) fn fuser_end_us(scenario: &Scenario, schedule: &Schedule, epoch: u64) -> u64 {
+    schedule.wall_us(
+        epoch,
+        schedule.t0_us + schedule.duration_us(),
+        scenario.speed,
+    ) + 2_000_000
+        + (scenario.fuser.max_wait_ms * 1000.0) as u64
 }
 
 /// One agent's role in a run: its session, the run's shared start from the fuser, its frames,
