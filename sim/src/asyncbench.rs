@@ -13,6 +13,7 @@
 //! noise and differs only in timing; frames within the largest offset of a scene's start are
 //! left out of every row, so that every row scores the same instants.
 
+use crate::bench::cell;
 use crate::bench::BenchConfig;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
@@ -196,7 +197,7 @@ fn same_rate(r: &AsyncRow) -> bool {
     hz.next() == hz.next()
 }
 
-/// What the targets measure, per method: mATE at 50 ms compensated over the synchronous one,
+/// How much compensation wins back, per method: mATE at 50 ms compensated over the synchronous one,
 /// and the share of the 100 ms loss that compensation recovers,
 /// (uncompensated - compensated) / (uncompensated - synchronous).
 pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
@@ -216,11 +217,7 @@ pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
     Some((at50, (raw - comp) / (raw - sync)))
 }
 
-fn cell(v: Option<f64>, digits: usize) -> String {
-    v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
-}
-
-/// The rows as a Markdown table, with the targets' figures under it.
+/// The rows as a Markdown table, with each method's recovery ([`recovery`]) under it.
 pub fn table(rows: &[AsyncRow]) -> String {
     let mut s = String::from("| rates | offset (ms) | compensation | method | precision | recall | mATE (m) | mAVE (m/s) | TP-only mATE |\n|---|---:|---|---|---:|---:|---:|---:|---:|\n");
     for r in rows {

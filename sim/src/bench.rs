@@ -452,7 +452,8 @@ fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
     scenes
 }
 
-fn cell(v: Option<f64>, digits: usize) -> String {
+/// A table cell: the value with `digits` decimals, or `-` when there is none.
+pub(crate) fn cell(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
 }
 
