@@ -243,19 +243,8 @@ impl Layout {
             } else {
                 std::f64::consts::PI
             };
-            Actor {
-                class,
-                size,
-                origin: [
-                    across[0] * off + along[0] * s,
-                    across[1] * off + along[1] * s,
-                ],
-                dir: along,
-                s0: 0.0,
-                speed: 0.0,
-                wraps: false,
-                yaw: wrap_angle(along[1].atan2(along[0]) + heading + rng.gen_range(-0.05..0.05)),
-            }
+            let yaw = wrap_angle(along[1].atan2(along[0]) + heading + rng.gen_range(-0.05..0.05));
+            standing(class, size, [across, along], off, s, yaw)
         } else {
             let lane = free_lanes.swap_remove(rng.gen_range(0..free_lanes.len()));
             let slots = &mut lane_slots[lane];
@@ -293,19 +282,8 @@ impl Layout {
                     0.0
                 });
         *zone_k += 1;
-        Actor {
-            class,
-            size,
-            origin: [
-                across[0] * off + along[0] * s,
-                across[1] * off + along[1] * s,
-            ],
-            dir: along,
-            s0: 0.0,
-            speed: 0.0,
-            wraps: false,
-            yaw: along[1].atan2(along[0]) + rng.gen_range(-0.1..0.1),
-        }
+        let yaw = along[1].atan2(along[0]) + rng.gen_range(-0.1..0.1);
+        standing(class, size, [across, along], off, s, yaw)
     }
 }
 
@@ -505,6 +483,31 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
                 .collect(),
         ),
         recorded: None,
+    }
+}
+
+/// An actor that stands still, `off` m across and `s` m along a street with directions
+/// `[across, along]`.
+fn standing(
+    class: Class,
+    size: [f64; 3],
+    [across, along]: [[f64; 2]; 2],
+    off: f64,
+    s: f64,
+    yaw: f64,
+) -> Actor {
+    Actor {
+        class,
+        size,
+        origin: [
+            across[0] * off + along[0] * s,
+            across[1] * off + along[1] * s,
+        ],
+        dir: along,
+        s0: 0.0,
+        speed: 0.0,
+        wraps: false,
+        yaw,
     }
 }
 
