@@ -6,7 +6,10 @@
 //! one time step), [`window`] (time alignment of frames) and [`ingest`] (admission of frames:
 //! validation, clock tolerance, bounded agent table), [`region`] (tiles and regional fusers) and
 //! [`parts`] (reassembly of a capture sent per tile),
-//! [`tracker`] (tracks over windows). [`offline`] fuses nuScenes results files,
+//! [`tracker`] (tracks over windows), [`learn`] (each agent's stds learned from its boxes, and
+//! the consistency monitor) and [`stdmodel`] (an agent's calibrated error model).
+//! [`motion`] predicts boxes to a window's time, [`ratelog`] bounds the node's warnings and
+//! [`fuzzing`] holds the fuzz targets' entry points. [`offline`] fuses nuScenes results files,
 //! and `node` (feature `node`, on by default) is the thin Zenoh shell the `v2x-fuser` binary
 //! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
 //! tokio, clap or tracing.
