@@ -57,6 +57,25 @@ pub fn tempdir(name: &str) -> PathBuf {
     d
 }
 
+/// Copies a results file without the given fields in any box, as a detector's own output
+/// (no stds, no ground-truth ids) would be.
+pub fn without_fields(src: &std::path::Path, dst: &std::path::Path, fields: &[&str]) {
+    let text = std::fs::read_to_string(src).expect("read the results file");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("results JSON");
+    let boxes = v["results"].as_object_mut().expect("a results object");
+    for b in boxes
+        .values_mut()
+        .filter_map(|s| s.as_array_mut())
+        .flatten()
+    {
+        let b = b.as_object_mut().expect("box objects");
+        for f in fields {
+            b.remove(*f);
+        }
+    }
+    std::fs::write(dst, v.to_string()).expect("write the results file");
+}
+
 /// A fuser node in the test process, and frames to feed it.
 pub mod fuser {
     use crate::within;

@@ -3,7 +3,7 @@
 
 use std::process::Command;
 use v2x_fuser::METHODS;
-use v2x_tests::{bin, tempdir};
+use v2x_tests::{bin, tempdir, without_fields};
 
 const TOWN: [&str; 8] = [
     "--scenes",
@@ -76,18 +76,12 @@ fn missing_stds_and_bad_files_are_clear_errors() {
         .args(TOWN));
     assert!(ok, "{err}");
     // Strip the std fields, as a plain detector's output would be.
-    let text = std::fs::read_to_string(dir.join("agent1.json")).unwrap();
-    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    for boxes in v["results"].as_object_mut().unwrap().values_mut() {
-        for b in boxes.as_array_mut().unwrap() {
-            let b = b.as_object_mut().unwrap();
-            b.remove("translation_std");
-            b.remove("size_std");
-            b.remove("yaw_std");
-        }
-    }
     let plain = dir.join("plain.json");
-    std::fs::write(&plain, v.to_string()).unwrap();
+    without_fields(
+        &dir.join("agent1.json"),
+        &plain,
+        &["translation_std", "size_std", "yaw_std"],
+    );
     let out = dir.join("out.json");
     let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
         .args(["fuse", "--output"])
@@ -166,15 +160,8 @@ fn files_without_ids_are_scored_by_distance() {
         .args(TOWN));
     assert!(ok, "{err}");
     // A detector's own output: no ground-truth ids.
-    let text = std::fs::read_to_string(dir.join("agent1.json")).unwrap();
-    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    for boxes in v["results"].as_object_mut().unwrap().values_mut() {
-        for b in boxes.as_array_mut().unwrap() {
-            b.as_object_mut().unwrap().remove("instance_token");
-        }
-    }
     let plain = dir.join("no-ids.json");
-    std::fs::write(&plain, v.to_string()).unwrap();
+    without_fields(&dir.join("agent1.json"), &plain, &["instance_token"]);
     let eval = |file: &std::path::Path, how: &str| {
         let (ok, json, err) = run(Command::new(bin("v2x-sim"))
             .args(["eval", "--format", "json", "--match", how])

@@ -5,7 +5,7 @@
 
 use v2x_sim::run::run_local;
 use v2x_sim::scenario::Scenario;
-use v2x_tests::{bin, tempdir, within};
+use v2x_tests::{bin, tempdir, within, without_fields};
 
 /// The scenario file for 8 s of data at twice real time, in its own namespace, edited by `edit`.
 fn scenario(ns: &str, edit: &dyn Fn(String) -> String) -> Scenario {
@@ -264,15 +264,8 @@ fn fuse_learns_stds_stated_wrong_or_not_at_all() {
     let err = fail(&["--std-model", &not_a_model]);
     assert!(err.contains("agent1.json"), "{err}");
     // A detector's own boxes carry no ground-truth ids to calibrate by: matched by distance.
-    let mut plain: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(other.join("agent2.json")).unwrap()).unwrap();
-    for boxes in plain["results"].as_object_mut().unwrap().values_mut() {
-        for b in boxes.as_array_mut().unwrap() {
-            b.as_object_mut().unwrap().remove("instance_token");
-        }
-    }
     let plain_path = other.join("plain.json");
-    std::fs::write(&plain_path, plain.to_string()).unwrap();
+    without_fields(&other.join("agent2.json"), &plain_path, &["instance_token"]);
     let calibrate = |how: &str| {
         run(std::process::Command::new(bin("v2x-sim"))
             .args(["calibrate", "--match", how])
