@@ -5,9 +5,10 @@
 
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
+use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use std::collections::BTreeMap;
 use std::path::Path;
-use v2x_protocol::nuscenes_json::{read_results, MissingStd};
+use v2x_protocol::nuscenes_json::{parse_results, MissingStd, Results};
 use v2x_protocol::{Class, Detection, Uncertainty, NO_ID};
 use v2x_truth::dataset::{GroundTruth, GtObject};
 
@@ -180,6 +181,17 @@ pub fn evaluate_file(
     opts: &EvalOptions,
 ) -> Result<(Evaluation, String), EvalError> {
     let results = read_scored(gt, path)?;
+    evaluate_results(gt, &results, path, opts)
+}
+
+/// Scores parsed results as [`evaluate_file`] scores a file; `path` only names them in the note
+/// and errors.
+pub fn evaluate_results(
+    gt: &GroundTruth,
+    results: &Results,
+    path: &Path,
+    opts: &EvalOptions,
+) -> Result<(Evaluation, String), EvalError> {
     let tracked = gt.tracked_across_frames();
     if opts.timing == Timing::Capture && !tracked {
         return Err(EvalError(format!(
@@ -187,7 +199,7 @@ pub fn evaluate_file(
             path.display()
         )));
     }
-    let (samples, unknown) = sample_times(gt, &results, opts.replay, opts.timing);
+    let (samples, unknown) = sample_times(gt, results, opts.replay, opts.timing);
     if !unknown.is_empty() {
         return Err(EvalError(format!(
             "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs --replay-start-at and --replay-speed)",
@@ -271,13 +283,19 @@ pub fn evaluate_file(
 
 /// Reads a results file to score against `gt`: stated stds play no part, so boxes without them
 /// are read too.
-pub fn read_scored(
-    gt: &GroundTruth,
-    path: &Path,
-) -> Result<v2x_protocol::nuscenes_json::Results, EvalError> {
+pub fn read_scored(gt: &GroundTruth, path: &Path) -> Result<Results, EvalError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| EvalError(format!("{}: cannot read: {e}", path.display())))?;
+    parse_scored(gt, path, &text)
+}
+
+/// Parses results JSON text to score against `gt`, as [`read_scored`] reads a file; `path` only
+/// names the source in errors.
+pub fn parse_scored(gt: &GroundTruth, path: &Path, text: &str) -> Result<Results, EvalError> {
     let mut tokens = gt.tokens.clone();
-    read_results(
+    parse_results(
         path,
+        text,
         &mut tokens,
         MissingStd::Default(Uncertainty::uniform(1.0, 1.0, 1.0)),
     )
@@ -401,4 +419,48 @@ fn coverage_note(
         (_, false) => "; matched by ground-truth id (the paper's protocol)",
     };
     note
+}
+
+/// Scores tracking results (per sample, as [`crate::tracking_eval::read_tracking`] reads them)
+/// as the nuScenes tracking benchmark does, over the ground truth's frames in time order: only
+/// the frames the results have, or with `all_frames` every frame (absent ones all missed).
+/// Returns the figures and, when boxes of classes the benchmark does not score were left out, a
+/// note saying so; `path` only names the results.
+pub fn evaluate_tracking(
+    gt: &GroundTruth,
+    tracks: &BTreeMap<String, Vec<TrackBox>>,
+    path: &Path,
+    all_frames: bool,
+) -> Result<(TrackingMetrics, Option<String>), EvalError> {
+    let known: std::collections::HashSet<&str> =
+        gt.frames.iter().map(|f| f.sample_token.as_str()).collect();
+    if let Some(s) = tracks.keys().find(|s| !known.contains(s.as_str())) {
+        return Err(EvalError(format!(
+            "{}: sample {s} is not in the ground truth: score the file against the data it was made from (--dataroot/--version, or the same town flags)",
+            path.display()
+        )));
+    }
+    let mut other: BTreeMap<&str, usize> = BTreeMap::new();
+    for b in tracks.values().flatten() {
+        if !b.class.is_tracking() {
+            *other.entry(b.class.name()).or_default() += 1;
+        }
+    }
+    let note = (!other.is_empty()).then(|| {
+        let list: Vec<String> = other.iter().map(|(c, n)| format!("{c} {n}")).collect();
+        format!(
+            "{}: boxes of classes the tracking benchmark does not score were left out ({}); the official devkit refuses a file with them",
+            path.display(),
+            list.join(", ")
+        )
+    });
+    let mut eval = TrackingEval::new();
+    for f in &gt.frames {
+        match tracks.get(&f.sample_token) {
+            Some(boxes) => eval.add_frame(f.scene, f.timestamp_us, &f.objects, boxes),
+            None if all_frames => eval.add_frame(f.scene, f.timestamp_us, &f.objects, &[]),
+            None => {}
+        }
+    }
+    Ok((eval.summary(), note))
 }

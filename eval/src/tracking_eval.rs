@@ -587,8 +587,15 @@ fn fragmentations(tracked: &[bool]) -> usize {
 /// Reads a nuScenes tracking results file: per sample token, each box's `tracking_id` (a string
 /// or an integer), `tracking_name`, `tracking_score` and `translation`. Errors name the file, sample, box and field.
 pub fn read_tracking(path: &Path) -> Result<BTreeMap<String, Vec<TrackBox>>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    parse_tracking(path, &text)
+}
+
+/// Parses a nuScenes tracking results document as [`read_tracking`] reads a file; `path` only
+/// names the source in errors.
+pub fn parse_tracking(path: &Path, text: &str) -> Result<BTreeMap<String, Vec<TrackBox>>, String> {
     let file = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{file}: cannot read: {e}"))?;
     let doc: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{file}: not JSON: {e}"))?;
     let results = doc

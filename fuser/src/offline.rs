@@ -367,11 +367,24 @@ pub fn fuse_files(
     opts: &OfflineOptions,
 ) -> Result<FuseReport, JsonError> {
     let Inputs { agents, tokens } = read_inputs(inputs, missing)?;
+    let (fused, report) = fuse_agents(method, &agents, inputs, opts)?;
+    write_results(output, &fused, &tokens)?;
+    Ok(report)
+}
+
+/// Fuses the agents' results as [`fuse_files`] fuses files (`names[k]` names agent k's in
+/// errors): the fused results and what was done.
+pub fn fuse_agents(
+    method: &Method,
+    agents: &[Results],
+    names: &[PathBuf],
+    opts: &OfflineOptions,
+) -> Result<(Results, FuseReport), JsonError> {
     let by_time = !agents.is_empty() && agents.iter().all(|r| capture_times(r).is_some());
     if opts.learn.is_some() && !by_time {
         let without = agents.iter().position(|r| capture_times(r).is_none());
         return Err(JsonError {
-            file: without.map(|k| inputs[k].clone()).unwrap_or_default(),
+            file: without.map(|k| names[k].clone()).unwrap_or_default(),
             sample: None,
             index: None,
             field: Some("meta.v2x_timestamps".into()),
@@ -380,14 +393,13 @@ pub fn fuse_files(
                 .into(),
         });
     }
-    let fused = fuse_results(method, &agents, opts);
-    write_results(output, &fused, &tokens)?;
+    let fused = fuse_results(method, agents, opts);
     let boxes_in = agents
         .iter()
         .flat_map(|r| r.samples.values())
         .map(Vec::len)
         .sum();
-    Ok(FuseReport {
+    let report = FuseReport {
         samples: fused.samples.len(),
         boxes_in,
         boxes_out: fused.samples.values().map(Vec::len).sum(),
@@ -398,7 +410,8 @@ pub fn fuse_files(
             .get("v2x_learned_std")
             .and_then(|v| serde_json::from_value(v.clone()).ok())
             .unwrap_or_default(),
-    })
+    };
+    Ok((fused, report))
 }
 
 /// Per registered input, from `meta.v2x_registration` in time (else token) order: the windows

@@ -330,6 +330,37 @@ pub fn parse_results(
     })
 }
 
+/// Parses a JSON array of boxes in results form that belong to no sample in particular (their
+/// `sample_token`, if any, is not checked); `path` only names the source in errors.
+pub fn parse_boxes(
+    path: &Path,
+    text: &str,
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Vec<Detection>, JsonError> {
+    let ctx = Ctx {
+        file: path,
+        sample: None,
+        index: None,
+    };
+    let root: Value =
+        serde_json::from_str(text).map_err(|e| ctx.err(None, format!("not valid JSON: {e}")))?;
+    let boxes = root
+        .as_array()
+        .ok_or_else(|| ctx.err(None, "expected a list of boxes"))?;
+    boxes
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let bctx = Ctx {
+                index: Some(i),
+                ..ctx
+            };
+            parse_box(&bctx, b, tokens, missing)
+        })
+        .collect()
+}
+
 fn parse_box(
     ctx: &Ctx,
     b: &Value,
@@ -339,8 +370,8 @@ fn parse_box(
     let obj = b
         .as_object()
         .ok_or_else(|| ctx.err(None, "expected a box object"))?;
-    if let Some(st) = obj.get("sample_token") {
-        if st.as_str() != ctx.sample {
+    if let (Some(st), Some(sample)) = (obj.get("sample_token"), ctx.sample) {
+        if st.as_str() != Some(sample) {
             return Err(ctx.err(
                 Some("sample_token"),
                 "does not match the sample it is listed under",
@@ -694,6 +725,32 @@ mod tests {
         made.order.clear();
         let order: Vec<&str> = made.in_file_order().map(|(k, _)| k.as_str()).collect();
         assert_eq!(order, ["aa", "mm", "zz"]);
+    }
+
+    #[test]
+    fn a_list_of_boxes_belongs_to_no_sample() {
+        let doc: Value = serde_json::from_str(GOOD).unwrap();
+        let boxes = doc["results"]["s1"].to_string();
+        let mut tokens = TokenTable::new();
+        let dets = parse_boxes(p(), &boxes, &mut tokens, MissingStd::Error).unwrap();
+        let whole = parse_results(p(), GOOD, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        assert_eq!(dets, whole.samples["s1"]);
+        assert_eq!(tokens.name(dets[0].id), Some("abc"));
+        let mut bad = doc["results"]["s1"].clone();
+        bad[0]["detection_score"] = json!(2.0);
+        let e = parse_boxes(
+            p(),
+            &json!([doc["results"]["s1"][0], bad[0]]).to_string(),
+            &mut tokens,
+            MissingStd::Error,
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "agent1.json, box 1, field 'detection_score': expected a number in [0, 1]"
+        );
+        let e = parse_boxes(p(), "{}", &mut tokens, MissingStd::Error).unwrap_err();
+        assert_eq!(e.to_string(), "agent1.json: expected a list of boxes");
     }
 
     #[test]

@@ -7,7 +7,6 @@ use crate::town::{generate, TownConfig};
 use anyhow::{bail, Context};
 use clap::Args;
 use std::path::{Path, PathBuf};
-use v2x_protocol::Class;
 
 /// Which kind of data `--dataroot` holds.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
@@ -190,27 +189,6 @@ pub use v2x_eval::file_eval::{
     evaluate_file, sample_times, EvalError, EvalOptions, Evaluation, Match, ReplayMap, SampleTime,
     Timing,
 };
-
-/// Parses a comma-separated list of nuScenes detection names.
-pub fn parse_classes(s: &str) -> Result<Vec<Class>, String> {
-    s.split(',')
-        .map(str::trim)
-        .filter(|n| !n.is_empty())
-        .map(|n| {
-            Class::from_name(n).ok_or_else(|| {
-                let known: Vec<&str> = Class::ALL.iter().map(|c| c.name()).collect();
-                format!("unknown class '{n}' (known: {})", known.join(", "))
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()
-        .and_then(|v| {
-            if v.is_empty() {
-                Err("expected at least one class".into())
-            } else {
-                Ok(v)
-            }
-        })
-}
 
 /// Reads a file's text with the path in the error.
 pub fn read_text(path: &Path) -> anyhow::Result<String> {

@@ -47,7 +47,7 @@ pub struct EvalArgs {
     /// The classes to score, comma-separated nuScenes names (e.g. car,truck,bus): other
     /// classes' boxes, ground truth and predictions, are left out. Default: every class, the
     /// benchmark's headline averaged over the classes the ground truth holds.
-    #[arg(long, value_parser = v2x_sim::cli::parse_classes)]
+    #[arg(long, value_delimiter = ',')]
     pub classes: Option<Vec<v2x_protocol::Class>>,
     /// The results file to score.
     pub pred: PathBuf,

@@ -32,37 +32,11 @@ pub(crate) fn evaluate_tracking(
     all_frames: bool,
 ) -> anyhow::Result<v2x_sim::tracking_eval::TrackingMetrics> {
     let tracks = v2x_sim::tracking_eval::read_tracking(path).map_err(anyhow::Error::msg)?;
-    let known: std::collections::HashSet<&str> =
-        gt.frames.iter().map(|f| f.sample_token.as_str()).collect();
-    if let Some(s) = tracks.keys().find(|s| !known.contains(s.as_str())) {
-        bail!(
-            "{}: sample {s} is not in the ground truth: score the file against the data it was made from (--dataroot/--version, or the same town flags)",
-            path.display()
-        );
+    let (m, note) = v2x_eval::file_eval::evaluate_tracking(gt, &tracks, path, all_frames)?;
+    if let Some(note) = note {
+        eprintln!("{note}");
     }
-    let mut other: std::collections::BTreeMap<&str, usize> = Default::default();
-    for b in tracks.values().flatten() {
-        if !b.class.is_tracking() {
-            *other.entry(b.class.name()).or_default() += 1;
-        }
-    }
-    if !other.is_empty() {
-        let list: Vec<String> = other.iter().map(|(c, n)| format!("{c} {n}")).collect();
-        eprintln!(
-            "{}: boxes of classes the tracking benchmark does not score were left out ({}); the official devkit refuses a file with them",
-            path.display(),
-            list.join(", ")
-        );
-    }
-    let mut eval = v2x_sim::tracking_eval::TrackingEval::new();
-    for f in &gt.frames {
-        match tracks.get(&f.sample_token) {
-            Some(boxes) => eval.add_frame(f.scene, f.timestamp_us, &f.objects, boxes),
-            None if all_frames => eval.add_frame(f.scene, f.timestamp_us, &f.objects, &[]),
-            None => {}
-        }
-    }
-    Ok(eval.summary())
+    Ok(m)
 }
 
 /// A bench configuration over the paper's noise settings (or those named), with `methods`, or

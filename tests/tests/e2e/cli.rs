@@ -193,6 +193,19 @@ fn files_without_ids_are_scored_by_distance() {
     assert_eq!(with_ids["NDS"], auto["NDS"]);
     let (by_id, _) = eval(&plain, "id");
     assert_eq!(by_id["recall"].as_f64(), Some(0.0));
+    // --classes: the headline over the classes named, and a clear error for an unknown one.
+    let (ok, json, err) = run(Command::new(bin("v2x-sim"))
+        .args(["eval", "--format", "json", "--classes", "car,pedestrian"])
+        .args(TOWN)
+        .arg(&plain));
+    assert!(ok, "{err}");
+    let named: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(named["classes"], serde_json::json!(["car", "pedestrian"]));
+    let (ok, _, err) = run(Command::new(bin("v2x-sim"))
+        .args(["eval", "--classes", "car,tank"])
+        .args(TOWN)
+        .arg(&plain));
+    assert!(!ok && err.contains("unknown class 'tank'"), "{err}");
     // A file with ids is matched by id unless asked otherwise.
     let (ok, _, err) = run(Command::new(bin("v2x-sim"))
         .args(["eval"])
