@@ -45,7 +45,9 @@ pub fn std_of_code(code: u16) -> f64 {
 
 /// Largest standard deviation (m or rad): the std of [`STD_CODE_MAX`], about 10^4.
 pub fn std_max() -> f64 {
-    std_of_code(STD_CODE_MAX)
+    // Computed once: every std read from a file or the wire is checked against it.
+    static MAX: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *MAX.get_or_init(|| std_of_code(STD_CODE_MAX))
 }
 
 /// True when a std lies in [`STD_MIN`], [`std_max`] (and is not NaN).

@@ -334,7 +334,7 @@ pub fn parse_results(
 /// `sample_token`, if any, is not checked); `path` only names the source in errors.
 pub fn parse_boxes(
     path: &Path,
-    text: &str,
+    boxes: &Value,
     tokens: &mut TokenTable,
     missing: MissingStd,
 ) -> Result<Vec<Detection>, JsonError> {
@@ -343,9 +343,7 @@ pub fn parse_boxes(
         sample: None,
         index: None,
     };
-    let root: Value =
-        serde_json::from_str(text).map_err(|e| ctx.err(None, format!("not valid JSON: {e}")))?;
-    let boxes = root
+    let boxes = boxes
         .as_array()
         .ok_or_else(|| ctx.err(None, "expected a list of boxes"))?;
     boxes
@@ -730,9 +728,8 @@ mod tests {
     #[test]
     fn a_list_of_boxes_belongs_to_no_sample() {
         let doc: Value = serde_json::from_str(GOOD).unwrap();
-        let boxes = doc["results"]["s1"].to_string();
         let mut tokens = TokenTable::new();
-        let dets = parse_boxes(p(), &boxes, &mut tokens, MissingStd::Error).unwrap();
+        let dets = parse_boxes(p(), &doc["results"]["s1"], &mut tokens, MissingStd::Error).unwrap();
         let whole = parse_results(p(), GOOD, &mut TokenTable::new(), MissingStd::Error).unwrap();
         assert_eq!(dets, whole.samples["s1"]);
         assert_eq!(tokens.name(dets[0].id), Some("abc"));
@@ -740,7 +737,7 @@ mod tests {
         bad[0]["detection_score"] = json!(2.0);
         let e = parse_boxes(
             p(),
-            &json!([doc["results"]["s1"][0], bad[0]]).to_string(),
+            &json!([doc["results"]["s1"][0], bad[0]]),
             &mut tokens,
             MissingStd::Error,
         )
@@ -749,7 +746,7 @@ mod tests {
             e.to_string(),
             "agent1.json, box 1, field 'detection_score': expected a number in [0, 1]"
         );
-        let e = parse_boxes(p(), "{}", &mut tokens, MissingStd::Error).unwrap_err();
+        let e = parse_boxes(p(), &json!({}), &mut tokens, MissingStd::Error).unwrap_err();
         assert_eq!(e.to_string(), "agent1.json: expected a list of boxes");
     }
 

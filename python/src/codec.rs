@@ -1,0 +1,261 @@
+//! Frames to and from wire bytes (`docs/wire-format.md`), as the JSON of a frame dict: the
+//! fields `examples/python/v2x_frame.py` decodes, so the two decoders can be compared.
+
+use crate::pyjson::to_value;
+use crate::{DecodeError, EncodeError};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+use serde_json::{json, Map, Value};
+use std::path::Path;
+use v2x_protocol::nuscenes_json::{parse_boxes, TokenTable};
+use v2x_protocol::{wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty};
+use v2x_protocol::{Velocity, NO_ID};
+
+/// Decodes a payload into the JSON of its frame dict.
+#[pyfunction]
+pub fn decode_json(py: Python<'_>, payload: &[u8]) -> PyResult<String> {
+    let (frame, provenance) = py
+        .detach(|| wire::decode_with(payload))
+        .map_err(|e| DecodeError::new_err(e.to_string()))?;
+    Ok(frame_json(&frame, provenance.as_ref()).to_string())
+}
+
+/// Encodes the JSON of a frame dict into a payload.
+#[pyfunction]
+pub fn encode_json<'py>(py: Python<'py>, frame: &str) -> PyResult<Bound<'py, PyBytes>> {
+    let value: Value = serde_json::from_str(frame)
+        .map_err(|e| PyValueError::new_err(format!("frame: not JSON: {e}")))?;
+    let (frame, provenance) = frame_of(&value).map_err(EncodeError::new_err)?;
+    let bytes = wire::encode_with(&frame, provenance.as_ref())
+        .map_err(|e| EncodeError::new_err(e.to_string()))?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// Encodes an agent's boxes, a list of results-file dicts, into the payload of one frame (its
+/// origin the boxes' centroid).
+#[pyfunction]
+#[pyo3(signature = (agent, kind, seq, capture_us, boxes, default_std=None))]
+pub fn encode_boxes<'py>(
+    py: Python<'py>,
+    agent: &str,
+    kind: &str,
+    seq: u32,
+    capture_us: u64,
+    boxes: &Bound<'py, PyAny>,
+    default_std: Option<&str>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let kind: AgentKind = kind.parse().map_err(PyValueError::new_err)?;
+    let missing = crate::options::missing_std(default_std)?;
+    let boxes = to_value(boxes, &|| "boxes".into())?;
+    let detections = parse_boxes(Path::new("boxes"), &boxes, &mut TokenTable::new(), missing)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let frame = Frame {
+        agent: agent.to_owned(),
+        kind,
+        seq,
+        capture_us,
+        origin: [0.0; 3],
+        detections,
+    }
+    .with_centroid_origin();
+    let bytes = wire::encode(&frame).map_err(|e| EncodeError::new_err(e.to_string()))?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// A frame (and a fused frame's provenance) as its dict's JSON.
+fn frame_json(frame: &Frame, provenance: Option<&Provenance>) -> Value {
+    let objects: Vec<Value> = frame
+        .detections
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let mut o = object_json(d);
+            if let Some(p) = provenance {
+                o["sources"] = json!(p.names(&p.sources[i]).collect::<Vec<_>>());
+            }
+            o
+        })
+        .collect();
+    let mut f = json!({
+        "agent": frame.agent,
+        "kind": match frame.kind {
+            AgentKind::Vehicle => "vehicle",
+            AgentKind::Infrastructure => "infrastructure",
+        },
+        "seq": frame.seq,
+        "capture_us": frame.capture_us,
+        "origin": frame.origin,
+        "objects": objects,
+    });
+    if let Some(p) = provenance {
+        f["agents"] = json!(p.agents);
+        f["complete"] = json!(p.complete);
+    }
+    f
+}
+
+/// One object of a frame dict.
+fn object_json(d: &Detection) -> Value {
+    let mut o = json!({
+        "class": d.class.name(),
+        "center": d.center,
+        "size": d.size,
+        "yaw": d.yaw,
+        "score": d.score,
+        "id": (d.id != NO_ID).then_some(d.id),
+        "std": d.std.as_array(),
+    });
+    if let Some(v) = d.velocity {
+        o["velocity"] = json!(v.v);
+        o["velocity_std"] = json!(v.std);
+    }
+    o
+}
+
+/// Where a value sits in a frame dict, for errors: `objects[3].center`.
+struct At<'a>(&'a str);
+
+impl At<'_> {
+    fn field<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v Value, String> {
+        obj.get(name)
+            .ok_or_else(|| format!("{}{name}: missing", self.0))
+    }
+
+    fn int(&self, obj: &Map<String, Value>, name: &str, max: u64) -> Result<u64, String> {
+        self.field(obj, name)?
+            .as_u64()
+            .filter(|v| *v <= max)
+            .ok_or_else(|| format!("{}{name}: expected an integer from 0 to {max}", self.0))
+    }
+
+    fn number(&self, obj: &Map<String, Value>, name: &str) -> Result<f64, String> {
+        self.field(obj, name)?
+            .as_f64()
+            .ok_or_else(|| format!("{}{name}: expected a number", self.0))
+    }
+
+    fn numbers<const N: usize>(
+        &self,
+        obj: &Map<String, Value>,
+        name: &str,
+    ) -> Result<[f64; N], String> {
+        let bad = || format!("{}{name}: expected {N} numbers", self.0);
+        let arr = self.field(obj, name)?.as_array().ok_or_else(bad)?;
+        if arr.len() != N {
+            return Err(bad());
+        }
+        let mut out = [0.0; N];
+        for (o, v) in out.iter_mut().zip(arr) {
+            *o = v.as_f64().ok_or_else(bad)?;
+        }
+        Ok(out)
+    }
+
+    fn string<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v str, String> {
+        self.field(obj, name)?
+            .as_str()
+            .ok_or_else(|| format!("{}{name}: expected a string", self.0))
+    }
+}
+
+/// A frame dict (and a fused frame's provenance when it lists `agents`) from its JSON; the values
+/// are checked by the encoder.
+fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), String> {
+    let f = v.as_object().ok_or("frame: expected a dict")?;
+    let at = At("");
+    let kind: AgentKind = at.string(f, "kind")?.parse()?;
+    let agents: Option<Vec<String>> = match f.get("agents") {
+        None | Some(Value::Null) => None,
+        Some(a) => Some(
+            serde_json::from_value(a.clone()).map_err(|_| "agents: expected a list of names")?,
+        ),
+    };
+    let objects = at
+        .field(f, "objects")?
+        .as_array()
+        .ok_or("objects: expected a list")?;
+    let mut detections = Vec::with_capacity(objects.len());
+    let mut sources = Vec::new();
+    for (i, o) in objects.iter().enumerate() {
+        let prefix = format!("objects[{i}].");
+        let at = At(&prefix);
+        let o = o
+            .as_object()
+            .ok_or_else(|| format!("objects[{i}]: expected a dict"))?;
+        detections.push(object_of(&at, o)?);
+        if let Some(agents) = &agents {
+            sources.push(sources_of(&at, o, agents)?);
+        }
+    }
+    let frame = Frame {
+        agent: at.string(f, "agent")?.to_owned(),
+        kind,
+        seq: at.int(f, "seq", u32::MAX as u64)? as u32,
+        capture_us: at.int(f, "capture_us", u64::MAX)?,
+        origin: match f.get("origin") {
+            None | Some(Value::Null) => [0.0; 3],
+            Some(_) => at.numbers(f, "origin")?,
+        },
+        detections,
+    };
+    let provenance = match agents {
+        None => None,
+        Some(agents) => Some(Provenance {
+            agents,
+            complete: f
+                .get("complete")
+                .map_or(Some(true), Value::as_bool)
+                .ok_or("complete: expected true or false")?,
+            sources,
+        }),
+    };
+    Ok((frame, provenance))
+}
+
+/// One object of a frame dict.
+fn object_of(at: &At, o: &Map<String, Value>) -> Result<Detection, String> {
+    let class: Class = at.string(o, "class")?.parse()?;
+    let id = match o.get("id") {
+        None | Some(Value::Null) => NO_ID,
+        Some(_) => at.int(o, "id", (NO_ID - 1) as u64)? as u32,
+    };
+    let velocity = match o.get("velocity") {
+        None | Some(Value::Null) => None,
+        Some(_) => Some(Velocity {
+            v: at.numbers(o, "velocity")?,
+            std: match o.get("velocity_std") {
+                None | Some(Value::Null) => [1.0; 2],
+                Some(_) => at.numbers(o, "velocity_std")?,
+            },
+        }),
+    };
+    Ok(Detection {
+        class,
+        center: at.numbers(o, "center")?,
+        size: at.numbers(o, "size")?,
+        yaw: at.number(o, "yaw")?,
+        score: at.number(o, "score")?,
+        std: Uncertainty::from_array(at.numbers(o, "std")?),
+        pos_cov: None,
+        velocity,
+        id,
+    })
+}
+
+/// The source set of one object of a fused frame dict: its `sources`, names among `agents`.
+fn sources_of(at: &At, o: &Map<String, Value>, agents: &[String]) -> Result<AgentSet, String> {
+    let names = at
+        .field(o, "sources")?
+        .as_array()
+        .ok_or_else(|| format!("{}sources: expected a list of agent names", at.0))?;
+    let mut set = AgentSet::new();
+    for n in names {
+        let k = n
+            .as_str()
+            .and_then(|n| agents.iter().position(|a| a == n))
+            .ok_or_else(|| format!("{}sources: {n} is not one of the frame's agents", at.0))?;
+        set.insert(k);
+    }
+    Ok(set)
+}

@@ -1,0 +1,150 @@
+//! Fusion of boxes in results-file form: one time step (`fuse`), whole results documents
+//! (`fuse_results`) and files (`fuse_files`, `track_files`, as `v2x-fuser fuse` and `track`).
+
+use crate::options::{method, missing_std, Options};
+use crate::pyjson::{to_py, to_value};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use v2x_fuser::offline::{self, FuseReport};
+use v2x_protocol::nuscenes_json::{
+    box_json, parse_boxes, parse_results, results_json, JsonError, TokenTable,
+};
+
+fn value_error(e: JsonError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// Fuses one time step: `agents[k]` is agent k's boxes, a list of results-file dicts. Returns
+/// the fused boxes as such dicts, each with `v2x_sources`, the indices of the agents whose boxes
+/// went into it.
+#[pyfunction]
+#[pyo3(signature = (agents, method_name, default_std=None))]
+pub fn fuse_step<'py>(
+    py: Python<'py>,
+    agents: Vec<Bound<'py, PyAny>>,
+    method_name: &str,
+    default_std: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let method = method(method_name)?;
+    let missing = missing_std(default_std)?;
+    let values = agents
+        .iter()
+        .enumerate()
+        .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
+        .collect::<PyResult<Vec<_>>>()?;
+    let fused = py.detach(|| {
+        let mut tokens = TokenTable::new();
+        let per_agent = values
+            .iter()
+            .enumerate()
+            .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, &mut tokens, missing))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(value_error)?;
+        let fused: Vec<Value> = method
+            .fuse_sourced(&per_agent)
+            .iter()
+            .map(|s| {
+                let mut b = box_json("", &s.det, &tokens);
+                let m = b.as_object_mut().expect("built as an object");
+                m.remove("sample_token");
+                m.insert(
+                    "v2x_sources".into(),
+                    json!(s.sources.iter().collect::<Vec<_>>()),
+                );
+                b
+            })
+            .collect();
+        Ok::<_, PyErr>(Value::Array(fused))
+    })?;
+    to_py(py, &fused)
+}
+
+/// Fuses whole results documents (the JSON of each agent's), as `v2x-fuser fuse` fuses files.
+/// Returns the JSON of the fused document and of the report.
+#[pyfunction]
+pub fn fuse_documents(
+    py: Python<'_>,
+    documents: Vec<String>,
+    options: Options,
+) -> PyResult<(String, String)> {
+    let (method, missing, opts) = options.offline(documents.len())?;
+    py.detach(|| {
+        let mut tokens = TokenTable::new();
+        let names: Vec<PathBuf> = (0..documents.len())
+            .map(|k| PathBuf::from(format!("documents[{k}]")))
+            .collect();
+        let agents = documents
+            .iter()
+            .zip(&names)
+            .map(|(text, name)| parse_results(name, text, &mut tokens, missing))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(value_error)?;
+        let (fused, report) =
+            offline::fuse_agents(&method, &agents, &names, &opts).map_err(value_error)?;
+        Ok((
+            results_json(&fused, &tokens).to_string(),
+            report_json(&report).to_string(),
+        ))
+    })
+}
+
+/// Reads, fuses and writes files: `v2x-fuser fuse`. Returns the JSON of the report.
+#[pyfunction]
+pub fn fuse_files(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    output: PathBuf,
+    options: Options,
+) -> PyResult<String> {
+    let (method, missing, opts) = options.offline(inputs.len())?;
+    py.detach(|| {
+        let report =
+            offline::fuse_files(&method, &inputs, &output, missing, &opts).map_err(value_error)?;
+        Ok(report_json(&report).to_string())
+    })
+}
+
+/// Reads, fuses, tracks and writes files: `v2x-fuser track`. Returns the JSON of the tracker's
+/// counters and what was learned.
+#[pyfunction]
+pub fn track_files(
+    py: Python<'_>,
+    inputs: Vec<PathBuf>,
+    output: PathBuf,
+    options: Options,
+) -> PyResult<String> {
+    let (method, missing, opts) = options.offline(inputs.len())?;
+    let params = options.tracker()?;
+    py.detach(|| {
+        let tracks = offline::track_files(&method, &inputs, &output, missing, &opts, params)
+            .map_err(PyValueError::new_err)?;
+        Ok(json!({
+            "windows": tracks.results.samples.len(),
+            "boxes": tracks.results.samples.values().map(Vec::len).sum::<usize>(),
+            "stats": tracks.stats,
+            "learned": tracks.results.meta.get("v2x_learned_std").cloned().unwrap_or(json!({})),
+        })
+        .to_string())
+    })
+}
+
+/// What fusing did, as a dict's JSON.
+fn report_json(r: &FuseReport) -> Value {
+    let registration: Vec<Value> = r
+        .registration
+        .iter()
+        .map(|(agent, measured, applied, last)| {
+            json!({"agent": agent, "measured": measured, "applied": applied, "last": last})
+        })
+        .collect();
+    json!({
+        "samples": r.samples,
+        "boxes_in": r.boxes_in,
+        "boxes_out": r.boxes_out,
+        "by_time": r.by_time,
+        "registration": registration,
+        "learned": r.learned,
+    })
+}

@@ -1,0 +1,85 @@
+//! The tracker as a Python object, stepped window by window (`v2x_fuser::tracker`).
+
+use crate::options::{missing_std, tracker_params};
+use crate::pyjson::{to_py, to_value};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use serde_json::{json, Value};
+use std::path::Path;
+use v2x_protocol::nuscenes_json::{box_json, parse_boxes, TokenTable};
+
+/// Follows fused boxes over time: one `step` per window, in time order.
+#[pyclass(module = "v2x_fusion._native")]
+pub struct Tracker {
+    inner: v2x_fuser::tracker::Tracker,
+    tokens: TokenTable,
+    missing: v2x_protocol::nuscenes_json::MissingStd,
+}
+
+#[pymethods]
+impl Tracker {
+    /// A tracker with the parameters of `v2x-fuser track`.
+    #[new]
+    #[pyo3(signature = (confirm_hits=2, max_misses=3, all_classes=false, time_scale=1.0, default_std=None))]
+    fn new(
+        confirm_hits: u32,
+        max_misses: u32,
+        all_classes: bool,
+        time_scale: f64,
+        default_std: Option<&str>,
+    ) -> PyResult<Self> {
+        let params = tracker_params(confirm_hits, max_misses, all_classes, time_scale)?;
+        Ok(Tracker {
+            inner: v2x_fuser::tracker::Tracker::new(params),
+            tokens: TokenTable::new(),
+            missing: missing_std(default_std)?,
+        })
+    }
+
+    /// Steps the tracks to the window at `t_us` with its boxes (results-file dicts); returns the
+    /// tracked boxes as such dicts, each with `tracking_id`, `tracking_name` and
+    /// `tracking_score`.
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        t_us: u64,
+        boxes: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let boxes = to_value(boxes, &|| "boxes".into())?;
+        let Tracker {
+            inner,
+            tokens,
+            missing,
+        } = self;
+        let out = py.detach(|| {
+            let dets = parse_boxes(Path::new("boxes"), &boxes, tokens, *missing)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let out: Vec<Value> = inner
+                .step(t_us, &dets)
+                .iter()
+                .map(|t| {
+                    let mut b = box_json("", &t.det, tokens);
+                    let m = b.as_object_mut().expect("built as an object");
+                    m.remove("sample_token");
+                    m.insert("tracking_id".into(), json!(t.tracking_id.to_string()));
+                    m.insert("tracking_name".into(), json!(t.det.class.name()));
+                    m.insert("tracking_score".into(), json!(t.det.score));
+                    b
+                })
+                .collect();
+            Ok::<_, PyErr>(Value::Array(out))
+        })?;
+        to_py(py, &out)
+    }
+
+    /// The lifecycle counters: confirmed tracks alive now, confirmed so far, ended so far.
+    fn stats(&self) -> (usize, u64, u64) {
+        let s = self.inner.stats();
+        (s.live, s.births, s.deaths)
+    }
+
+    /// Ends every track (the next step starts afresh).
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+}

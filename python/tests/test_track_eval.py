@@ -1,0 +1,98 @@
+"""The tracker and the evaluation from Python equal `v2x-fuser track` and `v2x-sim eval`."""
+
+import json
+import logging
+
+import pytest
+
+import v2x_fusion as v
+from conftest import TOWN, load, run
+
+AGENTS = ("agent1.json", "agent2.json")
+TOWN_FLAGS = ("--seconds", TOWN["seconds"], "--hz", TOWN["hz"])
+
+
+@pytest.fixture(scope="module")
+def cli(generated, tmp_path_factory):
+    """The CLI's fused and tracking files of the generated agents."""
+    out = tmp_path_factory.mktemp("cli")
+    paths = [generated / a for a in AGENTS]
+    run("v2x-fuser", "fuse", "-o", out / "fused.json", *paths)
+    run("v2x-fuser", "track", "-o", out / "tracks.json", *paths)
+    return out
+
+
+def test_track_files_equals_the_cli(generated, cli, tmp_path):
+    report = v.track_files([generated / a for a in AGENTS], tmp_path / "tracks.json")
+    assert load(tmp_path / "tracks.json") == load(cli / "tracks.json")
+    assert report["windows"] == 30 and report["stats"]["births"] > 10
+
+
+def test_the_tracker_stepped_over_the_fused_windows_equals_the_cli(cli):
+    fused = load(cli / "fused.json")
+    times = fused["meta"]["v2x_timestamps"]
+    expected = load(cli / "tracks.json")["results"]
+    tracker = v.Tracker()
+    boxes = 0
+    for sample in sorted(fused["results"], key=lambda s: times[s]):
+        got = tracker.step(times[sample], fused["results"][sample])
+        want = expected[sample]
+        assert [b["tracking_id"] for b in got] == [b["tracking_id"] for b in want], sample
+        for g, w in zip(got, want):
+            assert g["tracking_name"] == w["tracking_name"] and g["detection_name"] == w["detection_name"]
+            for key in ("translation", "size", "rotation", "velocity", "translation_std"):
+                assert g[key] == pytest.approx(w[key], abs=1e-9), (sample, key)
+            assert g["tracking_score"] == pytest.approx(w["tracking_score"], abs=1e-12)
+            boxes += 1
+    assert boxes > 200
+    assert tracker.stats["births"] > 10
+    tracker.reset()
+    assert tracker.stats["live"] == 0
+
+
+def test_the_tracker_checks_its_input():
+    with pytest.raises(ValueError, match="confirm_hits must be at least 1"):
+        v.Tracker(confirm_hits=0)
+    with pytest.raises(ValueError, match="box 0, field 'size'"):
+        v.Tracker(default_std="mild").step(0, [{"translation": [0, 0, 0], "size": [1, 1],
+                                                "rotation": [1, 0, 0, 0], "detection_name": "car",
+                                                "detection_score": 0.5}])
+
+
+def cli_eval(*args):
+    return json.loads(run("v2x-sim", "eval", "--format", "json", *TOWN_FLAGS, *args).stdout)
+
+
+@pytest.fixture(scope="module")
+def town():
+    return v.GroundTruth.town(**TOWN)
+
+
+def test_evaluate_equals_the_cli(cli, town, caplog):
+    assert len(town) == 30
+    with caplog.at_level(logging.INFO, logger="v2x_fusion"):
+        by_id = v.evaluate(cli / "fused.json", town)
+    assert "scored 30 samples" in caplog.text
+    assert by_id == cli_eval(cli / "fused.json")
+    assert 0.9 < by_id["precision"] <= 1.0
+    by_distance = v.evaluate(cli / "fused.json", town, match="distance", classes=["car", "pedestrian"])
+    assert by_distance == cli_eval("--match", "distance", "--classes", "car,pedestrian", cli / "fused.json")
+    assert v.evaluate(load(cli / "fused.json"), town) == by_id
+    tracking = v.evaluate(cli / "tracks.json", town, tracking=True)
+    assert tracking == cli_eval("--tracking", cli / "tracks.json")
+    assert 0.5 < tracking["AMOTA"] <= 1.0
+
+
+def test_evaluate_says_what_is_wrong(cli, town):
+    with pytest.raises(ValueError, match="match 'iou'"):
+        v.evaluate(cli / "fused.json", town, match="iou")
+    with pytest.raises(ValueError, match="not in the ground truth"):
+        v.evaluate(cli / "fused.json", v.GroundTruth.town(seconds=2, hz=10))
+    with pytest.raises(ValueError, match="unknown class 'tank'"):
+        v.evaluate(cli / "fused.json", town, classes=["tank"])
+    with pytest.raises(ValueError, match="tracking_id"):
+        v.evaluate(cli / "fused.json", town, tracking=True)
+    with pytest.raises(ValueError, match="hz > 0"):
+        v.GroundTruth.town(hz=0)
+    with pytest.raises(ValueError):
+        v.GroundTruth.nuscenes("/nonexistent", "v1.0-mini")
