@@ -1,6 +1,7 @@
 """The codec: the specification's example bytes, round trips, and errors that name what is wrong."""
 
 import math
+import random
 import sys
 
 import pytest
@@ -108,3 +109,23 @@ def test_bad_boxes_name_the_box_and_field():
         v.encode_boxes("pyveh", [box(1.0), {k: x for k, x in box(2.0).items() if k != "translation_std"}])
     payload = v.encode_boxes("pyveh", [{k: x for k, x in box(2.0).items() if k != "translation_std"}], default_std="mild")
     assert len(v.decode(payload).objects) == 1
+
+
+def test_mutated_bytes_decode_or_raise_decode_error_and_what_decodes_re_encodes():
+    rng = random.Random(7)
+    accepted = 0
+    for name in ("example-bytes", "fused-example-bytes"):
+        base = example(SPEC, name)
+        for n in range(2000):
+            b = bytearray(base)
+            for _ in range(rng.randint(1, 3)):
+                b[rng.randrange(len(b))] = rng.randrange(256)
+            if n % 4 == 0:
+                b = b[: rng.randrange(len(b))]
+            try:
+                frame = v.decode(bytes(b))
+            except v.DecodeError:
+                continue
+            accepted += 1
+            assert v.decode(v.encode(frame)) == frame
+    assert accepted > 100
