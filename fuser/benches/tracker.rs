@@ -1,5 +1,6 @@
 //! Time per tracker step: 200 confirmed tracks of cars moving at constant velocity, one fused
-//! box each per window (0.5 m noise, with velocities), in steady state.
+//! box each per window (0.5 m noise, with velocities), in steady state; and through the tracks
+//! (`step_agents`), two agents' boxes of the same cars.
 //!
 //! Run: `cargo bench -p v2x-fuser --bench tracker`.
 
@@ -14,8 +15,9 @@ use std::time::Duration;
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_protocol::{Class, Detection, Uncertainty, Velocity, NO_ID};
 
-/// Windows of `n` cars on a 400 m square at 10 Hz, each moving at its own velocity.
-fn windows(n: usize, steps: usize) -> Vec<Vec<Detection>> {
+/// Windows of `n` cars on a 400 m square at 10 Hz, each moving at its own velocity, seen with
+/// the noise of `seed`.
+fn windows(n: usize, steps: usize, seed: u64) -> Vec<Vec<Detection>> {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let cars: Vec<([f64; 2], [f64; 2])> = (0..n)
         .map(|_| {
@@ -25,6 +27,7 @@ fn windows(n: usize, steps: usize) -> Vec<Vec<Detection>> {
             )
         })
         .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..steps)
         .map(|k| {
             let t = k as f64 * 0.1;
@@ -56,7 +59,7 @@ fn windows(n: usize, steps: usize) -> Vec<Vec<Detection>> {
 }
 
 fn bench_step(c: &mut Criterion) {
-    let w = windows(200, 40);
+    let w = windows(200, 40, 1);
     let mut tracker = Tracker::new(TrackerParams::default());
     for (k, boxes) in w.iter().take(20).enumerate() {
         tracker.step(k as u64 * 100_000, boxes);
@@ -71,6 +74,22 @@ fn bench_step(c: &mut Criterion) {
         b.iter_batched(
             || tracker.clone(),
             |mut t| black_box(t.step(2_000_000, black_box(&w[20]))),
+            criterion::BatchSize::SmallInput,
+        )
+    });
+    let agents: Vec<Vec<Vec<Detection>>> = (0..40)
+        .map(|k| vec![w[k].clone(), windows(200, 40, 2)[k].clone()])
+        .collect();
+    let method: v2x_fuser::Method = "csba-wls+".parse().expect("a method");
+    let mut guided = Tracker::new(TrackerParams::default());
+    for (k, a) in agents.iter().take(20).enumerate() {
+        guided.step_agents(k as u64 * 100_000, a, &method);
+    }
+    assert_eq!(guided.stats().live, 200, "steady state: every car tracked");
+    group.bench_function("guided/200-tracks-2-agents", |b| {
+        b.iter_batched(
+            || guided.clone(),
+            |mut t| black_box(t.step_agents(2_000_000, black_box(&agents[20]), &method)),
             criterion::BatchSize::SmallInput,
         )
     });

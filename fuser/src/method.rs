@@ -120,6 +120,14 @@ impl Method {
         }
     }
 
+    /// The association's parameters, for a CSBA-3D method.
+    pub fn csba_params(&self) -> Option<CsbaParams> {
+        match self {
+            Method::Csba(p) => Some(*p),
+            _ => None,
+        }
+    }
+
     /// Every named method, in the order of [`METHODS`].
     pub fn all() -> Vec<Method> {
         METHODS
@@ -240,10 +248,28 @@ pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
 
 /// [`csba_wls`] as the fused boxes and, apart, the agents of each.
 fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<AgentSet>) {
-    // A group's members inline: two to four agents need no allocation per group.
+    let (fused, groups) = csba_groups(p, agents);
+    let sources = groups
+        .iter()
+        .map(|g| g.iter().map(|&(k, _)| k).collect())
+        .collect();
+    (fused, sources)
+}
+
+/// A group's members as (agent, index in the agent's list): two to four agents need no
+/// allocation per group.
+pub type Members = smallvec::SmallVec<[(usize, usize); 4]>;
+
+/// CSBA-3D association and WLS-3D fusion ([`csba_wls`]): the fused boxes and the members of
+/// each, in the same order.
+pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
     let n: usize = agents.iter().map(Vec::len).sum();
-    let mut groups: Vec<smallvec::SmallVec<[&Detection; 4]>> = Vec::with_capacity(n);
-    let mut sources: Vec<AgentSet> = Vec::with_capacity(n);
+    let mut groups: Vec<Members> = Vec::with_capacity(n);
+    let member = |&(k, j): &(usize, usize)| &agents[k][j];
+    let fuse = |g: &Members| {
+        let refs: smallvec::SmallVec<[&Detection; 4]> = g.iter().map(member).collect();
+        fuse_group(&refs)
+    };
     // The running fused boxes. Until a second agent's boxes arrive they are the first agent's
     // list itself (`base`), copied once, with its groups already re-fused, when they do.
     let mut fused: Vec<Detection> = Vec::new();
@@ -254,8 +280,7 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
         }
         let Some(current) = base.or((!fused.is_empty()).then_some(&fused[..])) else {
             base = Some(list);
-            groups.extend(list.iter().map(|d| smallvec::smallvec![d]));
-            sources.extend(std::iter::repeat_n(AgentSet::single(k), list.len()));
+            groups.extend((0..list.len()).map(|j| smallvec::smallvec![(k, j)]));
             continue;
         };
         let pairs: Vec<(usize, usize)> = associate(p, current, list)
@@ -265,27 +290,25 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
         let mut taken = vec![false; list.len()];
         for &(g, j) in &pairs {
             taken[j] = true;
-            groups[g].push(&list[j]);
-            sources[g].insert(k);
+            groups[g].push((k, j));
         }
         if let Some(first) = base.take() {
             fused.reserve(n);
             fused.extend(first.iter().zip(&groups).map(|(d, members)| {
                 if members.len() > 1 {
-                    fuse_group(members)
+                    fuse(members)
                 } else {
                     d.clone()
                 }
             }));
         } else {
             for &(g, _) in &pairs {
-                fused[g] = fuse_group(&groups[g]);
+                fused[g] = fuse(&groups[g]);
             }
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
-                groups.push(smallvec::smallvec![d]);
-                sources.push(AgentSet::single(k));
+                groups.push(smallvec::smallvec![(k, j)]);
                 fused.push(d.clone());
             }
         }
@@ -293,7 +316,7 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
     if let Some(first) = base {
         fused = first.to_vec();
     }
-    (fused, sources)
+    (fused, groups)
 }
 
 /// The chi-square test of a new member against its group's fused box: its squared centre

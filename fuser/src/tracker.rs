@@ -61,6 +61,10 @@ pub struct TrackerParams {
     /// Also follow the classes the nuScenes tracking benchmark does not score (barrier, traffic
     /// cone, construction vehicle); by default their boxes are passed over.
     pub all_classes: bool,
+    /// How the tracker's callers feed it: each agent's boxes through the tracks first
+    /// ([`Tracker::step_agents`], `docs/method.md` §8.1), or (false) the fused boxes
+    /// ([`Tracker::step`]).
+    pub guided: bool,
 }
 
 impl Default for TrackerParams {
@@ -77,6 +81,7 @@ impl Default for TrackerParams {
             time_scale: 1.0,
             by_id: false,
             all_classes: false,
+            guided: false,
         }
     }
 }
@@ -144,6 +149,11 @@ impl Tracker {
         }
     }
 
+    /// The parameters it was made with.
+    pub fn params(&self) -> &TrackerParams {
+        &self.params
+    }
+
     /// The lifecycle counters.
     pub fn stats(&self) -> TrackStats {
         TrackStats {
@@ -169,38 +179,11 @@ impl Tracker {
     /// [`Tracker::step`], also returning the id of the track (tentative or confirmed) each box
     /// went to, [`NO_ID`] for a box of a class not tracked.
     pub fn step_ids(&mut self, t_us: u64, all: &[Detection]) -> (Vec<Tracked>, Vec<u32>) {
-        let index: Vec<usize> = (0..all.len())
-            .filter(|&j| self.params.all_classes || all[j].class.is_tracking())
-            .collect();
-        let boxes: std::borrow::Cow<[Detection]> = if index.len() == all.len() {
-            all.into()
-        } else {
-            index
-                .iter()
-                .map(|&j| all[j].clone())
-                .collect::<Vec<_>>()
-                .into()
-        };
+        let (index, boxes) = self.tracked_classes(all);
         let boxes = &*boxes;
         let mut ids = vec![NO_ID; all.len()];
-        let scale = self.params.time_scale;
-        let dt = match self.last_us {
-            Some(last)
-                if t_us >= last && (t_us - last) as f64 * scale <= self.params.max_gap_s * 1e6 =>
-            {
-                (t_us - last) as f64 / 1e6 * scale
-            }
-            Some(_) => {
-                self.reset();
-                0.0
-            }
-            None => 0.0,
-        };
-        self.last_us = Some(t_us);
         // 1. predict
-        for t in &mut self.tracks {
-            predict(t, dt, &self.params);
-        }
+        let dt = self.advance(t_us);
         // 2. cost of every eligible pair, 3. assignment
         let edges = if self.params.by_id {
             by_id_edges(&self.tracks, boxes)
@@ -226,6 +209,50 @@ impl Tracker {
             }
         }
         (out, ids)
+    }
+
+    /// The boxes of the classes tracked (all of them with `all_classes`) and their indices in
+    /// `all`.
+    fn tracked_classes<'a>(
+        &self,
+        all: &'a [Detection],
+    ) -> (Vec<usize>, std::borrow::Cow<'a, [Detection]>) {
+        let index: Vec<usize> = (0..all.len())
+            .filter(|&j| self.params.all_classes || all[j].class.is_tracking())
+            .collect();
+        let boxes = if index.len() == all.len() {
+            all.into()
+        } else {
+            index
+                .iter()
+                .map(|&j| all[j].clone())
+                .collect::<Vec<_>>()
+                .into()
+        };
+        (index, boxes)
+    }
+
+    /// Step 1: the time since the last window (s of motion), every track predicted over it; a
+    /// gap beyond `max_gap_s` or time going back ends every track first.
+    fn advance(&mut self, t_us: u64) -> f64 {
+        let scale = self.params.time_scale;
+        let dt = match self.last_us {
+            Some(last)
+                if t_us >= last && (t_us - last) as f64 * scale <= self.params.max_gap_s * 1e6 =>
+            {
+                (t_us - last) as f64 / 1e6 * scale
+            }
+            Some(_) => {
+                self.reset();
+                0.0
+            }
+            None => 0.0,
+        };
+        self.last_us = Some(t_us);
+        for t in &mut self.tracks {
+            predict(t, dt, &self.params);
+        }
+        dt
     }
 
     /// Step 5 for the existing tracks, `hit` saying which got a box: confirmed after
@@ -306,13 +333,10 @@ impl Tracker {
                 if b.class != t.class || !may_pass(t, b, var[j], self.params.gate) {
                     continue;
                 }
-                let (y, s, _) = innovation(t, b);
-                let Some(s_inv) = s.clone().try_inverse() else {
-                    continue;
-                };
-                let d2 = (y.transpose() * &s_inv * &y)[0];
-                if d2 <= self.params.gate {
-                    edges.push(Edge::new(i, j, d2 + s.determinant().max(1e-300).ln()));
+                if let Some((d2, ln_det)) = distance(t, b) {
+                    if d2 <= self.params.gate {
+                        edges.push(Edge::new(i, j, d2 + ln_det));
+                    }
                 }
             }
         }
@@ -429,6 +453,15 @@ fn may_pass(t: &Track, b: &Detection, [vx, vy]: [f64; 2], gate: f64) -> bool {
     dx * dx <= gate * (t.p[(0, 0)] + vx) && dy * dy <= gate * (t.p[(1, 1)] + vy)
 }
 
+/// The squared Mahalanobis distance d^2 = y^T S^-1 y of a box from a track's state, and ln det S
+/// (`None` when S is singular).
+fn distance(t: &Track, b: &Detection) -> Option<(f64, f64)> {
+    let (y, s, _) = innovation(t, b);
+    let s_inv = s.clone().try_inverse()?;
+    let d2 = (y.transpose() * &s_inv * &y)[0];
+    Some((d2, s.determinant().max(1e-300).ln()))
+}
+
 /// The innovation y, its covariance S and H.
 fn innovation(t: &Track, b: &Detection) -> (DVector<f64>, DMatrix<f64>, DMatrix<f64>) {
     let (h, z, r) = measurement(b);
@@ -508,6 +541,8 @@ fn estimate(t: &Track) -> Detection {
         id: t.truth,
     }
 }
+
+mod guided;
 
 #[cfg(test)]
 mod tests;
