@@ -597,7 +597,7 @@ pub fn read_tracking(path: &Path) -> Result<BTreeMap<String, Vec<TrackBox>>, Str
 pub fn parse_tracking(path: &Path, text: &str) -> Result<BTreeMap<String, Vec<TrackBox>>, String> {
     let file = path.display();
     let doc: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| format!("{file}: not JSON: {e}"))?;
+        serde_json::from_str(text).map_err(|e| format!("{file}: not JSON: {e}"))?;
     let results = doc
         .get("results")
         .and_then(|r| r.as_object())

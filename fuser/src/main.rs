@@ -129,6 +129,11 @@ struct TrackArgs {
     /// classes only, as the official devkit's loader requires; with it the devkit refuses it.
     #[arg(long)]
     all_classes: bool,
+    /// Associate each agent's boxes with the tracks' predictions first, one agent after another,
+    /// and fuse between agents (with --method) only the boxes no track explains
+    /// (docs/method.md §8.1). Default: track the fused boxes.
+    #[arg(long)]
+    guided: bool,
     /// Where to write the tracking results file.
     #[arg(long, short)]
     output: PathBuf,
@@ -170,6 +175,10 @@ struct NodeArgs {
     /// With --track: also track barriers, traffic cones and construction vehicles.
     #[arg(long, requires = "track")]
     track_all_classes: bool,
+    /// With --track: associate each agent's boxes with the tracks first and fuse between agents
+    /// only the rest (`v2x-fuser track --guided`); the fused frames stay as they are.
+    #[arg(long, requires = "track")]
+    track_guided: bool,
     /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
     /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
     /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -599,6 +608,7 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         confirm_hits,
         max_misses,
         all_classes,
+        guided,
         output,
         inputs,
     } = args;
@@ -611,6 +621,7 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         confirm_hits,
         max_misses,
         all_classes,
+        guided,
         ..Default::default()
     };
     let tracks = v2x_fuser::offline::track_files(&method, &inputs, &output, missing, &opts, params)
@@ -644,6 +655,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         align,
         track,
         track_all_classes,
+        track_guided,
         record,
         viz,
         duration_s,
@@ -668,6 +680,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
             time_scale: motion.time_scale,
             all_classes: track_all_classes,
+            guided: track_guided,
             ..Default::default()
         });
         cfg.viz = viz.open().await?;

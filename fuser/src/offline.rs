@@ -183,7 +183,53 @@ fn fuse_by_time(
     times: &[HashMap<String, u64>],
     opts: &OfflineOptions,
 ) -> Results {
-    // Every frame of every agent, in capture order, through the node's window state machine.
+    let mut out = Results {
+        meta: agents[0].meta.clone(),
+        ..Default::default()
+    };
+    let mut samples = BTreeMap::new();
+    let meta = by_time(agents, times, opts, |_, sample, per_agent| {
+        samples.insert(sample.clone(), method.fuse(per_agent));
+    });
+    out.samples = samples;
+    meta.set(&mut out);
+    out
+}
+
+/// What grouping by time adds to a results file's meta: each sample's reference time, and with
+/// registration or learned stds their reports.
+struct TimeMeta {
+    stamps: serde_json::Map<String, Value>,
+    registered: Option<serde_json::Map<String, Value>>,
+    learned: Option<BTreeMap<String, AgentReport>>,
+}
+
+impl TimeMeta {
+    fn set(self, out: &mut Results) {
+        set_meta(out, "v2x_timestamps", Value::Object(self.stamps));
+        if let Some(r) = self.registered {
+            set_meta(out, "v2x_registration", Value::Object(r));
+        }
+        if let Some(learned) = self.learned {
+            set_meta(
+                out,
+                "v2x_learned_std",
+                serde_json::to_value(learned).expect("reports serialize"),
+            );
+        }
+    }
+}
+
+/// Every frame of every agent, in capture order, through the node's window state machine: each
+/// window's boxes (models applied, stds learned, motion-compensated to its reference time and,
+/// with registration, aligned to the reference agent) go to `each` with the window's reference
+/// time and sample (that of its latest frame), in time order.
+fn by_time(
+    agents: &[Results],
+    times: &[HashMap<String, u64>],
+    opts: &OfflineOptions,
+    mut each: impl FnMut(u64, &String, &[Vec<Detection>]),
+) -> TimeMeta {
     let mut frames: Vec<(u64, usize, &String, &Vec<Detection>)> = Vec::new();
     for (a, r) in agents.iter().enumerate() {
         for (token, dets) in &r.samples {
@@ -207,10 +253,6 @@ fn fuse_by_time(
         windows.insert(frame, *t);
     }
     let all: BTreeSet<String> = (0..agents.len()).map(name).collect();
-    let mut out = Results {
-        meta: agents[0].meta.clone(),
-        ..Default::default()
-    };
     let mut stamps = serde_json::Map::new();
     let mut aligner = opts.align.map(|(p, r)| (Aligner::new(p), r));
     let mut registered = serde_json::Map::new();
@@ -248,26 +290,19 @@ fn fuse_by_time(
             },
             None => per_agent,
         };
-        out.samples.insert(latest.clone(), method.fuse(&per_agent));
+        each(t_ref, &latest, &per_agent);
         stamps.insert(latest, t_ref.into());
     }
-    set_meta(&mut out, "v2x_timestamps", Value::Object(stamps));
-    if aligner.is_some() {
-        set_meta(&mut out, "v2x_registration", Value::Object(registered));
+    TimeMeta {
+        stamps,
+        registered: aligner.is_some().then_some(registered),
+        learned: learner.map(|l| {
+            l.report()
+                .into_iter()
+                .map(|(name, r)| (input_name(&name), r))
+                .collect()
+        }),
     }
-    if let Some(l) = learner {
-        let learned: BTreeMap<String, AgentReport> = l
-            .report()
-            .into_iter()
-            .map(|(name, r)| (input_name(&name), r))
-            .collect();
-        set_meta(
-            &mut out,
-            "v2x_learned_std",
-            serde_json::to_value(learned).expect("reports serialize"),
-        );
-    }
-    out
 }
 
 /// Fused boxes followed over time: the tracked boxes per sample, each box's track id, and the
@@ -294,6 +329,9 @@ pub fn track_results(
                     (meta.v2x_timestamps with one entry per sample, as `v2x-sim gen` writes it)"
             .into());
     }
+    if params.guided {
+        return Ok(track_through(method, agents, opts, params));
+    }
     let fused = fuse_results(method, agents, opts);
     let times = capture_times(&fused).expect("fusion by time stamps every sample");
     let mut order: Vec<(&u64, &String)> = fused.samples.keys().map(|s| (&times[s], s)).collect();
@@ -318,6 +356,41 @@ pub fn track_results(
         ids,
         stats: tracker.stats(),
     })
+}
+
+/// Tracking through the tracks ([`Tracker::step_agents`]): each window's agents' boxes go to the
+/// tracker directly, `method` fusing between agents only the boxes no track explains.
+fn track_through(
+    method: &Method,
+    agents: &[Results],
+    opts: &OfflineOptions,
+    params: TrackerParams,
+) -> Tracks {
+    let times: Vec<HashMap<String, u64>> = agents
+        .iter()
+        .map(|r| capture_times(r).expect("checked by the caller"))
+        .collect();
+    let mut tracker = Tracker::new(params);
+    let mut results = Results {
+        meta: agents[0].meta.clone(),
+        ..Default::default()
+    };
+    let mut ids = BTreeMap::new();
+    let meta = by_time(agents, &times, opts, |t_ref, sample, per_agent| {
+        let (boxes, track_ids) = tracker
+            .step_agents(t_ref, per_agent, method)
+            .into_iter()
+            .map(|tr| (tr.det, tr.tracking_id))
+            .unzip();
+        results.samples.insert(sample.clone(), boxes);
+        ids.insert(sample.clone(), track_ids);
+    });
+    meta.set(&mut results);
+    Tracks {
+        results,
+        ids,
+        stats: tracker.stats(),
+    }
 }
 
 /// Reads, fuses, tracks and writes nuScenes tracking results: the `v2x-fuser track` command.

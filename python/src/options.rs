@@ -32,6 +32,7 @@ pub struct Options {
     confirm_hits: u32,
     max_misses: u32,
     all_classes: bool,
+    guided: bool,
 }
 
 /// A method by name.
@@ -137,7 +138,9 @@ impl Options {
     /// The tracker's parameters.
     pub fn tracker(&self) -> PyResult<TrackerParams> {
         // As `v2x-fuser track`: the files' capture times are the data's own, not a replay's.
-        tracker_params(self.confirm_hits, self.max_misses, self.all_classes, 1.0)
+        let mut p = tracker_params(self.confirm_hits, self.max_misses, self.all_classes, 1.0)?;
+        p.guided = self.guided;
+        Ok(p)
     }
 }
 

@@ -54,20 +54,42 @@ impl Tracker {
         let out = py.detach(|| {
             let dets = parse_boxes(Path::new("boxes"), &boxes, tokens, *missing)
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let out: Vec<Value> = inner
-                .step(t_us, &dets)
-                .iter()
-                .map(|t| {
-                    let mut b = box_json("", &t.det, tokens);
-                    let m = b.as_object_mut().expect("built as an object");
-                    m.remove("sample_token");
-                    m.insert("tracking_id".into(), json!(t.tracking_id.to_string()));
-                    m.insert("tracking_name".into(), json!(t.det.class.name()));
-                    m.insert("tracking_score".into(), json!(t.det.score));
-                    b
-                })
-                .collect();
+            let out = tracked_json(&inner.step(t_us, &dets), tokens);
             Ok::<_, PyErr>(Value::Array(out))
+        })?;
+        to_py(py, &out)
+    }
+
+    /// Steps the tracks with each agent's boxes (`agents[k]`, lists of results-file dicts)
+    /// through the tracks, CSBA-3D with `method`'s parameters fusing the rest
+    /// (`v2x-fuser track --guided`); returns the tracked boxes as `step` does.
+    fn step_agents<'py>(
+        &mut self,
+        py: Python<'py>,
+        t_us: u64,
+        agents: Vec<Bound<'py, PyAny>>,
+        method_name: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let method = crate::options::method(method_name)?;
+        let values = agents
+            .iter()
+            .enumerate()
+            .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
+            .collect::<PyResult<Vec<_>>>()?;
+        let Tracker {
+            inner,
+            tokens,
+            missing,
+        } = self;
+        let out = py.detach(|| {
+            let per_agent = values
+                .iter()
+                .enumerate()
+                .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, tokens, *missing))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let tracked = inner.step_agents(t_us, &per_agent, &method);
+            Ok::<_, PyErr>(Value::Array(tracked_json(&tracked, tokens)))
         })?;
         to_py(py, &out)
     }
@@ -82,4 +104,20 @@ impl Tracker {
     fn reset(&mut self) {
         self.inner.reset();
     }
+}
+
+/// Tracked boxes as results-file dicts with `tracking_id`, `tracking_name` and `tracking_score`.
+fn tracked_json(tracked: &[v2x_fuser::tracker::Tracked], tokens: &TokenTable) -> Vec<Value> {
+    tracked
+        .iter()
+        .map(|t| {
+            let mut b = box_json("", &t.det, tokens);
+            let m = b.as_object_mut().expect("built as an object");
+            m.remove("sample_token");
+            m.insert("tracking_id".into(), json!(t.tracking_id.to_string()));
+            m.insert("tracking_name".into(), json!(t.det.class.name()));
+            m.insert("tracking_score".into(), json!(t.det.score));
+            b
+        })
+        .collect()
 }

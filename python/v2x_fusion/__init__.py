@@ -246,6 +246,7 @@ def _options(
     confirm_hits: int = 2,
     max_misses: int = 3,
     all_classes: bool = False,
+    guided: bool = False,
 ) -> dict:
     return {
         "method": method,
@@ -262,10 +263,11 @@ def _options(
         "confirm_hits": confirm_hits,
         "max_misses": max_misses,
         "all_classes": all_classes,
+        "guided": guided,
     }
 
 
-_TRACK_ONLY = ("confirm_hits", "max_misses", "all_classes")
+_TRACK_ONLY = ("confirm_hits", "max_misses", "all_classes", "guided")
 
 
 def _fuse_options(options: dict) -> dict:
@@ -301,7 +303,8 @@ def track_files(
     paths: Sequence[PathLike], output: PathLike, method: str = "csba-wls+", **options: Any
 ) -> dict:
     """Reads, fuses, tracks and writes a nuScenes tracking results file: ``v2x-fuser track``.
-    Takes ``fuse_files``' options and ``confirm_hits``, ``max_misses``, ``all_classes``; returns the
+    Takes ``fuse_files``' options and ``confirm_hits``, ``max_misses``, ``all_classes`` and
+    ``guided`` (each agent's boxes through the tracks, ``--guided``); returns the
     windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
     opts = _options(**dict(options, method=method))
     return json.loads(_native.track_files([os.fspath(p) for p in paths], os.fspath(output), opts))
@@ -327,6 +330,13 @@ class Tracker:
         (results-file dicts); returns the tracked boxes with ``tracking_id`` (a string, as the
         nuScenes tracking format has it), ``tracking_name`` and ``tracking_score``."""
         return self._inner.step(int(t_us), _list(boxes))
+
+    def step_agents(self, t_us: int, agents: Sequence[Iterable[Mapping[str, Any]]], method: str = "csba-wls+") -> list:
+        """Steps the tracks with each agent's boxes (``agents[k]``, brought to ``t_us``) through the
+        tracks: CSBA-3D with ``method``'s parameters associates them with the tracks' predictions
+        and with each other (``v2x-fuser track --guided``, docs/method.md §8.1); returns the
+        tracked boxes as ``step`` does."""
+        return self._inner.step_agents(int(t_us), [_list(a) for a in agents], method)
 
     @property
     def stats(self) -> dict:

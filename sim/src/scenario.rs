@@ -102,6 +102,9 @@ pub struct FuserSpec {
     /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
     /// (`v2x-fuser node --track`).
     pub track: bool,
+    /// With `track`: associate each agent's boxes with the tracks first, fusing between agents
+    /// only the rest (`v2x-fuser node --track-guided`, `docs/method.md` §8.1).
+    pub track_guided: bool,
     /// Learn each agent's stds from its boxes and fuse with them (`v2x-fuser node
     /// --learn-std`); the stats say what was learned and flag inconsistent agents.
     pub learn_std: bool,
@@ -152,6 +155,7 @@ impl Default for FuserSpec {
             align: false,
             registration: RegistrationSpec::default(),
             track: false,
+            track_guided: false,
             learn_std: false,
             std_models: BTreeMap::new(),
             max_objects_per_agent: v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT,
@@ -565,6 +569,11 @@ impl Scenario {
         if self.fuser.max_objects_per_agent == 0 {
             return Err("fuser.max_objects_per_agent must be at least 1".into());
         }
+        if self.fuser.track_guided && !self.fuser.track {
+            return Err(
+                "fuser.track_guided: set fuser.track = true too (it says how to track)".into(),
+            );
+        }
         self.fuser
             .area()
             .validate()
@@ -767,6 +776,15 @@ mod tests {
             .contains("fuser.area: the area's radius must be finite and > 0"));
         assert!(bad(&format!("[fuser]\nmax_objects_per_agent = 0\n{agent}"))
             .contains("fuser.max_objects_per_agent"));
+        assert!(bad(&format!("[fuser]\ntrack_guided = true\n{agent}"))
+            .contains("fuser.track_guided: set fuser.track = true too"));
+        let guided = Scenario::parse(
+            &format!("[fuser]\ntrack = true\ntrack_guided = true\n{agent}"),
+            "x.toml",
+            None,
+        )
+        .unwrap();
+        assert!(guided.fuser.track_guided);
         let s = Scenario::parse(
             &format!("[fuser]\narea = [5, 6, 70]\n{agent}"),
             "x.toml",

@@ -46,7 +46,7 @@ pub fn fuse_window(
     learner: Option<&mut Learner>,
     mut closed: Closed,
     seq: u32,
-) -> Fused {
+) -> (Fused, Vec<Vec<Detection>>) {
     let learned = match learner {
         Some(l) => {
             l.learn_window(&mut closed);
@@ -71,7 +71,7 @@ pub fn fuse_window(
         .into_iter()
         .map(|s| (s.det, s.sources))
         .unzip();
-    Fused {
+    let fused = Fused {
         frame: Frame {
             agent: "fuser".into(),
             kind: AgentKind::Infrastructure,
@@ -88,7 +88,8 @@ pub fn fuse_window(
         tracks: None,
         registration,
         learned,
-    }
+    };
+    (fused, lists)
 }
 
 /// Keeps the fused boxes a region owns (centre in its tile), with their sources.
@@ -135,12 +136,24 @@ impl Fusion {
     }
 }
 
-/// The tracks frame of a fused window: the confirmed tracks it updated, each box's id its
-/// `tracking_id`, brought into the wire's domain.
-fn tracks_frame(tracker: &mut Tracker, fused: &Frame) -> Frame {
-    let detections = tracker
-        .step(fused.capture_us, &fused.detections)
+/// The tracks frame of a fused window: the confirmed tracks it updated (fed the fused boxes, or
+/// with `guided` each agent's `lists` through the tracks, `method` fusing the rest), those a
+/// `region` owns, each box's id its `tracking_id`, brought into the wire's domain.
+fn tracks_frame(
+    tracker: &mut Tracker,
+    fused: &Frame,
+    lists: &[Vec<Detection>],
+    method: &Method,
+    region: Option<&crate::region::Region>,
+) -> Frame {
+    let tracked = if tracker.params().guided {
+        tracker.step_agents(fused.capture_us, lists, method)
+    } else {
+        tracker.step(fused.capture_us, &fused.detections)
+    };
+    let detections = tracked
         .into_iter()
+        .filter(|t| !tracker.params().guided || region.is_none_or(|r| r.owns(&t.det)))
         .map(|t| Detection {
             id: t.tracking_id,
             ..t.det
@@ -168,7 +181,7 @@ type JobOutput = (
 /// fusion, the region's share, the wire's domain, then the tracks.
 fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> JobOutput {
     f.models.apply_window(&mut closed);
-    let mut fused = fuse_window(
+    let (mut fused, lists) = fuse_window(
         &f.method,
         f.motion.as_ref(),
         state.aligner.as_mut(),
@@ -182,7 +195,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> Job
     let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
     let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
     let tracked = state.tracker.as_mut().map(|t| {
-        let frame = tracks_frame(t, &fused.frame);
+        let frame = tracks_frame(t, &fused.frame, &lists, &f.method, f.region.as_ref());
         let bytes = wire::encode(&frame);
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())

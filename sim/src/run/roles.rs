@@ -273,6 +273,7 @@ fn node_config(
         .track
         .then(|| v2x_fuser::tracker::TrackerParams {
             time_scale: scenario.speed,
+            guided: scenario.fuser.track_guided,
             ..Default::default()
         });
     cfg.learn = scenario.fuser.learn_std.then(|| {

@@ -328,6 +328,23 @@ fn track_then_score_tracks_and_boxes() {
         .as_f64()
         .unwrap();
     assert!(tracked < 0.9 * fused, "tracked {tracked} fused {fused}");
+    // Through the tracks: as good a tracker here, and as close to the truth.
+    let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
+        .args(["track", "--guided", "--output"])
+        .arg(dir.join("guided.json"))
+        .args(&agents));
+    assert!(ok && err.contains("tracks confirmed"), "{err}");
+    let g = eval("guided.json", &["--tracking"]);
+    assert!(g["MOTA"].as_f64().unwrap() > 0.8, "{g}");
+    assert!(g["ids_per_100_tracks"].as_f64().unwrap() <= 5.0, "{g}");
+    let guided = eval("guided.json", &["--match", "id"])["mATE"]
+        .as_f64()
+        .unwrap();
+    assert!(guided < 1.1 * tracked, "guided {guided} tracked {tracked}");
+    assert_ne!(
+        std::fs::read(dir.join("guided.json")).unwrap(),
+        std::fs::read(dir.join("tracked.json")).unwrap()
+    );
     // A file that is not a tracking results file, and inputs without capture times.
     let (ok, _, err) = run(Command::new(bin("v2x-sim"))
         .args(["eval", "--tracking"])

@@ -525,9 +525,22 @@ async fn a_flapping_token_and_a_reserved_name_cost_nothing() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn tracks_follow_the_fused_windows_on_their_key() {
-    let ns = "tracks";
+    tracks_on_their_key("tracks", false).await;
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn tracks_through_the_tracks_on_their_key() {
+    tracks_on_their_key("tracks-guided", true).await;
+}
+
+/// Two agents' honest rounds to a fuser that tracks (fed the fused boxes, or with `guided` each
+/// agent's boxes through the tracks): tracks frames on their key, two tracks with stable ids.
+async fn tracks_on_their_key(ns: &'static str, guided: bool) {
     let mut c = cfg(ns, 300.0);
-    c.track = Some(Default::default());
+    c.track = Some(v2x_fuser::tracker::TrackerParams {
+        guided,
+        ..Default::default()
+    });
     let mut s = setup(ns, c).await;
     let sub = s.sa.declare_subscriber(keys::tracks(ns)).await.unwrap();
     let mut last = 0;
