@@ -2,15 +2,13 @@
 //! (`fuse_results`) and files (`fuse_files`, `track_files`, as `v2x-fuser fuse` and `track`).
 
 use crate::options::{method, missing_std, Options};
-use crate::pyjson::{to_py, to_value};
+use crate::pyjson::{agents_values, parse_agents, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use v2x_fuser::offline::{self, FuseReport};
-use v2x_protocol::nuscenes_json::{
-    box_json, parse_boxes, parse_results, results_json, JsonError, TokenTable,
-};
+use v2x_protocol::nuscenes_json::{box_json, parse_results, results_json, JsonError, TokenTable};
 
 fn value_error(e: JsonError) -> PyErr {
     PyValueError::new_err(e.to_string())
@@ -29,19 +27,10 @@ pub fn fuse_step<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let method = method(method_name)?;
     let missing = missing_std(default_std)?;
-    let values = agents
-        .iter()
-        .enumerate()
-        .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
-        .collect::<PyResult<Vec<_>>>()?;
+    let values = agents_values(&agents)?;
     let fused = py.detach(|| {
         let mut tokens = TokenTable::new();
-        let per_agent = values
-            .iter()
-            .enumerate()
-            .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, &mut tokens, missing))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(value_error)?;
+        let per_agent = parse_agents(&values, &mut tokens, missing)?;
         let fused: Vec<Value> = method
             .fuse_sourced(&per_agent)
             .iter()
@@ -90,34 +79,24 @@ pub fn fuse_documents(
     })
 }
 
-/// Reads, fuses and writes files: `v2x-fuser fuse`. Returns the JSON of the report.
+/// Reads, fuses and writes files: `v2x-fuser fuse`, or with `track` `v2x-fuser track`. Returns
+/// the JSON of the report (fusing) or of the tracker's counters and what was learned (tracking).
 #[pyfunction]
-pub fn fuse_files(
+pub fn run_files(
     py: Python<'_>,
     inputs: Vec<PathBuf>,
     output: PathBuf,
     options: Options,
-) -> PyResult<String> {
-    let (method, missing, opts) = options.offline(inputs.len())?;
-    py.detach(|| {
-        let report =
-            offline::fuse_files(&method, &inputs, &output, missing, &opts).map_err(value_error)?;
-        Ok(report_json(&report).to_string())
-    })
-}
-
-/// Reads, fuses, tracks and writes files: `v2x-fuser track`. Returns the JSON of the tracker's
-/// counters and what was learned.
-#[pyfunction]
-pub fn track_files(
-    py: Python<'_>,
-    inputs: Vec<PathBuf>,
-    output: PathBuf,
-    options: Options,
+    track: bool,
 ) -> PyResult<String> {
     let (method, missing, opts) = options.offline(inputs.len())?;
     let params = options.tracker()?;
     py.detach(|| {
+        if !track {
+            let report = offline::fuse_files(&method, &inputs, &output, missing, &opts)
+                .map_err(value_error)?;
+            return Ok(report_json(&report).to_string());
+        }
         let tracks = offline::track_files(&method, &inputs, &output, missing, &opts, params)
             .map_err(PyValueError::new_err)?;
         Ok(json!({

@@ -54,8 +54,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fuse::fuse_step, m)?)?;
     m.add_function(wrap_pyfunction!(arrays::fuse_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(fuse::fuse_documents, m)?)?;
-    m.add_function(wrap_pyfunction!(fuse::fuse_files, m)?)?;
-    m.add_function(wrap_pyfunction!(fuse::track_files, m)?)?;
+    m.add_function(wrap_pyfunction!(fuse::run_files, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate_json, m)?)?;
     m.add_class::<track::Tracker>()?;
     m.add_class::<evaluate::GroundTruth>()?;

@@ -5,6 +5,34 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::{Map, Number, Value};
+use std::path::Path;
+use v2x_protocol::nuscenes_json::{parse_boxes, MissingStd, TokenTable};
+use v2x_protocol::Detection;
+
+/// Each agent's boxes (`agents[k]`, a list of results-file dicts) as JSON values, read with the
+/// GIL held.
+pub fn agents_values(agents: &[Bound<'_, PyAny>]) -> PyResult<Vec<Value>> {
+    agents
+        .iter()
+        .enumerate()
+        .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
+        .collect()
+}
+
+/// Each agent's boxes parsed and checked as a results file's (errors name `agents[k]`, the box
+/// and the field).
+pub fn parse_agents(
+    values: &[Value],
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> PyResult<Vec<Vec<Detection>>> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, tokens, missing))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| PyValueError::new_err(e.to_string()))
+}
 
 /// A Python value (dicts, lists, tuples, strings, numbers, booleans, None, and numpy arrays and
 /// scalars through `tolist`) as a JSON value; `at` names it in errors.

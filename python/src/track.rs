@@ -1,12 +1,12 @@
 //! The tracker as a Python object, stepped window by window (`v2x_fuser::tracker`).
 
 use crate::options::{missing_std, tracker_params};
-use crate::pyjson::{to_py, to_value};
-use pyo3::exceptions::PyValueError;
+use crate::pyjson::{agents_values, parse_agents, to_py, to_value};
 use pyo3::prelude::*;
 use serde_json::{json, Value};
-use std::path::Path;
-use v2x_protocol::nuscenes_json::{box_json, parse_boxes, TokenTable};
+use v2x_fuser::tracker::Tracked;
+use v2x_protocol::nuscenes_json::{box_json, TokenTable};
+use v2x_protocol::Detection;
 
 /// Follows fused boxes over time: one `step` per window, in time order.
 #[pyclass(module = "v2x_fusion._native")]
@@ -45,19 +45,8 @@ impl Tracker {
         t_us: u64,
         boxes: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let boxes = to_value(boxes, &|| "boxes".into())?;
-        let Tracker {
-            inner,
-            tokens,
-            missing,
-        } = self;
-        let out = py.detach(|| {
-            let dets = parse_boxes(Path::new("boxes"), &boxes, tokens, *missing)
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let out = tracked_json(&inner.step(t_us, &dets), tokens);
-            Ok::<_, PyErr>(Value::Array(out))
-        })?;
-        to_py(py, &out)
+        let values = [to_value(boxes, &|| "boxes".into())?];
+        self.stepped(py, &values, |tracker, lists| tracker.step(t_us, &lists[0]))
     }
 
     /// Steps the tracks with each agent's boxes (`agents[k]`, lists of results-file dicts)
@@ -71,27 +60,10 @@ impl Tracker {
         method_name: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
         let method = crate::options::method(method_name)?;
-        let values = agents
-            .iter()
-            .enumerate()
-            .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
-            .collect::<PyResult<Vec<_>>>()?;
-        let Tracker {
-            inner,
-            tokens,
-            missing,
-        } = self;
-        let out = py.detach(|| {
-            let per_agent = values
-                .iter()
-                .enumerate()
-                .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, tokens, *missing))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
-            let tracked = inner.step_agents(t_us, &per_agent, &method);
-            Ok::<_, PyErr>(Value::Array(tracked_json(&tracked, tokens)))
-        })?;
-        to_py(py, &out)
+        let values = agents_values(&agents)?;
+        self.stepped(py, &values, |tracker, lists| {
+            tracker.step_agents(t_us, lists, &method)
+        })
     }
 
     /// The lifecycle counters: confirmed tracks alive now, confirmed so far, ended so far.
@@ -106,8 +78,30 @@ impl Tracker {
     }
 }
 
+impl Tracker {
+    /// Parses the boxes (one list per agent; `step`'s errors name them `agents[k]`), steps the
+    /// tracker with them without the GIL, and returns the tracked boxes as dicts.
+    fn stepped<'py>(
+        &mut self,
+        py: Python<'py>,
+        values: &[Value],
+        step: impl FnOnce(&mut v2x_fuser::tracker::Tracker, &[Vec<Detection>]) -> Vec<Tracked> + Send,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let Tracker {
+            inner,
+            tokens,
+            missing,
+        } = self;
+        let out = py.detach(|| {
+            let lists = parse_agents(values, tokens, *missing)?;
+            Ok::<_, PyErr>(Value::Array(tracked_json(&step(inner, &lists), tokens)))
+        })?;
+        to_py(py, &out)
+    }
+}
+
 /// Tracked boxes as results-file dicts with `tracking_id`, `tracking_name` and `tracking_score`.
-fn tracked_json(tracked: &[v2x_fuser::tracker::Tracked], tokens: &TokenTable) -> Vec<Value> {
+fn tracked_json(tracked: &[Tracked], tokens: &TokenTable) -> Vec<Value> {
     tracked
         .iter()
         .map(|t| {

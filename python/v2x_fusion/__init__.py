@@ -296,7 +296,7 @@ def fuse_files(
     ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
     frames were grouped by capture time, registration and learned stds."""
     opts = _fuse_options(dict(options, method=method))
-    return json.loads(_native.fuse_files([os.fspath(p) for p in paths], os.fspath(output), opts))
+    return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, False))
 
 
 def track_files(
@@ -307,7 +307,7 @@ def track_files(
     ``guided`` (each agent's boxes through the tracks, ``--guided``); returns the
     windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
     opts = _options(**dict(options, method=method))
-    return json.loads(_native.track_files([os.fspath(p) for p in paths], os.fspath(output), opts))
+    return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, True))
 
 
 class Tracker:

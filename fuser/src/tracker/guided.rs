@@ -95,19 +95,13 @@ impl Tracker {
 mod tests {
     use super::*;
     use crate::tracker::TrackerParams;
-    use v2x_protocol::{Class, Uncertainty, NO_ID};
+    use v2x_protocol::Uncertainty;
 
+    /// A car at (x, y) with `std` m of position noise.
     fn car(x: f64, y: f64, std: f64) -> Detection {
         Detection {
-            class: Class::Car,
-            center: [x, y, 1.0],
-            size: [4.5, 1.9, 1.6],
-            yaw: 0.0,
-            score: 0.8,
             std: Uncertainty::uniform(std, 0.1, 0.1),
-            pos_cov: None,
-            velocity: None,
-            id: NO_ID,
+            ..crate::tracker::tests::car(x, y, 0.0)
         }
     }
 

@@ -6,7 +6,7 @@ use rand_distr::{Distribution, StandardNormal};
 const HZ10: u64 = 100_000;
 
 /// A car at (x, y) heading `yaw`, with 0.5 m position std and no velocity.
-fn car(x: f64, y: f64, yaw: f64) -> Detection {
+pub(super) fn car(x: f64, y: f64, yaw: f64) -> Detection {
     Detection {
         class: Class::Car,
         center: [x, y, 1.0],
