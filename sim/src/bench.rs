@@ -637,8 +637,9 @@ mod tests {
         assert_eq!(table(&rows), table(&again));
     }
 
-    #[test]
-    fn tracking_beats_single_frames_over_time() {
+    /// The tracking rows of one method at one noise setting over two town scenes of 6 s at
+    /// 10 Hz, and their names.
+    fn tracking_rows(method: &str, noise: &str) -> (Vec<TrackingRow>, Vec<String>) {
         let gt = generate(&TownConfig {
             scenes: 2,
             seconds: 6.0,
@@ -646,13 +647,19 @@ mod tests {
             seed: 2,
         });
         let cfg = BenchConfig {
-            methods: vec!["csba-wls+".parse().unwrap()],
-            settings: vec![NoiseSetting::parse("moderate", 2).unwrap()],
+            methods: vec![method.parse().unwrap()],
+            settings: vec![NoiseSetting::parse(noise, 2).unwrap()],
             seed: 3,
             range: None,
         };
         let rows = run_tracking(&gt, &cfg, TrackerParams::default());
-        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        let names = rows.iter().map(|r| r.method.clone()).collect();
+        (rows, names)
+    }
+
+    #[test]
+    fn tracking_beats_single_frames_over_time() {
+        let (rows, names) = tracking_rows("csba-wls+", "moderate");
         assert_eq!(
             names,
             [
@@ -689,20 +696,7 @@ mod tests {
 
     #[test]
     fn tracking_by_true_id_beats_tracking_by_likelihood() {
-        let gt = generate(&TownConfig {
-            scenes: 2,
-            seconds: 6.0,
-            hz: 10.0,
-            seed: 2,
-        });
-        let cfg = BenchConfig {
-            methods: vec!["gt-wls".parse().unwrap()],
-            settings: vec![NoiseSetting::parse("large", 2).unwrap()],
-            seed: 3,
-            range: None,
-        };
-        let rows = run_tracking(&gt, &cfg, TrackerParams::default());
-        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        let (rows, names) = tracking_rows("gt-wls", "large");
         assert_eq!(
             names,
             [
