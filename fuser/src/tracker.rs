@@ -131,6 +131,8 @@ pub struct Tracker {
     params: TrackerParams,
     tracks: Vec<Track>,
     next_id: u32,
+    /// The ids new tracks take: `ids.0..ids.1`, cycling.
+    ids: (u32, u32),
     last_us: Option<u64>,
     births: u64,
     deaths: u64,
@@ -139,10 +141,18 @@ pub struct Tracker {
 impl Tracker {
     /// A tracker without tracks.
     pub fn new(params: TrackerParams) -> Self {
+        Self::with_ids(params, 1..NO_ID)
+    }
+
+    /// A tracker whose new tracks take their ids from `ids` (cycling through it; [`NO_ID`]
+    /// never), so that trackers given disjoint ranges never give two tracks one id.
+    pub fn with_ids(params: TrackerParams, ids: std::ops::Range<u32>) -> Self {
+        let ids = (ids.start, ids.end.max(ids.start.saturating_add(1)));
         Tracker {
             params,
             tracks: Vec::new(),
-            next_id: 1,
+            next_id: ids.0,
+            ids,
             last_us: None,
             births: 0,
             deaths: 0,
@@ -305,7 +315,11 @@ impl Tracker {
     /// Step 5 for a box no track took: a new track, output at once when one hit confirms it.
     fn birth(&mut self, b: &Detection) -> Option<Tracked> {
         let mut t = birth(self.next_id, b, &self.params);
-        self.next_id = self.next_id.wrapping_add(1).max(1);
+        self.next_id = if self.next_id + 1 >= self.ids.1 {
+            self.ids.0
+        } else {
+            self.next_id + 1
+        };
         let shown = (t.hits >= self.params.confirm_hits).then(|| {
             t.confirmed = true;
             self.births += 1;
@@ -543,6 +557,7 @@ fn estimate(t: &Track) -> Detection {
 }
 
 mod guided;
+pub mod handover;
 
 #[cfg(test)]
 mod tests;
