@@ -179,6 +179,11 @@ struct NodeArgs {
     /// only the rest (`v2x-fuser track --guided`); the fused frames stay as they are.
     #[arg(long, requires = "track")]
     track_guided: bool,
+    /// With --track and --tile: do not hear the neighbouring regions' tracks, so that an object
+    /// crossing into this tile starts a track of this region's own (by default it keeps the id
+    /// its neighbour gave it; docs/method.md §9.1).
+    #[arg(long, requires_all = ["track", "tile"])]
+    no_track_handover: bool,
     /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
     /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
     /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -656,6 +661,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         track,
         track_all_classes,
         track_guided,
+        no_track_handover,
         record,
         viz,
         duration_s,
@@ -683,6 +689,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
             guided: track_guided,
             ..Default::default()
         });
+        cfg.handover = !no_track_handover;
         cfg.viz = viz.open().await?;
         let shown = cfg.viz.clone();
         let session = v2x_protocol::net::open_session(&zenoh).await?;

@@ -9,7 +9,8 @@
 //!   there), and ask the simulator's shared start (`v2x/NS/sim/epoch`);
 //! - the fuser alone reads detections and tokens, and alone publishes fused output and tracks, declares its
 //!   liveliness and answers the statistics and the shared start; regional fusers hold the same
-//!   certificate name and rights, on their tiles' keys (`fused/TILE`, `fuser/TILE/stats`, ...);
+//!   certificate name and rights, on their tiles' keys (`fused/TILE`, `fuser/TILE/stats`, ...),
+//!   and hear each other's tracks (`tracks/TILE`) to hand tracks over at tile borders;
 //! - an observer may only subscribe to fused output and tracks, query the statistics and watch the fuser's
 //!   liveliness.
 //!
@@ -121,6 +122,8 @@ fn strs(v: &[String]) -> Vec<&str> {
 /// The keys of the fusers' output, statistics and liveliness, single and regional.
 struct FuserSide {
     output: Vec<String>,
+    /// The regional fusers' tracks, which their neighbours hear for the hand-over.
+    regional_tracks: String,
     stats: Vec<String>,
     alive: Vec<String>,
 }
@@ -132,7 +135,8 @@ impl FuserSide {
             keys::FuserKeys::any_region(ns),
         );
         FuserSide {
-            output: vec![one.fused, any.fused, one.tracks, any.tracks],
+            output: vec![one.fused, any.fused, one.tracks, any.tracks.clone()],
+            regional_tracks: any.tracks,
             stats: vec![one.stats, any.stats],
             alive: vec![one.alive, any.alive],
         }
@@ -165,6 +169,19 @@ fn fuser_rules(ns: &str) -> Vec<Value> {
             &[alive.as_str()],
         ),
         rule("fuser-publish", "ingress", &["put"], &output),
+        // A regional fuser hears its neighbours' tracks, to hand tracks over at tile borders.
+        rule(
+            "fuser-handover",
+            "ingress",
+            &["declare_subscriber"],
+            &[f.regional_tracks.as_str()],
+        ),
+        rule(
+            "fuser-handover-tracks",
+            "egress",
+            &["put"],
+            &[f.regional_tracks.as_str()],
+        ),
         // Observers' subscriptions reach the fuser, which then sends its output.
         rule("fuser-readers", "egress", &["declare_subscriber"], &output),
         rule(
@@ -273,7 +290,11 @@ mod tests {
         );
         assert_eq!(
             allowed(&acl, "fuser", "egress", "put"),
-            vec!["v2x/ns/det/*", "v2x/ns/det/*/*"]
+            vec!["v2x/ns/det/*", "v2x/ns/det/*/*", "v2x/ns/tracks/*"]
+        );
+        assert_eq!(
+            allowed(&acl, "fuser", "ingress", "declare_subscriber"),
+            vec!["v2x/ns/det/*", "v2x/ns/det/*/*", "v2x/ns/tracks/*"]
         );
         assert!(allowed(&acl, "observer", "ingress", "put").is_empty());
         assert_eq!(

@@ -13,6 +13,7 @@
 //! ([`Parts`]), keeps the boxes within its tile and halo, and publishes only the fused boxes
 //! whose centre lies in its own tile, on its region's keys ([`keys::FuserKeys`]).
 
+mod handover;
 mod stats;
 mod worker;
 
@@ -72,6 +73,9 @@ pub struct NodeConfig {
     /// The region this fuser serves (`None`: the single fuser of the namespace, on
     /// `v2x/NS/det/*`).
     pub region: Option<Region>,
+    /// With a region and tracking: hear the neighbours' tracks and keep an object's tracking id
+    /// across tile borders (`crate::tracker::handover`); off, each region's ids are its own.
+    pub handover: bool,
 }
 
 impl NodeConfig {
@@ -93,6 +97,7 @@ impl NodeConfig {
             models: Default::default(),
             viz: None,
             region: None,
+            handover: true,
         }
     }
 }
@@ -579,6 +584,14 @@ pub async fn run(
         Some(_) => Some(declare_frames(session, &fk.tracks, "tracks publisher").await?),
         None => None,
     };
+    // A regional fuser that tracks hears its neighbours' tracks, to keep ids across borders.
+    let (heard, _handover) = match (&cfg.region, cfg.track) {
+        (Some(r), Some(_)) if cfg.handover => {
+            let (heard, subs) = handover::subscribe(session, &ns, r).await?;
+            (Some(heard), subs)
+        }
+        _ => (None, Vec::new()),
+    };
     let fusion = worker::Fusion {
         method: cfg.method,
         motion: cfg.motion,
@@ -587,6 +600,7 @@ pub async fn run(
         learn: cfg.learn,
         models: std::sync::Arc::new(cfg.models.clone()),
         region: cfg.region,
+        heard,
     };
     let worker = tokio::spawn(worker::run(
         fusion, publisher, tracks, clock, job_rx, done_tx,

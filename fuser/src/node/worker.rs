@@ -8,6 +8,7 @@ use super::{Clock, Fused};
 use crate::align::{reference_agent, AlignParams, Aligner};
 use crate::learn::{LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
+use crate::tracker::handover::{id_block, published, step_region, Handover};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
 use crate::Method;
@@ -117,28 +118,38 @@ pub(super) struct Fusion {
     pub learn: Option<LearnParams>,
     pub models: std::sync::Arc<crate::stdmodel::Models>,
     pub region: Option<crate::region::Region>,
+    /// A tracking regional fuser's neighbours' tracks, as heard.
+    pub heard: Option<super::handover::Heard>,
 }
 
 /// What the worker carries from window to window.
 struct Carried {
     aligner: Option<Aligner>,
     tracker: Option<Tracker>,
+    handover: Option<Handover>,
     learner: Option<Learner>,
 }
 
 impl Fusion {
     fn fresh(&self) -> Carried {
+        // A region's tracks take ids of its tile's own block, so no two regions give one id.
+        let tracker = self.track.map(|p| match &self.region {
+            Some(r) => Tracker::with_ids(p, id_block(r.tile)),
+            None => Tracker::new(p),
+        });
         Carried {
             aligner: self.align.map(Aligner::new),
-            tracker: self.track.map(Tracker::new),
+            tracker,
+            handover: self.track.and(self.region).map(Handover::new),
             learner: self.learn.map(Learner::new),
         }
     }
 }
 
-/// The tracks frame of a fused window: the confirmed tracks it updated (fed the fused boxes, or
-/// with `guided` each agent's `lists` through the tracks, `method` fusing the rest), those a
-/// `region` owns, each box's id its `tracking_id`, brought into the wire's domain.
+/// The tracks frame of a fused window: the confirmed tracks it updated (fed the fused boxes of
+/// the region's tile and halo, or with `guided` each agent's `lists` through the tracks, `method`
+/// fusing the rest), those a `region` owns, each box's id its `tracking_id`, brought into the
+/// wire's domain.
 fn tracks_frame(
     tracker: &mut Tracker,
     fused: &Frame,
@@ -146,22 +157,21 @@ fn tracks_frame(
     method: &Method,
     region: Option<&crate::region::Region>,
 ) -> Frame {
-    let tracked = if tracker.params().guided {
-        tracker.step_agents(fused.capture_us, lists, method)
-    } else {
-        tracker.step(fused.capture_us, &fused.detections)
-    };
-    let detections = tracked
-        .into_iter()
-        .filter(|t| !tracker.params().guided || region.is_none_or(|r| r.owns(&t.det)))
-        .map(|t| Detection {
-            id: t.tracking_id,
-            ..t.det
-        })
-        .collect();
+    let tracked = step_region(
+        tracker,
+        region,
+        fused.capture_us,
+        &fused.detections,
+        lists,
+        method,
+    );
     let mut frame = Frame {
-        detections,
-        ..fused.clone()
+        agent: fused.agent.clone(),
+        kind: fused.kind,
+        seq: fused.seq,
+        capture_us: fused.capture_us,
+        origin: fused.origin,
+        detections: published(&tracked),
     };
     wire::fit(&mut frame);
     frame
@@ -178,7 +188,8 @@ type JobOutput = (
 );
 
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
-/// fusion, the region's share, the wire's domain, then the tracks.
+/// fusion, the region's share, the wire's domain, then the tracks (fed, in a region, every
+/// fused box of its tile and halo in the wire's domain, after its neighbours' ids).
 fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> JobOutput {
     f.models.apply_window(&mut closed);
     let (mut fused, lists) = fuse_window(
@@ -189,13 +200,26 @@ fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> Job
         closed,
         seq,
     );
+    let mut halo = None;
     if let Some(r) = &f.region {
+        if state.tracker.is_some() {
+            let mut all = fused.frame.clone();
+            wire::fit(&mut all);
+            halo = Some(all);
+        }
         keep_owned(r, &mut fused);
     }
     let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
     let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
     let tracked = state.tracker.as_mut().map(|t| {
-        let frame = tracks_frame(t, &fused.frame, &lists, &f.method, f.region.as_ref());
+        if let (Some(h), Some(heard)) = (state.handover.as_mut(), &f.heard) {
+            for (tile, t_us, tracks) in super::handover::drain(heard) {
+                h.hear(tile, t_us, tracks);
+            }
+            h.adopt(t);
+        }
+        let input = halo.as_ref().unwrap_or(&fused.frame);
+        let frame = tracks_frame(t, input, &lists, &f.method, f.region.as_ref());
         let bytes = wire::encode(&frame);
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())
@@ -254,6 +278,7 @@ pub(super) async fn run(
             Carried {
                 aligner: None,
                 tracker: None,
+                handover: None,
                 learner: None,
             },
         );

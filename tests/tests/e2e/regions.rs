@@ -1,8 +1,9 @@
 //! Regional fusers over two meshed Zenoh routers: agents publish per tile, each tile's fuser is a
 //! client of its own router, and together the regions publish every object once per window,
-//! the one crossing the border included, as one fuser fuses them.
+//! the one crossing the border included, as one fuser fuses them; their tracks hand over at the
+//! border, so every object keeps one tracking id.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 use v2x_agent::{now_us, Agent, Link};
 use v2x_fuser::node::{self, Fused, NodeConfig};
@@ -87,6 +88,7 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
         let mut cfg = NodeConfig::new(NS, method);
         cfg.motion = None;
         cfg.max_wait_ms = 300.0;
+        cfg.track = Some(Default::default());
         cfg.region = Some(Region {
             tiling,
             tile: *tile,
@@ -161,6 +163,7 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
     }
     tokio::time::sleep(Duration::from_millis(400)).await;
     let mut by_time: BTreeMap<u64, Vec<Detection>> = BTreeMap::new();
+    let mut tracks: BTreeMap<u64, Vec<Detection>> = BTreeMap::new();
     let mut stats = Vec::new();
     for (stop, mut rx, task) in fusers {
         stop.send(()).unwrap();
@@ -171,6 +174,10 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
                 continue;
             }
             assert!(f.provenance.complete, "window at {}", f.frame.capture_us);
+            tracks
+                .entry(f.frame.capture_us)
+                .or_default()
+                .extend(f.tracks.unwrap_or_default());
             by_time
                 .entry(f.frame.capture_us)
                 .or_default()
@@ -222,6 +229,42 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
             );
         }
     }
+    // Tracks: each object under one id in both regions, the car crossing the border included,
+    // and published by one region per window.
+    let parked = [[50.0, 20.0], [150.0, 20.0], [99.0, 80.0], [101.5, 80.0]];
+    let mut ids: BTreeMap<usize, BTreeSet<u32>> = BTreeMap::new();
+    let mut sides = BTreeSet::new();
+    for (t, list) in &tracks {
+        let k = sent.iter().position(|(s, _)| s == t).unwrap();
+        let car_x = 80.0 + 2.0 * k as f64;
+        let mut once = BTreeSet::new();
+        for d in list {
+            let near =
+                |[x, y]: [f64; 2]| (d.center[0] - x).abs() < 1.0 && (d.center[1] - y).abs() < 1.0;
+            let place = if near([car_x, 50.0]) {
+                sides.insert(d.center[0] >= 100.0);
+                parked.len()
+            } else {
+                parked
+                    .iter()
+                    .position(|&p| near(p))
+                    .unwrap_or_else(|| panic!("step {k}: a track at {:?}", d.center))
+            };
+            assert!(once.insert(place), "step {k}: {place:?} published twice");
+            ids.entry(place).or_default().insert(d.id);
+        }
+    }
+    assert_eq!(
+        sides.len(),
+        2,
+        "the car is tracked on both sides of the border"
+    );
+    assert_eq!(ids.len(), 5, "{ids:?}");
+    for (place, set) in &ids {
+        assert_eq!(set.len(), 1, "{place:?} changed its tracking id: {set:?}");
+    }
+    let all: BTreeSet<u32> = ids.values().flatten().copied().collect();
+    assert_eq!(all.len(), 5, "one id per object: {ids:?}");
     drop((veh, rsu));
     for s in [sv, sr, rb, ra] {
         s.close().await.unwrap();
