@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::align::{reference_agent, AlignParams, Aligner};
 use v2x_fuser::region::{self, Tiling};
-use v2x_fuser::tracker::{Tracker, TrackerParams};
+use v2x_fuser::tracker::{Tracked, Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
@@ -413,19 +413,8 @@ fn track_scene(
     for &i in frames {
         let f = &gt.frames[i];
         let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-        let mut tracked = |slot: usize, out: Vec<v2x_fuser::tracker::Tracked>| {
-            let marks: Vec<TrackBox> = out
-                .iter()
-                .map(|t| TrackBox {
-                    track: format!("{scene}-{}", t.tracking_id),
-                    class: t.det.class,
-                    center: [t.det.center[0], t.det.center[1]],
-                    score: t.det.score,
-                })
-                .collect();
-            let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
-            accs[slot].add_frame(&f.objects, &boxes);
-            evals[slot].add_frame(scene, f.timestamp_us, &f.objects, &marks);
+        let mut tracked = |slot: usize, out: Vec<Tracked>| {
+            score_tracked(&mut accs[slot], &mut evals[slot], scene, f, out);
         };
         let t = f.timestamp_us;
         for (a, d) in dets.iter().enumerate() {
@@ -479,8 +468,31 @@ pub fn tracking_table(rows: &[TrackingRow]) -> String {
     s
 }
 
+/// Scores one frame's tracks of a scene: their boxes by id, their ids as the tracking
+/// benchmark does.
+pub(crate) fn score_tracked(
+    acc: &mut Accumulator,
+    eval: &mut TrackingEval,
+    scene: usize,
+    f: &crate::dataset::GtFrame,
+    out: Vec<Tracked>,
+) {
+    let marks: Vec<TrackBox> = out
+        .iter()
+        .map(|t| TrackBox {
+            track: format!("{scene}-{}", t.tracking_id),
+            class: t.det.class,
+            center: [t.det.center[0], t.det.center[1]],
+            score: t.det.score,
+        })
+        .collect();
+    let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
+    acc.add_frame(&f.objects, &boxes);
+    eval.add_frame(scene, f.timestamp_us, &f.objects, &marks);
+}
+
 /// The frames of each scene, in order.
-fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
+pub(crate) fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
     let mut scenes: Vec<Vec<usize>> = Vec::new();
     for (i, f) in gt.frames.iter().enumerate() {
         match scenes.last_mut() {
@@ -589,6 +601,25 @@ pub fn csv(rows: &[Row]) -> String {
     s
 }
 
+/// The tracking tests' case: two town scenes of 6 s at 10 Hz, two agents at one noise setting,
+/// the given methods.
+#[cfg(test)]
+pub(crate) fn tracking_case(methods: &[&str], noise: &str) -> (GroundTruth, BenchConfig) {
+    let gt = crate::town::generate(&crate::town::TownConfig {
+        scenes: 2,
+        seconds: 6.0,
+        hz: 10.0,
+        seed: 2,
+    });
+    let cfg = BenchConfig {
+        methods: methods.iter().map(|m| m.parse().unwrap()).collect(),
+        settings: vec![NoiseSetting::parse(noise, 2).unwrap()],
+        seed: 3,
+        range: None,
+    };
+    (gt, cfg)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -640,18 +671,7 @@ mod tests {
     /// The tracking rows of one method at one noise setting over two town scenes of 6 s at
     /// 10 Hz, and their names.
     fn tracking_rows(method: &str, noise: &str) -> (Vec<TrackingRow>, Vec<String>) {
-        let gt = generate(&TownConfig {
-            scenes: 2,
-            seconds: 6.0,
-            hz: 10.0,
-            seed: 2,
-        });
-        let cfg = BenchConfig {
-            methods: vec![method.parse().unwrap()],
-            settings: vec![NoiseSetting::parse(noise, 2).unwrap()],
-            seed: 3,
-            range: None,
-        };
+        let (gt, cfg) = tracking_case(&[method], noise);
         let rows = run_tracking(&gt, &cfg, TrackerParams::default());
         let names = rows.iter().map(|r| r.method.clone()).collect();
         (rows, names)

@@ -5,7 +5,8 @@
 //! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`], [`tracking_eval`] and
 //!   [`dair_eval`]; [`cli`] reads files into them.
 //! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents),
-//!   [`dair_bench`] (real vehicle and roadside data) and [`plot`] (a bird's-eye view).
+//!   [`region_bench`] (tracks across regions), [`dair_bench`] (real vehicle and roadside data)
+//!   and [`plot`] (a bird's-eye view).
 //! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
 //!   [`run`] (whole scenarios), [`load`] (the fuser under load) and [`certs`] (certificates and
 //!   the access-control policy for the secure mode).
@@ -18,6 +19,7 @@ pub mod dair_bench;
 pub mod gen;
 pub mod load;
 pub mod plot;
+pub mod region_bench;
 pub mod run;
 pub mod scenario;
 pub mod timeline;

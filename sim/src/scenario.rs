@@ -289,6 +289,14 @@ pub struct RegionsSpec {
     pub routers: Vec<RouterSpec>,
     /// The regional fusers (`[[regions.fusers]]`); tiles without one are not fused.
     pub fusers: Vec<RegionFuserSpec>,
+    /// With `[fuser] track`: the regional fusers hear each other's tracks, so an object keeps
+    /// its tracking id across tile borders (`v2x-fuser node --no-track-handover` when false).
+    #[serde(default = "yes")]
+    pub track_handover: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 fn default_tile() -> f64 {
@@ -657,8 +665,8 @@ impl Scenario {
             return Ok(());
         };
         r.check(self.security.mode)?;
-        if self.fuser.track || self.fuser.align {
-            return Err("regions: fuser.track and fuser.align need one fuser".into());
+        if self.fuser.align {
+            return Err("regions: fuser.align needs one fuser".into());
         }
         if !fuser_restarts(&self.events).is_empty() {
             return Err("regions: scripted fuser restarts need one fuser".into());
@@ -827,7 +835,7 @@ mod tests {
         ))
         .contains("agent w captures out of step with v"));
         assert!(bad(city("[security]\nmode = \"mtls\"", "")).contains("plain"));
-        assert!(bad(city("[fuser]\ntrack = true", "")).contains("one fuser"));
+        assert!(bad(city("[fuser]\nalign = true", "")).contains("one fuser"));
         let t = city("", "").replace("router = \"r0\"", "router = \"r9\"");
         assert!(bad(t).contains("tile 0_0: no router named 'r9'"));
         let t = city("", "").replace("tile = \"0_0\"", "tile = \"00_0\"");

@@ -56,8 +56,11 @@ pub struct BenchArgs {
     pub tracking: bool,
     /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
     /// this side (m) that some box lies in, each fusing its tile and a --halo around it and
-    /// keeping the boxes centred in its tile; the two rows should agree.
-    #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile", "tracking"])]
+    /// keeping the boxes centred in its tile; the two rows should agree. With --tracking:
+    /// each method's tracks by one fuser, by regional fusers that never hear each other and by
+    /// regional fusers handing tracks over at the borders (rows `METHOD tracked regions`,
+    /// `... hand-over`, and the same guided); --methods defaults to csba-wls+.
+    #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tile_size: Option<f64>,
     /// With --tile-size: how far beyond its tile a regional fuser takes boxes (m).
     #[arg(long, requires = "tile_size", default_value_t = v2x_fuser::region::DEFAULT_HALO_M)]
@@ -77,7 +80,10 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     }
     let gt = args.data.load()?;
     if let Some(size) = args.tile_size {
-        return regions(&args, &gt, size);
+        return match args.tracking {
+            true => region_tracking(&args, &gt, size),
+            false => regions(&args, &gt, size),
+        };
     }
     if args.tracking {
         return tracking(&args, &gt);
@@ -140,16 +146,44 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The tiles and halo of `--tile-size` and `--halo`.
+fn tiling(size: f64, halo: f64) -> anyhow::Result<v2x_fuser::region::Tiling> {
+    if !(halo.is_finite() && halo >= 0.0) {
+        bail!("--halo {halo}: expected a finite distance of at least 0 m");
+    }
+    v2x_fuser::region::Tiling::new(size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))
+}
+
+/// `--tile-size --tracking`: tracks of one fuser against regional fusers', with and without
+/// the hand-over at the borders.
+fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
+    let (noise, methods) = (args.noise.as_str(), args.methods.as_str());
+    let tiling = tiling(size, args.halo)?;
+    let cfg = paper_settings(methods, "csba-wls+", noise, args.seed, args.range)?;
+    let start = Instant::now();
+    let rows = v2x_sim::region_bench::run_region_tracking(gt, &cfg, tiling, args.halo);
+    match args.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Table | Format::Csv => {
+            println!(
+                "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s\n",
+                args.data.describe(gt),
+                args.seed,
+                args.halo,
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", bench::tracking_table(&rows));
+        }
+    }
+    Ok(())
+}
+
 /// `--tile-size`: one fuser against regional fusers.
 fn regions(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
     let (seed, range, format) = (args.seed, args.range, args.format);
     let halo = args.halo;
-    let tiling =
-        v2x_fuser::region::Tiling::new(size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
-    if !(halo.is_finite() && halo >= 0.0) {
-        bail!("--halo {halo}: expected a finite distance of at least 0 m");
-    }
+    let tiling = tiling(size, halo)?;
     let cfg = paper_settings(methods, "csba-wls+,csba-wls", noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_regions(gt, &cfg, tiling, halo);

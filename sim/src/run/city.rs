@@ -49,13 +49,17 @@ pub fn agent_routers(
         .collect()
 }
 
-/// Joins the regions' outcomes: fused boxes and windows by reference time, counters added.
+/// Joins the regions' outcomes: fused boxes, tracks and windows by reference time, counters
+/// added.
 pub fn join(outcomes: Vec<FuserOutcome>) -> FuserOutcome {
     let mut it = outcomes.into_iter();
     let mut all = it.next().unwrap_or_default();
     for o in it {
         for (t, dets) in o.fused {
             all.fused.entry(t).or_default().extend(dets);
+        }
+        for (t, dets) in o.tracks {
+            all.tracks.entry(t).or_default().extend(dets);
         }
         for (t, w) in o.windows {
             match all.windows.get_mut(&t) {

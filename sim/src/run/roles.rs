@@ -259,6 +259,7 @@ fn node_config(
 ) -> anyhow::Result<NodeConfig> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
     cfg.region = region;
+    cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);
     cfg.viz = viz;
     cfg.motion = scenario.fuser.compensation.then(|| MotionParams {
         time_scale: scenario.speed,

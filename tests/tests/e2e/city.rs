@@ -1,5 +1,5 @@
 //! `scenarios/city.toml` in one process: four regional fusers over two meshed routers score as
-//! one fuser on the same data. (A file of its own: its many sessions would slow the other
+//! one fuser on the same data, and track as it does (their tracks handed over at the borders). (A file of its own: its many sessions would slow the other
 //! region tests running beside it.)
 
 use v2x_tests::within;
@@ -16,7 +16,8 @@ fn city(seconds: f64) -> v2x_sim::scenario::Scenario {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_city_of_four_regions_scores_as_one_fuser() {
-    let scenario = city(4.0);
+    let mut scenario = city(4.0);
+    scenario.fuser.track = true;
     let gt = scenario.dataset.data_args().load().unwrap();
     let (_keep, stop) = tokio::sync::watch::channel(false);
     let (city, outcome, regions) = within(
@@ -66,4 +67,18 @@ async fn a_city_of_four_regions_scores_as_one_fuser() {
         .filter_map(|m| m.recall)
         .fold(0.0, f64::max);
     assert!(c.recall.unwrap() > best_alone);
+    // Tracks: the regions hand them over at the borders, so the city's identities switch about
+    // as often as one fuser's.
+    let (ct, st) = (city.tracking.unwrap(), single.tracking.unwrap());
+    eprintln!("city {ct:?}\nsingle {st:?}");
+    assert!(
+        ct.ids <= st.ids + 3,
+        "IDS city {} vs single {}",
+        ct.ids,
+        st.ids
+    );
+    assert!(
+        (ct.amota - st.amota).abs() <= 0.05,
+        "AMOTA {ct:?} vs {st:?}"
+    );
 }

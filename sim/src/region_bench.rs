@@ -1,0 +1,173 @@
+//! Tracks across regions (`bench --tile-size S --tracking`): each method's fused boxes tracked by
+//! one fuser, by regional fusers that never hear each other, and by regional fusers handing
+//! their tracks over at the borders ([`v2x_fuser::tracker::handover`]); and the same with each
+//! agent's boxes through the tracks. The identity switches the borders add are the regional rows'
+//! less the one fuser's.
+
+use crate::bench::{agent_detections, scenes, score_tracked, BenchConfig, TrackingRow};
+use crate::dataset::GroundTruth;
+use crate::metrics::Accumulator;
+use crate::noise::NoiseSetting;
+use crate::tracking_eval::TrackingEval;
+use rayon::prelude::*;
+use v2x_fuser::region::Tiling;
+use v2x_fuser::tracker::handover::RegionalTrackers;
+use v2x_fuser::tracker::{Tracker, TrackerParams};
+use v2x_fuser::Method;
+
+/// The ways a method's boxes are tracked, each a row: (name suffix, guided, regions, hand-over).
+const WAYS: [(&str, bool, bool, bool); 6] = [
+    ("tracked", false, false, false),
+    ("tracked regions", false, true, false),
+    ("tracked regions hand-over", false, true, true),
+    ("guided", true, false, false),
+    ("guided regions", true, true, false),
+    ("guided regions hand-over", true, true, true),
+];
+
+/// A tracker of one way: one fuser's, or a city of regional fusers'.
+enum Way {
+    One(Tracker),
+    Regions(RegionalTrackers),
+}
+
+/// The rows: under each setting, per method (the oracle gt-wls but guided) each way of
+/// [`WAYS`], scored as `bench --tracking` scores its tracked rows.
+pub fn run_region_tracking(
+    gt: &GroundTruth,
+    cfg: &BenchConfig,
+    tiling: Tiling,
+    halo_m: f64,
+) -> Vec<TrackingRow> {
+    let mut rows = Vec::new();
+    let names: Vec<(usize, String)> = cfg
+        .methods
+        .iter()
+        .enumerate()
+        .flat_map(|(m, method)| {
+            WAYS.iter()
+                .enumerate()
+                .filter(move |(_, w)| !w.1 || *method != Method::GtWls)
+                .map(move |(k, w)| (m * WAYS.len() + k, format!("{method} {}", w.0)))
+        })
+        .collect();
+    let slots = cfg.methods.len() * WAYS.len();
+    for setting in &cfg.settings {
+        let empty = || {
+            (
+                vec![Accumulator::new(); slots],
+                vec![TrackingEval::new(); slots],
+            )
+        };
+        let (accs, evals) = scenes(gt)
+            .into_par_iter()
+            .map(|frames| scene(gt, &frames, setting, cfg, tiling, halo_m))
+            .reduce(empty, |(mut a, mut e), (b, f)| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    x.merge(y);
+                }
+                for (x, y) in e.iter_mut().zip(f) {
+                    x.merge(y);
+                }
+                (a, e)
+            });
+        for (slot, method) in &names {
+            rows.push(TrackingRow {
+                noise: setting.name.clone(),
+                method: method.clone(),
+                metrics: accs[*slot].summary(),
+                tracking: Some(evals[*slot].summary()),
+            });
+        }
+    }
+    rows
+}
+
+/// One scene: every way of every method, frame by frame.
+fn scene(
+    gt: &GroundTruth,
+    frames: &[usize],
+    setting: &NoiseSetting,
+    cfg: &BenchConfig,
+    tiling: Tiling,
+    halo_m: f64,
+) -> (Vec<Accumulator>, Vec<TrackingEval>) {
+    let slots = cfg.methods.len() * WAYS.len();
+    let mut accs = vec![Accumulator::new(); slots];
+    let mut evals = vec![TrackingEval::new(); slots];
+    // Every class is tracked, so that the detection columns compare with `bench --tracking`'s.
+    let mut ways: Vec<Way> = (0..slots)
+        .map(|slot| {
+            let (_, guided, regions, handover) = WAYS[slot % WAYS.len()];
+            let params = TrackerParams {
+                all_classes: true,
+                guided,
+                ..Default::default()
+            };
+            match regions {
+                false => Way::One(Tracker::new(params)),
+                true => Way::Regions(RegionalTrackers::new(tiling, halo_m, params, handover)),
+            }
+        })
+        .collect();
+    let scene = gt.frames[frames[0]].scene;
+    for &i in frames {
+        let f = &gt.frames[i];
+        let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+        for (slot, way) in ways.iter_mut().enumerate() {
+            let method = &cfg.methods[slot / WAYS.len()];
+            let (_, guided, _, _) = WAYS[slot % WAYS.len()];
+            if guided && *method == Method::GtWls {
+                continue;
+            }
+            let t = f.timestamp_us;
+            let out = match way {
+                Way::One(tr) if guided => tr.step_agents(t, &dets, method),
+                Way::One(tr) => tr.step(t, &method.fuse(&dets)),
+                Way::Regions(r) => r.step(t, &dets, method),
+            };
+            score_tracked(&mut accs[slot], &mut evals[slot], scene, f, out);
+        }
+    }
+    (accs, evals)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::tracking_table;
+
+    #[test]
+    fn handed_over_tracks_switch_as_one_fusers_and_regions_alone_switch_at_borders() {
+        // Two town scenes of 6 s at 10 Hz, in tiles of 50 m: many objects cross a border.
+        let (gt, cfg) = crate::bench::tracking_case(&["csba-wls+", "gt-wls"], "moderate");
+        let tiling = Tiling::new(50.0).unwrap();
+        let rows = run_region_tracking(&gt, &cfg, tiling, 30.0);
+        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "csba-wls+ tracked",
+                "csba-wls+ tracked regions",
+                "csba-wls+ tracked regions hand-over",
+                "csba-wls+ guided",
+                "csba-wls+ guided regions",
+                "csba-wls+ guided regions hand-over",
+                "gt-wls tracked",
+                "gt-wls tracked regions",
+                "gt-wls tracked regions hand-over",
+            ]
+        );
+        let ids: Vec<usize> = rows
+            .iter()
+            .map(|r| r.tracking.as_ref().unwrap().ids)
+            .collect();
+        assert!(tracking_table(&rows).contains("| moderate | gt-wls tracked regions hand-over |"));
+        for way in [0, 3, 6] {
+            let (one, alone, handed) = (ids[way], ids[way + 1], ids[way + 2]);
+            // Here 8 switches at the borders, 0 handed over, 0 by one fuser.
+            assert!(alone >= one + 5, "{names:?} {ids:?}");
+            assert!(handed <= one + 2, "{names:?} {ids:?}");
+        }
+    }
+}
