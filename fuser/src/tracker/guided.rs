@@ -11,7 +11,7 @@
 //!    1's boxes have updated them, and so on;
 //! 3. **update** each track whose prediction is in a group with the group's boxes, one after
 //!    another (Kalman, Joseph form): for independent errors, the update with WLS-3D of the
-//!    boxes. A box beyond twice the tracker's gate is left unused (another object's, taken by
+//!    boxes. A box beyond the tracker's gate is left unused (another object's, taken by
 //!    the largest matching where the track's object went unseen), and the track takes its
 //!    object id from its surest box, as WLS-3D does. A group without a prediction is a new
 //!    object: its fused box starts a tentative track;
@@ -22,12 +22,6 @@ use crate::association::CsbaParams;
 use crate::method::csba_groups;
 use crate::Method;
 use v2x_protocol::Detection;
-
-/// A box of a track's group is used only within this many times the tracker's gate on d^2: a
-/// box so far from the track's state is another object's, taken by CSBA-3D's largest matching
-/// where the track's object went unseen (at twice the gate a true box lies beyond it about once in
-/// 5 million at 4 degrees of freedom).
-const OUTLIER_GATES: f64 = 2.0;
 
 impl Tracker {
     /// Steps the tracks to the window at `t_us` with each agent's boxes (`agents[k]`; boxes of
@@ -63,11 +57,9 @@ impl Tracker {
             let mut surest: Option<&Detection> = None;
             for &(k, j) in members.iter().filter(|(k, _)| *k != 0) {
                 let b = &lists[k][j];
-                // CSBA-3D's gate is the looser, and its matching the largest: a box far beyond
-                // the track's own gate is another object's, and goes unused.
-                if distance(&self.tracks[i], b)
-                    .is_none_or(|(d2, _)| d2 > OUTLIER_GATES * self.params.gate)
-                {
+                // CSBA-3D's gate is the looser, and its matching the largest: a box beyond the
+                // tracker's own gate is another object's, and goes unused, as `step` leaves it.
+                if distance(&self.tracks[i], b).is_none_or(|(d2, _)| d2 > self.params.gate) {
                     continue;
                 }
                 // The window's process noise enters once, with the first update.
