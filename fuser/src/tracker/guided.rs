@@ -11,14 +11,15 @@
 //!    1's boxes have updated them, and so on;
 //! 3. **update** each track whose prediction is in a group with the group's boxes, one after
 //!    another (Kalman, Joseph form): for independent errors, the update with WLS-3D of the
-//!    boxes. A box beyond the tracker's gate is left unused (another object's, taken by
-//!    the largest matching where the track's object went unseen), and the track takes its
+//!    boxes. A box beyond the tracker's gate is another object's (taken by the largest
+//!    matching where the track's object went unseen): in a second pass it goes to the likeliest
+//!    track within the gate that has no box of its agent yet, or unused. A track takes its
 //!    object id from its surest box, as WLS-3D does. A group without a prediction is a new
 //!    object: its fused box starts a tentative track;
 //! 4. **lifecycle** as [`Tracker::step`]: a track whose group holds a box counts as hit.
 
 use super::{distance, estimate, update, Tracked, Tracker};
-use crate::association::CsbaParams;
+use crate::association::{assign, CsbaParams, Edge};
 use crate::method::csba_groups;
 use crate::Method;
 use v2x_protocol::Detection;
@@ -47,31 +48,35 @@ impl Tracker {
         // 2. associate
         let (fused, groups) = csba_groups(&params, &lists);
         // 3. update, or a new object
+        let n_agents = lists.len() - 1;
         let mut hit = vec![false; self.tracks.len()];
+        // Per track: the agents whose box it took, and its surest box (variance, object id).
+        let mut took = vec![vec![false; n_agents]; self.tracks.len()];
+        let mut surest: Vec<Option<(f64, u32)>> = vec![None; self.tracks.len()];
+        let mut left: Vec<Vec<usize>> = vec![Vec::new(); n_agents];
         let mut new = Vec::new();
         for (f, members) in fused.into_iter().zip(groups) {
             let Some(&(_, i)) = members.iter().find(|(k, _)| *k == 0) else {
                 new.push(f);
                 continue;
             };
-            let mut surest: Option<&Detection> = None;
             for &(k, j) in members.iter().filter(|(k, _)| *k != 0) {
                 let b = &lists[k][j];
                 // CSBA-3D's gate is the looser, and its matching the largest: a box beyond the
-                // tracker's own gate is another object's, and goes unused, as `step` leaves it.
+                // tracker's own gate is another object's, and waits for the second pass.
                 if distance(&self.tracks[i], b).is_none_or(|(d2, _)| d2 > self.params.gate) {
+                    left[k - 1].push(j);
                     continue;
                 }
-                // The window's process noise enters once, with the first update.
-                update(&mut self.tracks[i], b, if hit[i] { 0.0 } else { dt });
-                hit[i] = true;
-                if surest.is_none_or(|s| b.total_variance() < s.total_variance()) {
-                    surest = Some(b);
-                }
+                self.take(i, b, dt, &mut hit, &mut surest);
+                took[i][k - 1] = true;
             }
-            // The object id (simulation) of the surest box, as WLS-3D keeps it.
-            if let Some(b) = surest {
-                self.tracks[i].truth = b.id;
+        }
+        self.second_pass(&lists[1..], &left, &took, dt, &mut hit, &mut surest);
+        // The object id (simulation) of the surest box, as WLS-3D keeps it.
+        for (t, s) in self.tracks.iter_mut().zip(surest) {
+            if let Some((_, id)) = s {
+                t.truth = id;
             }
         }
         // 4. lifecycle
@@ -80,6 +85,56 @@ impl Tracker {
             out.extend(self.birth(b));
         }
         out
+    }
+}
+
+impl Tracker {
+    /// Step 3's second pass: each box a group's track turned away (`left[a]`, indices into
+    /// `agents[a]`) goes to the likeliest track within the gate that has no box of its agent yet
+    /// (`took[i][a]`), as [`Tracker::step`] would give it.
+    fn second_pass(
+        &mut self,
+        agents: &[Vec<Detection>],
+        left: &[Vec<usize>],
+        took: &[Vec<bool>],
+        dt: f64,
+        hit: &mut [bool],
+        surest: &mut [Option<(f64, u32)>],
+    ) {
+        for (a, boxes) in left.iter().enumerate() {
+            let mut edges = Vec::new();
+            for (i, t) in self.tracks.iter().enumerate() {
+                for (n, &j) in boxes.iter().enumerate() {
+                    let b = &agents[a][j];
+                    if took[i][a] || b.class != t.class {
+                        continue;
+                    }
+                    if let Some((d2, ln_det)) = distance(t, b).filter(|d| d.0 <= self.params.gate) {
+                        edges.push(Edge::new(i, n, d2 + ln_det));
+                    }
+                }
+            }
+            for (i, n) in assign(self.tracks.len(), boxes.len(), &edges) {
+                self.take(i, &agents[a][boxes[n]], dt, hit, surest);
+            }
+        }
+    }
+
+    /// Track `i` takes box `b`: a Kalman update, the window's process noise with its first box.
+    fn take(
+        &mut self,
+        i: usize,
+        b: &Detection,
+        dt: f64,
+        hit: &mut [bool],
+        surest: &mut [Option<(f64, u32)>],
+    ) {
+        update(&mut self.tracks[i], b, if hit[i] { 0.0 } else { dt });
+        hit[i] = true;
+        let v = b.total_variance();
+        if surest[i].is_none_or(|(s, _)| v < s) {
+            surest[i] = Some((v, b.id));
+        }
     }
 }
 
@@ -209,5 +264,23 @@ mod tests {
         let out = tr.step_agents(100_000, &[a, b], &method());
         assert_eq!(out.len(), 1, "one object, one track: {out:?}");
         assert_eq!(tr.stats().live, 1);
+    }
+
+    #[test]
+    fn a_box_its_groups_track_turned_away_goes_to_a_track_without_its_agents_box() {
+        let mut tr = Tracker::new(TrackerParams::default());
+        tr.step(0, &[car(0.0, 0.0, 0.3), car(5.0, 0.0, 0.3)]);
+        tr.step(100_000, &[car(0.0, 0.0, 0.3), car(5.0, 0.0, 0.3)]);
+        let dt = tr.advance(200_000);
+        // Agent 1's boxes near each track; track 0 took agent 1's box already.
+        let agents = vec![vec![car(4.6, 0.0, 0.3), car(0.3, 0.0, 0.3)]];
+        let took = vec![vec![true], vec![false]];
+        let (mut hit, mut surest) = (vec![true, false], vec![None, None]);
+        tr.second_pass(&agents, &[vec![0, 1]], &took, dt, &mut hit, &mut surest);
+        assert_eq!(hit, [true, true], "the box near track 1 went to it");
+        assert!(tr.tracks[1].x[0] < 5.0 && tr.tracks[1].x[0] > 4.6);
+        // The box near track 0 found no track: track 0 had agent 1's box, track 1 is too far.
+        assert_eq!(tr.tracks[0].x[0], 0.0);
+        assert!(surest[0].is_none() && surest[1].is_some());
     }
 }
