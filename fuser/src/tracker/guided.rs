@@ -12,10 +12,11 @@
 //! 3. **update** each track whose prediction is in a group with the group's boxes, one after
 //!    another (Kalman, Joseph form): for independent errors, the update with WLS-3D of the
 //!    boxes. A box beyond the tracker's gate is another object's (taken by the largest
-//!    matching where the track's object went unseen): in a second pass it goes to the likeliest
-//!    track within the gate that has no box of its agent yet, or unused. A track takes its
-//!    object id from its surest box, as WLS-3D does. A group without a prediction is a new
-//!    object: its fused box starts a tentative track;
+//!    matching where the track's object went unseen): in a second pass it, and every box of a
+//!    group without a prediction, goes to the likeliest track within the gate that has no box
+//!    of its agent yet; a turned-away box no track takes goes unused. A track takes its object
+//!    id from its surest box, as WLS-3D does. A group without a prediction none of whose boxes a
+//!    track took is a new object: its fused box starts a tentative track;
 //! 4. **lifecycle** as [`Tracker::step`]: a track whose group holds a box counts as hit.
 
 use super::{distance, estimate, update, Tracked, Tracker};
@@ -53,11 +54,16 @@ impl Tracker {
         // Per track: the agents whose box it took, and its surest box (variance, object id).
         let mut took = vec![vec![false; n_agents]; self.tracks.len()];
         let mut surest: Vec<Option<(f64, u32)>> = vec![None; self.tracks.len()];
+        // Per agent: the boxes no group's track took, and whether a track took each box.
         let mut left: Vec<Vec<usize>> = vec![Vec::new(); n_agents];
+        let mut used: Vec<Vec<bool>> = lists[1..].iter().map(|l| vec![false; l.len()]).collect();
         let mut new = Vec::new();
         for (f, members) in fused.into_iter().zip(groups) {
             let Some(&(_, i)) = members.iter().find(|(k, _)| *k == 0) else {
-                new.push(f);
+                for &(k, j) in &members {
+                    left[k - 1].push(j);
+                }
+                new.push((f, members));
                 continue;
             };
             for &(k, j) in members.iter().filter(|(k, _)| *k != 0) {
@@ -70,36 +76,52 @@ impl Tracker {
                 }
                 self.take(i, b, dt, &mut hit, &mut surest);
                 took[i][k - 1] = true;
+                used[k - 1][j] = true;
             }
         }
-        self.second_pass(&lists[1..], &left, &took, dt, &mut hit, &mut surest);
+        let mut taken = Taken {
+            hit: &mut hit,
+            surest: &mut surest,
+            used: &mut used,
+        };
+        self.second_pass(&lists[1..], &left, &took, dt, &mut taken);
         // The object id (simulation) of the surest box, as WLS-3D keeps it.
         for (t, s) in self.tracks.iter_mut().zip(surest) {
             if let Some((_, id)) = s {
                 t.truth = id;
             }
         }
-        // 4. lifecycle
+        // 4. lifecycle; a new group none of whose boxes a track took starts a track.
         let mut out = self.lifecycle(&hit);
-        for b in &new {
-            out.extend(self.birth(b));
+        for (b, members) in &new {
+            if !members.iter().any(|&(k, j)| used[k - 1][j]) {
+                out.extend(self.birth(b));
+            }
         }
         out
     }
 }
 
+/// What step 3 has given so far: which tracks were hit, each track's surest box (variance,
+/// object id), and per agent which boxes a track took.
+struct Taken<'a> {
+    hit: &'a mut [bool],
+    surest: &'a mut [Option<(f64, u32)>],
+    used: &'a mut [Vec<bool>],
+}
+
 impl Tracker {
-    /// Step 3's second pass: each box a group's track turned away (`left[a]`, indices into
-    /// `agents[a]`) goes to the likeliest track within the gate that has no box of its agent yet
-    /// (`took[i][a]`), as [`Tracker::step`] would give it.
+    /// Step 3's second pass: each box no group's track took (`left[a]`, indices into
+    /// `agents[a]`: turned away, or in a group without a track) goes to the likeliest track
+    /// within the gate that has no box of its agent yet (`took[i][a]`), as [`Tracker::step`]
+    /// would give it.
     fn second_pass(
         &mut self,
         agents: &[Vec<Detection>],
         left: &[Vec<usize>],
         took: &[Vec<bool>],
         dt: f64,
-        hit: &mut [bool],
-        surest: &mut [Option<(f64, u32)>],
+        taken: &mut Taken,
     ) {
         for (a, boxes) in left.iter().enumerate() {
             let mut edges = Vec::new();
@@ -115,7 +137,8 @@ impl Tracker {
                 }
             }
             for (i, n) in assign(self.tracks.len(), boxes.len(), &edges) {
-                self.take(i, &agents[a][boxes[n]], dt, hit, surest);
+                self.take(i, &agents[a][boxes[n]], dt, taken.hit, taken.surest);
+                taken.used[a][boxes[n]] = true;
             }
         }
     }
@@ -276,7 +299,14 @@ mod tests {
         let agents = vec![vec![car(4.6, 0.0, 0.3), car(0.3, 0.0, 0.3)]];
         let took = vec![vec![true], vec![false]];
         let (mut hit, mut surest) = (vec![true, false], vec![None, None]);
-        tr.second_pass(&agents, &[vec![0, 1]], &took, dt, &mut hit, &mut surest);
+        let mut used = vec![vec![false, false]];
+        let mut taken = Taken {
+            hit: &mut hit,
+            surest: &mut surest,
+            used: &mut used,
+        };
+        tr.second_pass(&agents, &[vec![0, 1]], &took, dt, &mut taken);
+        assert_eq!(used, [[true, false]]);
         assert_eq!(hit, [true, true], "the box near track 1 went to it");
         assert!(tr.tracks[1].x[0] < 5.0 && tr.tracks[1].x[0] > 4.6);
         // The box near track 0 found no track: track 0 had agent 1's box, track 1 is too far.
