@@ -138,12 +138,7 @@ pub fn run_timing(
         )
         .reduce(
             || vec![Accumulator::new(); 2 * n],
-            |mut a, b| {
-                for (x, y) in a.iter_mut().zip(&b) {
-                    x.merge(y);
-                }
-                a
-            },
+            crate::bench::merge_slots,
         );
     let mut rows = Vec::new();
     for (i, acc) in accs.iter().enumerate() {

@@ -92,15 +92,7 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
                     accs
                 },
             )
-            .reduce(
-                || vec![Accumulator::new(); slots],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        x.merge(y);
-                    }
-                    a
-                },
-            );
+            .reduce(|| vec![Accumulator::new(); slots], merge_slots);
         for a in 0..n_agents {
             rows.push(Row {
                 noise: setting.name.clone(),
@@ -150,15 +142,7 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
                     accs
                 },
             )
-            .reduce(
-                || vec![Accumulator::new(); slots],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        x.merge(y);
-                    }
-                    a
-                },
-            );
+            .reduce(|| vec![Accumulator::new(); slots], merge_slots);
         for (m, method) in cfg.methods.iter().enumerate() {
             for (k, name) in [method.name(), format!("{method} regions")]
                 .into_iter()
@@ -238,15 +222,7 @@ pub fn run_detection(
                     evals
                 },
             )
-            .reduce(
-                || vec![DetectionEval::new(); slots],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        x.merge(y);
-                    }
-                    a
-                },
-            );
+            .reduce(|| vec![DetectionEval::new(); slots], merge_slots);
         let names = (0..n_agents)
             .map(|a| format!("agent{}", a + 1))
             .chain(cfg.methods.iter().map(|m| m.name()))
@@ -308,15 +284,9 @@ pub fn run_tracking(
                         vec![TrackingEval::new(); slots],
                     )
                 },
-                |(mut accs, mut evals), frames| {
+                |(accs, evals), frames| {
                     let (a, e) = track_scene(gt, &frames, setting, cfg, params, gt_wls);
-                    for (x, y) in accs.iter_mut().zip(&a) {
-                        x.merge(y);
-                    }
-                    for (x, y) in evals.iter_mut().zip(e) {
-                        x.merge(y);
-                    }
-                    (accs, evals)
+                    (merge_slots(accs, a), merge_slots(evals, e))
                 },
             )
             .reduce(
@@ -326,15 +296,7 @@ pub fn run_tracking(
                         vec![TrackingEval::new(); slots],
                     )
                 },
-                |(mut a, mut e), (b, f)| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        x.merge(y);
-                    }
-                    for (x, y) in e.iter_mut().zip(f) {
-                        x.merge(y);
-                    }
-                    (a, e)
-                },
+                |(a, e), (b, f)| (merge_slots(a, b), merge_slots(e, f)),
             );
         let names = (0..n_agents)
             .map(|a| (format!("agent{} tracked", a + 1), true))
@@ -489,6 +451,38 @@ pub(crate) fn score_tracked(
     let boxes: Vec<Detection> = out.into_iter().map(|t| t.det).collect();
     acc.add_frame(&f.objects, &boxes);
     eval.add_frame(scene, f.timestamp_us, &f.objects, &marks);
+}
+
+/// Figures of one slot of a table that add up over frames, as rayon joins its parts.
+pub(crate) trait Slot {
+    /// Adds `other`'s figures into these.
+    fn absorb(&mut self, other: Self);
+}
+
+impl Slot for Accumulator {
+    fn absorb(&mut self, other: Self) {
+        self.merge(&other);
+    }
+}
+
+impl Slot for DetectionEval {
+    fn absorb(&mut self, other: Self) {
+        self.merge(other);
+    }
+}
+
+impl Slot for TrackingEval {
+    fn absorb(&mut self, other: Self) {
+        self.merge(other);
+    }
+}
+
+/// Adds `b`'s slots into `a`'s, one by one.
+pub(crate) fn merge_slots<T: Slot>(mut a: Vec<T>, b: Vec<T>) -> Vec<T> {
+    for (x, y) in a.iter_mut().zip(b) {
+        x.absorb(y);
+    }
+    a
 }
 
 /// The frames of each scene, in order.

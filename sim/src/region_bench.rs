@@ -4,7 +4,9 @@
 //! agent's boxes through the tracks. The identity switches the borders add are the regional rows'
 //! less the one fuser's.
 
-use crate::bench::{agent_detections, scenes, score_tracked, BenchConfig, TrackingRow};
+use crate::bench::{
+    agent_detections, merge_slots, scenes, score_tracked, BenchConfig, TrackingRow,
+};
 use crate::dataset::GroundTruth;
 use crate::metrics::Accumulator;
 use crate::noise::NoiseSetting;
@@ -62,14 +64,8 @@ pub fn run_region_tracking(
         let (accs, evals) = scenes(gt)
             .into_par_iter()
             .map(|frames| scene(gt, &frames, setting, cfg, tiling, halo_m))
-            .reduce(empty, |(mut a, mut e), (b, f)| {
-                for (x, y) in a.iter_mut().zip(&b) {
-                    x.merge(y);
-                }
-                for (x, y) in e.iter_mut().zip(f) {
-                    x.merge(y);
-                }
-                (a, e)
+            .reduce(empty, |(a, e), (b, f)| {
+                (merge_slots(a, b), merge_slots(e, f))
             });
         for (slot, method) in &names {
             rows.push(TrackingRow {
