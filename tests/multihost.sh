@@ -22,21 +22,19 @@ cleanup() {
 }
 trap cleanup EXIT
 for n in "$V" "$R" "$F" "$E"; do ip netns add "$n"; ip -n "$n" link set lo up; done
+# A veth link from namespace $1 (interface $2, address $3) to namespace $4 ($5, $6), up.
+veth() {
+    ip link add "$2" type veth peer name "$5"
+    ip link set "$2" netns "$1"; ip link set "$5" netns "$4"
+    ip -n "$1" addr add "$3" dev "$2"; ip -n "$4" addr add "$6" dev "$5"
+    ip -n "$1" link set "$2" up; ip -n "$4" link set "$5" up
+}
 # vehicle <-> roadside on 10.213.1.0/24, infrastructure <-> roadside on 10.213.2.0/24
-ip link add "vv$id" type veth peer name "vf$id"
-ip link set "vv$id" netns "$V"; ip link set "vf$id" netns "$F"
-ip link add "rr$id" type veth peer name "rf$id"
-ip link set "rr$id" netns "$R"; ip link set "rf$id" netns "$F"
-ip -n "$V" addr add 10.213.1.2/24 dev "vv$id"; ip -n "$F" addr add 10.213.1.1/24 dev "vf$id"
-ip -n "$R" addr add 10.213.2.2/24 dev "rr$id"; ip -n "$F" addr add 10.213.2.1/24 dev "rf$id"
+veth "$V" "vv$id" 10.213.1.2/24 "$F" "vf$id" 10.213.1.1/24
+veth "$R" "rr$id" 10.213.2.2/24 "$F" "rf$id" 10.213.2.1/24
 # the city's east roadside: <-> west roadside on 10.213.3.0/24, <-> infrastructure on 10.213.4.0/24
-ip link add "fe$id" type veth peer name "ef$id"
-ip link set "fe$id" netns "$F"; ip link set "ef$id" netns "$E"
-ip link add "re$id" type veth peer name "er$id"
-ip link set "re$id" netns "$R"; ip link set "er$id" netns "$E"
-ip -n "$F" addr add 10.213.3.1/24 dev "fe$id"; ip -n "$E" addr add 10.213.3.2/24 dev "ef$id"
-ip -n "$R" addr add 10.213.4.2/24 dev "re$id"; ip -n "$E" addr add 10.213.4.1/24 dev "er$id"
-for l in "$V:vv$id" "$F:vf$id" "$R:rr$id" "$F:rf$id" "$F:fe$id" "$E:ef$id" "$R:re$id" "$E:er$id"; do ip -n "${l%%:*}" link set "${l##*:}" up; done
+veth "$F" "fe$id" 10.213.3.1/24 "$E" "ef$id" 10.213.3.2/24
+veth "$R" "re$id" 10.213.4.2/24 "$E" "er$id" 10.213.4.1/24
 
 # One scenario, three hosts: the roadside runs ROADSIDE_ROLES, the vehicle and the roadside unit
 # their agent; the summary and the recording are checked.
@@ -89,8 +87,12 @@ PY
     python3 -c 'import json,sys; m=json.load(open(sys.argv[1])); assert m["precision"]==1.0 and m["tp"]>=45*20, m; print("    eval of the recording: precision %.4f recall %.4f mATE %.3f m" % (m["precision"], m["recall"], m["mATE"]))' "$tmp/$name-eval.json"
 }
 
-cat > "$tmp/plain.toml" <<TOML
-namespace = "multihost"
+# The scenario files' shared parts: the header (namespace, seed, a 5 s town scene at 10 Hz), and
+# the two agents, a mild-noise vehicle with a jittered link and a large-noise roadside unit,
+# each with its Zenoh settings ($1, $2).
+header() {
+cat <<TOML
+namespace = "$1"
 seed = 5
 duration_s = 5.0
 speed = 1.0
@@ -100,23 +102,38 @@ scenes = 1
 seconds = 5.0
 hz = 10.0
 
-[fuser]
-method = "csba-wls+"
-max_wait_ms = 200.0
-zenoh = { mode = "peer", listen = ["tcp/10.213.1.1:7447", "tcp/10.213.2.1:7447"], no_multicast_scouting = true }
+TOML
+}
 
+agents() {
+cat <<TOML
 [[agents]]
 name = "veh"
 kind = "vehicle"
 noise = "mild"
 link = { latency_ms = 10.0, jitter_ms = 5.0 }
-zenoh = { mode = "peer", connect = ["tcp/10.213.1.1:7447"], no_multicast_scouting = true }
+zenoh = $1
 
 [[agents]]
 name = "rsu"
 kind = "infrastructure"
 noise = "large"
-zenoh = { mode = "peer", connect = ["tcp/10.213.2.1:7447"], no_multicast_scouting = true }
+zenoh = $2
+TOML
+}
+
+{
+header multihost
+cat <<TOML
+[fuser]
+method = "csba-wls+"
+max_wait_ms = 200.0
+zenoh = { mode = "peer", listen = ["tcp/10.213.1.1:7447", "tcp/10.213.2.1:7447"], no_multicast_scouting = true }
+
+TOML
+agents '{ mode = "peer", connect = ["tcp/10.213.1.1:7447"], no_multicast_scouting = true }' \
+    '{ mode = "peer", connect = ["tcp/10.213.2.1:7447"], no_multicast_scouting = true }'
+cat <<TOML
 
 # A scripted event, applied by the vehicle's own host on the scenario clock.
 [[events]]
@@ -125,6 +142,7 @@ target = "veh"
 action = "link"
 latency_ms = 60.0
 TOML
+} > "$tmp/plain.toml"
 run_case plain "$tmp/plain.toml" "--role fuser"
 
 # Secure: mutual TLS through a router on the roadside host that holds the access-control policy;
@@ -132,17 +150,9 @@ run_case plain "$tmp/plain.toml" "--role fuser"
 "$BIN/v2x-sim" certs --out "$tmp/certs" --ns multihost-secure \
     --listen tls/10.213.1.1:7447 --listen tls/10.213.2.1:7447 \
     --router tls/10.213.1.1:7447 --router tls/10.213.2.1:7447 veh rsu > /dev/null
-cat > "$tmp/secure.toml" <<TOML
-namespace = "multihost-secure"
-seed = 5
-duration_s = 5.0
-speed = 1.0
-
-[dataset]
-scenes = 1
-seconds = 5.0
-hz = 10.0
-
+{
+header multihost-secure
+cat <<TOML
 [security]
 mode = "mtls"
 certs = "$tmp/certs"
@@ -152,51 +162,25 @@ method = "csba-wls+"
 max_wait_ms = 200.0
 zenoh = { connect = ["tls/10.213.1.1:7447"] }
 
-[[agents]]
-name = "veh"
-kind = "vehicle"
-noise = "mild"
-link = { latency_ms = 10.0, jitter_ms = 5.0 }
-zenoh = { connect = ["tls/10.213.1.1:7447"] }
-
-[[agents]]
-name = "rsu"
-kind = "infrastructure"
-noise = "large"
-zenoh = { connect = ["tls/10.213.2.1:7447"] }
 TOML
+agents '{ connect = ["tls/10.213.1.1:7447"] }' '{ connect = ["tls/10.213.2.1:7447"] }'
+} > "$tmp/secure.toml"
 run_case secure "$tmp/secure.toml" "--role router --role fuser"
 # A city: two roadside hosts, each a router (east meshed with west) and the regional fusers of
 # two of the town's four 100 m tiles; the vehicle is a client of the west router, the
 # infrastructure of the east one. Each roadside records its regions; the two recordings, joined,
 # are scored as one.
-cat > "$tmp/city.toml" <<TOML
-namespace = "multihost-city"
-seed = 5
-duration_s = 5.0
-speed = 1.0
-
-[dataset]
-scenes = 1
-seconds = 5.0
-hz = 10.0
-
+{
+header multihost-city
+cat <<TOML
 [fuser]
 method = "csba-wls+"
 max_wait_ms = 200.0
 
-[[agents]]
-name = "veh"
-kind = "vehicle"
-noise = "mild"
-link = { latency_ms = 10.0, jitter_ms = 5.0 }
-zenoh = { mode = "client", connect = ["tcp/10.213.1.1:7447"], no_multicast_scouting = true }
-
-[[agents]]
-name = "rsu"
-kind = "infrastructure"
-noise = "large"
-zenoh = { mode = "client", connect = ["tcp/10.213.4.1:7447"], no_multicast_scouting = true }
+TOML
+agents '{ mode = "client", connect = ["tcp/10.213.1.1:7447"], no_multicast_scouting = true }' \
+    '{ mode = "client", connect = ["tcp/10.213.4.1:7447"], no_multicast_scouting = true }'
+cat <<TOML
 
 [regions]
 tile_m = 100.0
@@ -209,27 +193,17 @@ zenoh = { listen = ["tcp/0.0.0.0:7447"], no_multicast_scouting = true }
 [[regions.routers]]
 name = "east"
 zenoh = { listen = ["tcp/0.0.0.0:7447"], connect = ["tcp/10.213.3.1:7447"], no_multicast_scouting = true }
+TOML
+for fuser in -1_-1:west -1_0:west 0_-1:east 0_0:east; do
+cat <<TOML
 
 [[regions.fusers]]
-tile = "-1_-1"
-router = "west"
-zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
-
-[[regions.fusers]]
-tile = "-1_0"
-router = "west"
-zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
-
-[[regions.fusers]]
-tile = "0_-1"
-router = "east"
-zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
-
-[[regions.fusers]]
-tile = "0_0"
-router = "east"
+tile = "${fuser%:*}"
+router = "${fuser#*:}"
 zenoh = { connect = ["tcp/127.0.0.1:7447"], no_multicast_scouting = true }
 TOML
+done
+} > "$tmp/city.toml"
 echo "  case: city"
 ip netns exec "$F" timeout 60 "$BIN/v2x-sim" run "$tmp/city.toml" --role router-west --role fuser--1_-1 --role fuser--1_0 --format json --record "$tmp/west.json" > "$tmp/west-summary.json" 2> "$tmp/west.log" &
 wpid=$!

@@ -372,6 +372,17 @@ fn dair_fixture(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
+/// `v2x-sim bench` of csba-wls+ over DAIR-V2X, in JSON.
+const DAIR_BENCH: [&str; 7] = [
+    "bench",
+    "--format",
+    "json",
+    "--methods",
+    "csba-wls+",
+    "--dataset",
+    "dair-v2x",
+];
+
 #[test]
 fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     let dir = tempdir("dair");
@@ -413,15 +424,7 @@ fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     assert!((ap - 8.0 / 9.0).abs() < 1e-9, "{row}");
     // bench: every row, in JSON; the official byte count of the roadside's three boxes.
     let (ok, out, err) = run(Command::new(bin("v2x-sim"))
-        .args([
-            "bench",
-            "--format",
-            "json",
-            "--methods",
-            "csba-wls+",
-            "--dataset",
-            "dair-v2x",
-        ])
+        .args(DAIR_BENCH)
         .arg("--dataroot")
         .arg(&c));
     assert!(ok, "{err}");
@@ -461,15 +464,7 @@ fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     });
     std::fs::write(dir.join("inf-results.json"), results.to_string()).unwrap();
     let (ok, out, err) = run(Command::new(bin("v2x-sim"))
-        .args([
-            "bench",
-            "--format",
-            "json",
-            "--methods",
-            "csba-wls+",
-            "--dataset",
-            "dair-v2x",
-        ])
+        .args(DAIR_BENCH)
         .arg("--inf-results")
         .arg(dir.join("inf-results.json"))
         .arg("--dataroot")
