@@ -23,6 +23,7 @@
 //! boxes without lidar points (the evaluation has no ego pose; the simulated agents' own range
 //! plays that part). Predictions carry no attribute, so AAE is 1 wherever it is defined.
 
+use crate::metrics::ClassErrors;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use v2x_protocol::{Class, Detection};
@@ -368,10 +369,12 @@ impl DetectionEval {
                 ClassDetection {
                     ap,
                     mean_ap,
-                    ate: errs[0],
-                    ase: errs[1],
-                    aoe: errs[2],
-                    ave: errs[3],
+                    errors: ClassErrors {
+                        ate: errs[0],
+                        ase: errs[1],
+                        aoe: errs[2],
+                        ave: errs[3],
+                    },
                     aae: errs[4],
                     gt: n_gt,
                     tp: c.tp,
@@ -472,18 +475,10 @@ pub struct ClassDetection {
     /// Mean of the AP over the thresholds.
     #[serde(rename = "mean_AP")]
     pub mean_ap: f64,
-    /// Translation error at 2 m (m).
-    #[serde(rename = "ATE")]
-    pub ate: Option<f64>,
-    /// Scale error, 1 - aligned IoU.
-    #[serde(rename = "ASE")]
-    pub ase: Option<f64>,
-    /// Orientation error (rad); none for traffic cones.
-    #[serde(rename = "AOE")]
-    pub aoe: Option<f64>,
-    /// Velocity error (m/s); none for barriers and cones.
-    #[serde(rename = "AVE")]
-    pub ave: Option<f64>,
+    /// TP errors at 2 m: ATE (m), ASE (1 - aligned IoU), AOE (rad; none for traffic cones),
+    /// AVE (m/s; none for barriers and cones).
+    #[serde(flatten)]
+    pub errors: ClassErrors,
     /// Attribute error; none for barriers and cones.
     #[serde(rename = "AAE")]
     pub aae: Option<f64>,

@@ -223,10 +223,12 @@ impl Accumulator {
                 ClassMetrics {
                     precision: ratio(s.tp, s.tp + s.fp),
                     recall: ratio(s.tp, s.tp + s.fn_),
-                    ate: m.map(|v| v.0),
-                    ase: m.map(|v| v.1),
-                    aoe: m.map(|v| v.2),
-                    ave: m.and_then(|v| v.3),
+                    errors: ClassErrors {
+                        ate: m.map(|v| v.0),
+                        ase: m.map(|v| v.1),
+                        aoe: m.map(|v| v.2),
+                        ave: m.and_then(|v| v.3),
+                    },
                     tp: s.tp,
                     fp: s.fp,
                     fn_: s.fn_,
@@ -234,14 +236,10 @@ impl Accumulator {
                 },
             );
         }
-        let all = ErrorMetrics::of(&all_means);
         Metrics {
             precision: ratio(tp, tp + fp),
             recall: ratio(tp, tp + fn_),
-            m_ate: all.m_ate,
-            m_ase: all.m_ase,
-            m_aoe: all.m_aoe,
-            m_ave: all.m_ave,
+            all: ErrorMetrics::of(&all_means),
             tp,
             fp,
             fn_,
@@ -284,6 +282,24 @@ impl ErrorMetrics {
     }
 }
 
+/// One class's mean errors (`ATE`, `ASE`, `AOE`, `AVE`), each as the figure holding them
+/// defines it; none where the class has no such error.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ClassErrors {
+    /// Translation error.
+    #[serde(rename = "ATE")]
+    pub ate: Option<f64>,
+    /// Scale error.
+    #[serde(rename = "ASE")]
+    pub ase: Option<f64>,
+    /// Orientation error.
+    #[serde(rename = "AOE")]
+    pub aoe: Option<f64>,
+    /// Velocity error.
+    #[serde(rename = "AVE")]
+    pub ave: Option<f64>,
+}
+
 /// One class's figures.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ClassMetrics {
@@ -291,18 +307,9 @@ pub struct ClassMetrics {
     pub precision: Option<f64>,
     /// TP / (TP + FN).
     pub recall: Option<f64>,
-    /// Mean ATE, false positives included (m).
-    #[serde(rename = "ATE")]
-    pub ate: Option<f64>,
-    /// Mean ASE, false positives included (m).
-    #[serde(rename = "ASE")]
-    pub ase: Option<f64>,
-    /// Mean AOE, false positives included (degrees).
-    #[serde(rename = "AOE")]
-    pub aoe: Option<f64>,
-    /// Mean AVE, false positives included (m/s).
-    #[serde(rename = "AVE")]
-    pub ave: Option<f64>,
+    /// Mean errors, false positives included: ATE and ASE (m), AOE (degrees), AVE (m/s).
+    #[serde(flatten)]
+    pub errors: ClassErrors,
     /// True positives.
     pub tp: usize,
     /// False positives.
@@ -321,18 +328,9 @@ pub struct Metrics {
     pub precision: Option<f64>,
     /// TP / (TP + FN).
     pub recall: Option<f64>,
-    /// Class-mean ATE, false positives included (m).
-    #[serde(rename = "mATE")]
-    pub m_ate: Option<f64>,
-    /// Class-mean ASE, false positives included (m).
-    #[serde(rename = "mASE")]
-    pub m_ase: Option<f64>,
-    /// Class-mean AOE, false positives included (degrees).
-    #[serde(rename = "mAOE")]
-    pub m_aoe: Option<f64>,
-    /// Class-mean AVE, false positives included (m/s).
-    #[serde(rename = "mAVE")]
-    pub m_ave: Option<f64>,
+    /// Class-mean errors, false positives included (`mATE` ... `mAVE` beside the counts).
+    #[serde(flatten)]
+    pub all: ErrorMetrics,
     /// True positives.
     pub tp: usize,
     /// False positives.
@@ -390,9 +388,9 @@ mod tests {
         assert_eq!((m.tp, m.fp, m.fn_), (1, 1, 0));
         assert_eq!(m.precision, Some(0.5));
         assert_eq!(m.recall, Some(1.0));
-        assert!((m.m_ate.unwrap() - 7.5).abs() < 1e-12);
-        assert!((m.m_ase.unwrap() - 0.5).abs() < 1e-12);
-        assert!((m.m_aoe.unwrap() - 5.0).abs() < 1e-9);
+        assert!((m.all.m_ate.unwrap() - 7.5).abs() < 1e-12);
+        assert!((m.all.m_ase.unwrap() - 0.5).abs() < 1e-12);
+        assert!((m.all.m_aoe.unwrap() - 5.0).abs() < 1e-9);
         assert!((m.tp_only.m_ate.unwrap() - 5.0).abs() < 1e-12);
         assert!((m.tp_only.m_aoe.unwrap() - 10.0).abs() < 1e-9);
     }
@@ -413,9 +411,9 @@ mod tests {
         assert_eq!((m.tp, m.fp, m.fn_), (1, 1, 1));
         assert_eq!(m.recall, Some(0.5));
         // only the car has errors: the class mean is the car's
-        assert!((m.m_ate.unwrap() - 1.0).abs() < 1e-12);
+        assert!((m.all.m_ate.unwrap() - 1.0).abs() < 1e-12);
         assert_eq!(m.per_class["pedestrian"].fn_, 1);
-        assert_eq!(m.per_class["pedestrian"].ate, None);
+        assert_eq!(m.per_class["pedestrian"].errors.ate, None);
     }
 
     #[test]
@@ -445,10 +443,10 @@ mod tests {
         let mut acc = Accumulator::new();
         acc.add_frame(&g, &p);
         let m = acc.summary();
-        assert!(m.per_class["barrier"].aoe.unwrap() < 1e-9);
-        assert!((m.per_class["car"].aoe.unwrap() - 180.0).abs() < 1e-9);
+        assert!(m.per_class["barrier"].errors.aoe.unwrap() < 1e-9);
+        assert!((m.per_class["car"].errors.aoe.unwrap() - 180.0).abs() < 1e-9);
         // class mean of 0 and 180
-        assert!((m.m_aoe.unwrap() - 90.0).abs() < 1e-9);
+        assert!((m.all.m_aoe.unwrap() - 90.0).abs() < 1e-9);
     }
 
     #[test]
@@ -465,15 +463,15 @@ mod tests {
         acc.add_frame(&g, &[p.clone(), b]);
         let m = acc.summary();
         assert!(
-            (m.m_ave.unwrap() - 5.0).abs() < 1e-12,
+            (m.all.m_ave.unwrap() - 5.0).abs() < 1e-12,
             "3-4-5, barrier excluded"
         );
-        assert_eq!(m.per_class["barrier"].ave, None);
+        assert_eq!(m.per_class["barrier"].errors.ave, None);
         // no velocity, no error to average
         let mut acc = Accumulator::new();
         p.velocity = None;
         acc.add_frame(&g[..1], &[p]);
-        assert_eq!(acc.summary().m_ave, None);
+        assert_eq!(acc.summary().all.m_ave, None);
     }
 
     #[test]

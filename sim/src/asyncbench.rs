@@ -204,7 +204,7 @@ pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
                     && r.compensation == comp
                     && same_rate(r)
             })
-            .and_then(|r| r.metrics.m_ate)
+            .and_then(|r| r.metrics.all.m_ate)
     };
     let sync = ate(0.0, false)?;
     let at50 = ate(50.0, true)? / sync;
@@ -225,8 +225,8 @@ pub fn table(rows: &[AsyncRow]) -> String {
             r.method,
             cell(m.precision, 4),
             cell(m.recall, 4),
-            cell(m.m_ate, 3),
-            cell(m.m_ave, 3),
+            cell(m.all.m_ate, 3),
+            cell(m.all.m_ave, 3),
             cell(m.tp_only.m_ate, 3),
         ));
     }
@@ -276,6 +276,7 @@ mod tests {
                 .find(|r| r.method == "gt-wls" && r.offset_ms == offset && r.compensation == comp)
                 .unwrap()
                 .metrics
+                .all
                 .m_ate
                 .unwrap()
         };
@@ -291,7 +292,7 @@ mod tests {
         let (at50, recovered) = recovery(&rows, "gt-wls").unwrap();
         assert!(at50 < 1.05, "{at50}");
         assert!(recovered > 0.6, "{recovered}");
-        assert!(rows.iter().all(|r| r.metrics.m_ave.is_some()));
+        assert!(rows.iter().all(|r| r.metrics.all.m_ave.is_some()));
         // The 10+20 Hz pair scores twice the instants.
         let double = rows.iter().find(|r| r.rates == "10+20 Hz").unwrap();
         let single = rows.iter().find(|r| r.offset_ms == 0.0).unwrap();

@@ -110,7 +110,7 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
         let mut bound = Accumulator::new().summary();
         bound.precision = None;
         bound.recall = None;
-        bound.m_ate = Some(setting.error_bound());
+        bound.all.m_ate = Some(setting.error_bound());
         rows.push(Row {
             noise: setting.name.clone(),
             method: "bound".into(),
@@ -416,8 +416,8 @@ pub fn tracking_table(rows: &[TrackingRow]) -> String {
             r.method,
             cell(m.precision, 4),
             cell(m.recall, 4),
-            cell(m.m_ate, 3),
-            cell(m.m_aoe, 2),
+            cell(m.all.m_ate, 3),
+            cell(m.all.m_aoe, 2),
             cell(t.map(|t| t.amota), 4),
             cell(t.map(|t| t.amotp), 3),
             cell(t.map(|t| t.mota), 4),
@@ -513,9 +513,9 @@ pub fn table(rows: &[Row]) -> String {
             r.method,
             cell(m.precision, 4),
             cell(m.recall, 4),
-            cell(m.m_ate, 3),
-            cell(m.m_ase, 3),
-            cell(m.m_aoe, 2),
+            cell(m.all.m_ate, 3),
+            cell(m.all.m_ase, 3),
+            cell(m.all.m_aoe, 2),
             cell(m.tp_only.m_ate, 3),
             cell(m.tp_only.m_ase, 3),
             cell(m.tp_only.m_aoe, 2)
@@ -581,9 +581,9 @@ pub fn csv(rows: &[Row]) -> String {
             r.method,
             c(m.precision),
             c(m.recall),
-            c(m.m_ate),
-            c(m.m_ase),
-            c(m.m_aoe),
+            c(m.all.m_ate),
+            c(m.all.m_ase),
+            c(m.all.m_aoe),
             m.tp,
             m.fp,
             m.fn_,
@@ -655,8 +655,8 @@ mod tests {
         // NMS keeps duplicates at mild noise? It suppresses overlaps: precision high, error of one agent
         let plus = get("csba-wls+");
         assert!(plus.precision.unwrap() > 0.99 && plus.recall.unwrap() > 0.99);
-        assert!(plus.m_ate.unwrap() < gt_wls.m_ate.unwrap() * 1.05);
-        assert!(plus.m_ate.unwrap() < get("agent1").m_ate.unwrap());
+        assert!(plus.all.m_ate.unwrap() < gt_wls.all.m_ate.unwrap() * 1.05);
+        assert!(plus.all.m_ate.unwrap() < get("agent1").all.m_ate.unwrap());
         // deterministic
         let again = run(&gt, &cfg, &|| {});
         assert_eq!(table(&rows), table(&again));
@@ -693,16 +693,16 @@ mod tests {
         let g = rows[4].tracking.as_ref().unwrap();
         assert!(g.mota > 0.85 && g.ids_per_100_tracks <= 5.0, "{g:?}");
         let (g_ate, t_ate) = (
-            rows[4].metrics.m_ate.unwrap(),
-            tracked.metrics.m_ate.unwrap(),
+            rows[4].metrics.all.m_ate.unwrap(),
+            tracked.metrics.all.m_ate.unwrap(),
         );
         assert!(
-            g_ate < 0.7 * single.metrics.m_ate.unwrap() && g_ate < 1.25 * t_ate,
+            g_ate < 0.7 * single.metrics.all.m_ate.unwrap() && g_ate < 1.25 * t_ate,
             "guided {g_ate} tracked {t_ate}"
         );
         let (a, b) = (
-            single.metrics.m_ate.unwrap(),
-            tracked.metrics.m_ate.unwrap(),
+            single.metrics.all.m_ate.unwrap(),
+            tracked.metrics.all.m_ate.unwrap(),
         );
         assert!(b < 0.7 * a, "tracked {b} single-frame {a}");
         assert!(tracking_table(&rows).contains("| moderate | csba-wls+ tracked |"));
@@ -722,7 +722,10 @@ mod tests {
             ]
         );
         let (tracked, by_id) = (&rows[3], &rows[4]);
-        let (a, b) = (tracked.metrics.m_ate.unwrap(), by_id.metrics.m_ate.unwrap());
+        let (a, b) = (
+            tracked.metrics.all.m_ate.unwrap(),
+            by_id.metrics.all.m_ate.unwrap(),
+        );
         // The same boxes, each given to its own object's track: a smaller error.
         assert!(b < 0.9 * a, "by id {b}, by likelihood {a}");
         let (ta, tb) = (

@@ -60,9 +60,13 @@ fn a_hand_made_scene_scores_as_computed_by_hand() {
     }
     // ATE at 2 m: the running mean of (0.3, 0.8) read at each recall point's confidence:
     // 0.3 below 50% recall, 0.425 at it, then 0.425 + 0.25 (r - 0.5): mean 36.5625 / 90.
-    assert!((car.ate.unwrap() - 0.40625).abs() < 1e-12, "{:?}", car.ate);
+    assert!(
+        (car.errors.ate.unwrap() - 0.40625).abs() < 1e-12,
+        "{:?}",
+        car.errors.ate
+    );
     assert_eq!(
-        (car.ase, car.aoe, car.ave, car.aae),
+        (car.errors.ase, car.errors.aoe, car.errors.ave, car.aae),
         (Some(0.0), Some(0.0), Some(0.0), Some(1.0))
     );
     assert_eq!((car.gt, car.tp, car.fp), (2, 2, 1));
@@ -97,7 +101,7 @@ fn a_box_far_off_is_not_a_true_positive_whatever_its_id() {
     let m = e.summary();
     assert_eq!((m.tp, m.fp, m.fn_), (0, 1, 1));
     assert_eq!(m.m_ap, 0.0);
-    assert_eq!(m.per_class["car"].ate, Some(1.0));
+    assert_eq!(m.per_class["car"].errors.ate, Some(1.0));
 }
 
 #[test]
@@ -119,7 +123,7 @@ fn perfect_detections_score_ap_one_and_classes_match_separately() {
             m.per_class[c].ap.values().all(|&a| (a - 1.0).abs() < 1e-12),
             "{c}"
         );
-        assert_eq!(m.per_class[c].ate, Some(0.0));
+        assert_eq!(m.per_class[c].errors.ate, Some(0.0));
     }
     assert!((m.m_ap - 0.2).abs() < 1e-12);
     // A pedestrian predicted where a car is matches nothing.

@@ -161,7 +161,7 @@ pub fn timeline(
         let m = acc.summary();
         row.precision = m.precision;
         row.recall = m.recall;
-        row.mate_m = m.m_ate;
+        row.mate_m = m.all.m_ate;
     }
     Timeline {
         namespace: scenario.namespace.clone(),

@@ -59,7 +59,7 @@ async fn a_city_of_four_regions_scores_as_one_fuser() {
         "precision {c:?} vs {s:?}"
     );
     assert!(d(c.recall, s.recall) <= 0.03, "recall {c:?} vs {s:?}");
-    assert!(d(c.m_ate, s.m_ate) <= 0.05, "mATE {c:?} vs {s:?}");
+    assert!(d(c.all.m_ate, s.all.m_ate) <= 0.05, "mATE {c:?} vs {s:?}");
     // Better than any agent alone, as fusion should be.
     let best_alone = city
         .agents

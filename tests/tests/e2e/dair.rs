@@ -59,9 +59,9 @@ async fn the_vehicle_and_the_roadside_fuse_live_at_their_own_capture_times() {
     assert_eq!(summary.fused.recall, Some(1.0));
     assert_eq!((summary.fused.tp, summary.fused.fp), (9, 3));
     assert!(
-        summary.fused.m_ate.unwrap() < 0.01,
+        summary.fused.all.m_ate.unwrap() < 0.01,
         "{:?}",
-        summary.fused.m_ate
+        summary.fused.all.m_ate
     );
     for name in ["veh", "inf"] {
         let a = &summary.agents[name];
@@ -101,6 +101,6 @@ async fn without_the_calibration_offset_the_shared_car_lands_apart() {
         .unwrap();
     // The roadside's boxes lie 0.58 m off: still matched within 2 m, with a translation error.
     assert_eq!(summary.fused.recall, Some(1.0));
-    let m_ate = summary.fused.m_ate.unwrap();
+    let m_ate = summary.fused.all.m_ate.unwrap();
     assert!(m_ate > 0.05, "{m_ate}");
 }

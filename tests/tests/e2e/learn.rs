@@ -79,8 +79,9 @@ async fn an_overconfident_agent_is_learned_and_flagged_over_the_network() {
     let [learned, stated, honest, modelled] = &runs[..] else {
         unreachable!()
     };
-    let fig =
-        |s: &v2x_sim::run::summary::Summary| (s.fused.precision.unwrap(), s.fused.m_ate.unwrap());
+    let fig = |s: &v2x_sim::run::summary::Summary| {
+        (s.fused.precision.unwrap(), s.fused.all.m_ate.unwrap())
+    };
     let ((p_learned, e_learned), (p_stated, e_stated), (_, e_honest), (p_model, e_model)) =
         (fig(learned), fig(stated), fig(honest), fig(modelled));
     // Calibrated: as good as honest stds.

@@ -78,9 +78,9 @@ async fn network_equals_offline(ns: &str, agents: usize, noises: &[&str]) {
     };
     assert_eq!((m.tp, m.fp, m.fn_), (offline.tp, offline.fp, offline.fn_));
     for (a, b) in [
-        (m.m_ate, offline.m_ate),
-        (m.m_ase, offline.m_ase),
-        (m.m_aoe, offline.m_aoe),
+        (m.all.m_ate, offline.all.m_ate),
+        (m.all.m_ase, offline.all.m_ase),
+        (m.all.m_aoe, offline.all.m_aoe),
     ] {
         assert!((a.unwrap() - b.unwrap()).abs() < 1e-9, "{a:?} vs {b:?}");
     }
