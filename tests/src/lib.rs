@@ -82,8 +82,9 @@ pub mod fuser {
     use std::collections::BTreeSet;
     use std::time::Duration;
     use tokio::sync::mpsc;
-    use v2x_agent::now_us;
+    use v2x_agent::{now_us, Agent, Link};
     use v2x_fuser::node::{self, Fused, NodeConfig};
+    use v2x_protocol::net::{open_session, ZenohArgs};
     use v2x_protocol::{AgentKind, Class, Detection, Frame, Uncertainty};
 
     /// A car at (x, 0) with mild stds and the given id.
@@ -122,6 +123,41 @@ pub mod fuser {
     /// The loopback TCP endpoint of a port.
     pub fn endpoint(port: u16) -> String {
         format!("tcp/127.0.0.1:{port}")
+    }
+
+    /// A session on loopback listening on `port`.
+    pub async fn listen(port: u16) -> zenoh::Session {
+        let args = ZenohArgs::loopback(&[endpoint(port)], &[]);
+        open_session(&args)
+            .await
+            .expect("a session listening on loopback")
+    }
+
+    /// A session on loopback connected to `port`.
+    pub async fn connect(port: u16) -> zenoh::Session {
+        let args = ZenohArgs::loopback(&[], &[endpoint(port)]);
+        open_session(&args)
+            .await
+            .expect("a session connected on loopback")
+    }
+
+    /// Agent `name` started on `session` with a perfect link, once a fuser subscribes to it (10 s
+    /// at most).
+    pub async fn joined(
+        session: &zenoh::Session,
+        ns: &str,
+        name: &str,
+        kind: AgentKind,
+        seed: u64,
+    ) -> Agent {
+        let agent = Agent::start(session, ns, name, kind, Link::default(), seed)
+            .await
+            .expect("the agent starts");
+        agent
+            .wait_for_subscriber(Duration::from_secs(10))
+            .await
+            .expect("a fuser subscribes to the agent");
+        agent
     }
 
     /// A running fuser node: stop it, read its fused windows, await its final statistics.

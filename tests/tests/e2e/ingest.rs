@@ -2,12 +2,13 @@
 //! produce is counted under its reason while the honest agents' fusion goes on.
 
 use std::time::Duration;
-use v2x_agent::{now_us, Agent, Link};
+use v2x_agent::{now_us, Agent};
 use v2x_fuser::node::{self, NodeConfig};
-use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{keys, limits, wire, AgentKind, Detection, Frame, Uncertainty};
 use v2x_sim::run::free_port;
-use v2x_tests::fuser::{det, endpoint, frame, next_fused, next_t, spawn_fuser_with, wait_live};
+use v2x_tests::fuser::{
+    connect, det, frame, joined, listen, next_fused, next_t, spawn_fuser_with, wait_live,
+};
 use v2x_tests::within;
 use zenoh::qos::CongestionControl;
 
@@ -23,28 +24,12 @@ struct Setup {
 
 async fn setup(ns: &'static str, cfg: NodeConfig) -> Setup {
     let port = free_port().unwrap();
-    let fs = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
-        .await
-        .unwrap();
+    let fs = listen(port).await;
     let fuser = spawn_fuser_with(fs, cfg);
-    let sa = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
-    let sb = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
-    let a = Agent::start(&sa, ns, "a", AgentKind::Vehicle, Link::default(), 1)
-        .await
-        .unwrap();
-    let b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
-        .await
-        .unwrap();
-    a.wait_for_subscriber(Duration::from_secs(10))
-        .await
-        .unwrap();
-    b.wait_for_subscriber(Duration::from_secs(10))
-        .await
-        .unwrap();
+    let sa = connect(port).await;
+    let sb = connect(port).await;
+    let a = joined(&sa, ns, "a", AgentKind::Vehicle, 1).await;
+    let b = joined(&sb, ns, "b", AgentKind::Infrastructure, 2).await;
     wait_live(&sa, ns, &["a", "b"]).await;
     Setup {
         port,
@@ -182,9 +167,7 @@ async fn ten_thousand_agent_names_leave_the_fuser_bounded() {
     let ns = "names";
     let mut s = setup(ns, cfg(ns, 300.0)).await;
     let rss_before = rss_mib();
-    let spam = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
-        .await
-        .unwrap();
+    let spam = connect(s.port).await;
     let t = now_us();
     for k in 0..10_000 {
         let name = format!("spam{k}");
@@ -253,9 +236,7 @@ async fn of_a_fast_agents_frames_the_closest_to_the_anchor_is_fused() {
     let mut s = setup(ns, cfg(ns, 2000.0)).await;
     // One session sends for three agents in a known order: slow (10 Hz) opens the window, fast
     // (20 Hz, with jitter) puts two frames in it, and a third agent completes it.
-    let raw = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
-        .await
-        .unwrap();
+    let raw = connect(s.port).await;
     let mut tokens = Vec::new();
     for name in ["slow", "fast", "third"] {
         tokens.push(
@@ -304,9 +285,7 @@ struct Attacker {
 
 impl Attacker {
     async fn join(s: &Setup, ns: &'static str, name: &'static str, also_live: &[&str]) -> Self {
-        let session = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
-            .await
-            .unwrap();
+        let session = connect(s.port).await;
         let token = session
             .liveliness()
             .declare_token(keys::alive(ns, name))
@@ -484,9 +463,7 @@ async fn frames_stamped_ahead_hold_only_their_own_window() {
 async fn a_flapping_token_and_a_reserved_name_cost_nothing() {
     let ns = "flap";
     let mut s = setup(ns, cfg(ns, 300.0)).await;
-    let other = open_session(&ZenohArgs::loopback(&[], &[endpoint(s.port)]))
-        .await
-        .unwrap();
+    let other = connect(s.port).await;
     // An agent that calls itself the fuser is refused, frames and token.
     let fake = other
         .liveliness()

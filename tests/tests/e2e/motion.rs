@@ -2,14 +2,13 @@
 //! predicts both boxes to the window's latest capture, and the fused centre lands where the car
 //! is then, as when both captured at once. Without compensation it lands halfway between.
 
-use std::time::Duration;
-use v2x_agent::{Agent, Link};
 use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::NodeConfig;
-use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{AgentKind, Frame, Velocity};
 use v2x_sim::run::free_port;
-use v2x_tests::fuser::{det, endpoint, frame, next_fused, next_t, spawn_fuser_with, wait_live};
+use v2x_tests::fuser::{
+    connect, det, frame, joined, listen, next_fused, next_t, spawn_fuser_with, wait_live,
+};
 use v2x_tests::within;
 
 /// The car: 20 m/s along x, at x = 10 m at `t0_us`.
@@ -21,9 +20,7 @@ fn car_x(t0_us: u64, t_us: u64) -> f64 {
 /// fused centre's x error against the car at each window's reference time.
 async fn fused_errors(ns: &'static str, motion: Option<MotionParams>, offset_us: u64) -> Vec<f64> {
     let port = free_port().unwrap();
-    let fs = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
-        .await
-        .unwrap();
+    let fs = listen(port).await;
     let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
     cfg.window_ms = 150.0;
     cfg.motion = motion;
@@ -31,16 +28,8 @@ async fn fused_errors(ns: &'static str, motion: Option<MotionParams>, offset_us:
     let mut agents = Vec::new();
     let mut sessions = Vec::new();
     for (i, name) in ["a", "b"].into_iter().enumerate() {
-        let s = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-            .await
-            .unwrap();
-        let agent = Agent::start(&s, ns, name, AgentKind::Vehicle, Link::default(), i as u64)
-            .await
-            .unwrap();
-        agent
-            .wait_for_subscriber(Duration::from_secs(10))
-            .await
-            .unwrap();
+        let s = connect(port).await;
+        let agent = joined(&s, ns, name, AgentKind::Vehicle, i as u64).await;
         agents.push(agent);
         sessions.push(s);
     }

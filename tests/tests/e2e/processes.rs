@@ -170,9 +170,8 @@ fn sigterm(child: &std::process::Child) {
 #[tokio::test(flavor = "multi_thread")]
 async fn sigterm_makes_the_fuser_node_write_its_recording_and_statistics() {
     use v2x_agent::{Agent, Link};
-    use v2x_protocol::net::{open_session, ZenohArgs};
     use v2x_protocol::AgentKind;
-    use v2x_tests::fuser::{endpoint, frame, next_t, wait_live};
+    use v2x_tests::fuser::{connect, endpoint, frame, next_t, wait_live};
     use v2x_tests::within;
 
     let dir = tempdir("sigterm-node");
@@ -187,9 +186,7 @@ async fn sigterm_makes_the_fuser_node_write_its_recording_and_statistics() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let session = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
+    let session = connect(port).await;
     let mut a = Agent::start(
         &session,
         "term",
@@ -281,9 +278,8 @@ fn rss_of(pid: u32) -> f64 {
 #[tokio::test(flavor = "multi_thread")]
 async fn memory_an_attacker_takes_from_the_fuser_comes_back() {
     use v2x_agent::{Agent, Link};
-    use v2x_protocol::net::{open_session, ZenohArgs};
     use v2x_protocol::{keys, wire, AgentKind};
-    use v2x_tests::fuser::{endpoint, frame, next_t, wait_live};
+    use v2x_tests::fuser::{connect, endpoint, frame, next_t, wait_live};
     use v2x_tests::within;
 
     let ns = "memory";
@@ -296,9 +292,7 @@ async fn memory_an_attacker_takes_from_the_fuser_comes_back() {
         .spawn()
         .unwrap();
     let pid = fuser.id();
-    let session = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
+    let session = connect(port).await;
     let fused = session.declare_subscriber(keys::fused(ns)).await.unwrap();
     let mut a = Agent::start(&session, ns, "a", AgentKind::Vehicle, Link::default(), 1)
         .await
@@ -321,9 +315,7 @@ async fn memory_an_attacker_takes_from_the_fuser_comes_back() {
     }
     let before = rss_of(pid);
 
-    let attacker = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
+    let attacker = connect(port).await;
     let stats = |what: &'static str, cond: fn(&serde_json::Value) -> bool| {
         let session = session.clone();
         async move {

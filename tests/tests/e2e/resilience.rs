@@ -7,40 +7,22 @@ use v2x_fuser::node;
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{keys, wire, AgentKind};
 use v2x_sim::run::free_port;
-use v2x_tests::fuser::{endpoint, frame, next_fused, next_t, spawn_fuser, wait_live};
+use v2x_tests::fuser::{
+    connect, endpoint, frame, joined, listen, next_fused, next_t, spawn_fuser, wait_live,
+};
 use v2x_tests::within;
 
 #[tokio::test(flavor = "multi_thread")]
 async fn an_agent_that_leaves_is_not_waited_for_and_can_rejoin() {
     let ns = "leave";
     let port = free_port().unwrap();
-    let fuser_session = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
-        .await
-        .unwrap();
+    let fuser_session = listen(port).await;
     // A long wait: windows can only close early because every *live* agent contributed.
     let (stop, mut fused, task) = spawn_fuser(fuser_session, ns, 5000.0);
-    let sa = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
-    let sb = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
-    let mut a = Agent::start(&sa, ns, "a", AgentKind::Vehicle, Link::default(), 1)
-        .await
-        .unwrap();
-    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
-        .await
-        .unwrap();
-    within(
-        10,
-        "a subscriber",
-        a.wait_for_subscriber(Duration::from_secs(10)),
-    )
-    .await
-    .unwrap();
-    b.wait_for_subscriber(Duration::from_secs(10))
-        .await
-        .unwrap();
+    let sa = connect(port).await;
+    let sb = connect(port).await;
+    let mut a = joined(&sa, ns, "a", AgentKind::Vehicle, 1).await;
+    let mut b = joined(&sb, ns, "b", AgentKind::Infrastructure, 2).await;
     wait_live(&sa, ns, &["a", "b"]).await;
 
     let mut last = 0;
@@ -98,9 +80,7 @@ async fn fusion_resumes_after_the_fuser_restarts() {
     let ns = "restart";
     // Agents listen; the fuser connects to them, so a restarted fuser simply connects again.
     let (pa, pb) = (free_port().unwrap(), free_port().unwrap());
-    let sa = open_session(&ZenohArgs::loopback(&[endpoint(pa)], &[]))
-        .await
-        .unwrap();
+    let sa = listen(pa).await;
     let sb = open_session(&ZenohArgs::loopback(&[endpoint(pb)], &[endpoint(pa)]))
         .await
         .unwrap();
@@ -171,13 +151,9 @@ async fn fusion_resumes_after_the_fuser_restarts() {
 async fn late_duplicate_out_of_order_and_malformed_frames() {
     let ns = "faults";
     let port = free_port().unwrap();
-    let fuser_session = open_session(&ZenohArgs::loopback(&[endpoint(port)], &[]))
-        .await
-        .unwrap();
+    let fuser_session = listen(port).await;
     let (stop, mut fused, task) = spawn_fuser(fuser_session, ns, 300.0);
-    let s = open_session(&ZenohArgs::loopback(&[], &[endpoint(port)]))
-        .await
-        .unwrap();
+    let s = connect(port).await;
     // A raw publisher with no liveliness token: windows close by deadline only.
     let publisher = s
         .declare_publisher(keys::detections(ns, "x"))

@@ -11,7 +11,7 @@ use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{keys, wire, AgentKind, Frame};
 use v2x_sim::certs::{client_config, issue, leaf, new_ca, CertsConfig, Issued};
 use v2x_sim::run::free_port;
-use v2x_tests::fuser::{det, frame, next_fused, next_t, spawn_fuser_with, wait_live};
+use v2x_tests::fuser::{det, frame, joined, next_fused, next_t, spawn_fuser_with, wait_live};
 use v2x_tests::{tempdir, within};
 
 fn certs(name: &str, ns: &str, port: u16) -> Issued {
@@ -179,19 +179,9 @@ async fn each_identity_may_do_only_what_the_policy_allows() {
 
     // Honest agents: b joins properly, and "a" (mallory) sends its own frames.
     let sb = open(&issued.agents["b"]).await;
-    let mut b = Agent::start(&sb, ns, "b", AgentKind::Infrastructure, Link::default(), 2)
-        .await
-        .unwrap();
-    b.wait_for_subscriber(Duration::from_secs(10))
-        .await
-        .unwrap();
+    let mut b = joined(&sb, ns, "b", AgentKind::Infrastructure, 2).await;
     wait_live(&observer, ns, &["a", "b"]).await;
-    let mut a = Agent::start(&mallory, ns, "a", AgentKind::Vehicle, Link::default(), 1)
-        .await
-        .unwrap();
-    a.wait_for_subscriber(Duration::from_secs(10))
-        .await
-        .unwrap();
+    let mut a = joined(&mallory, ns, "a", AgentKind::Vehicle, 1).await;
     let mut last = 0;
     let mut expected = Vec::new();
     for _ in 0..3 {
@@ -452,13 +442,7 @@ async fn an_authenticated_agent_on_its_own_key_cannot_take_the_others_output() {
         ("b", AgentKind::Infrastructure, 2),
     ] {
         let s = open(&issued.agents[name]).await;
-        let agent = Agent::start(&s, ns, name, kind, Link::default(), seed)
-            .await
-            .unwrap();
-        agent
-            .wait_for_subscriber(Duration::from_secs(10))
-            .await
-            .unwrap();
+        let agent = joined(&s, ns, name, kind, seed).await;
         honest.push((s, agent));
     }
     // c holds its own certificate and writes only on its own key, with a token.
