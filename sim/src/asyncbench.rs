@@ -13,11 +13,14 @@
 //! noise and differs only in timing; frames within the largest offset of a scene's start are
 //! left out of every row, so that every row scores the same instants.
 
-use crate::bench::cell;
 use crate::bench::BenchConfig;
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
+use crate::table::{
+    cell, markdown,
+    Align::{Left, Right},
+};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::motion::{compensate, MotionParams};
@@ -214,22 +217,33 @@ pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
 
 /// The rows as a Markdown table, with each method's recovery ([`recovery`]) under it.
 pub fn table(rows: &[AsyncRow]) -> String {
-    let mut s = String::from("| rates | offset (ms) | compensation | method | precision | recall | mATE (m) | mAVE (m/s) | TP-only mATE |\n|---|---:|---|---|---:|---:|---:|---:|---:|\n");
-    for r in rows {
-        let m = &r.metrics;
-        s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            r.rates,
-            r.offset_ms,
-            if r.compensation { "yes" } else { "no" },
-            r.method,
-            cell(m.precision, 4),
-            cell(m.recall, 4),
-            cell(m.all.m_ate, 3),
-            cell(m.all.m_ave, 3),
-            cell(m.tp_only.m_ate, 3),
-        ));
-    }
+    let mut s = markdown(
+        &[
+            ("rates", Left),
+            ("offset (ms)", Right),
+            ("compensation", Left),
+            ("method", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mATE (m)", Right),
+            ("mAVE (m/s)", Right),
+            ("TP-only mATE", Right),
+        ],
+        rows.iter().map(|r| {
+            let m = &r.metrics;
+            vec![
+                r.rates.clone(),
+                r.offset_ms.to_string(),
+                (if r.compensation { "yes" } else { "no" }).to_string(),
+                r.method.clone(),
+                cell(m.precision, 4),
+                cell(m.recall, 4),
+                cell(m.all.m_ate, 3),
+                cell(m.all.m_ave, 3),
+                cell(m.tp_only.m_ate, 3),
+            ]
+        }),
+    );
     let mut methods: Vec<&str> = Vec::new();
     for r in rows {
         if !methods.contains(&r.method.as_str()) {

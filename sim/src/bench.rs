@@ -2,10 +2,14 @@
 //! lower bound, on one ground truth. Frames are independent, so they are scored in parallel;
 //! the noise of a frame depends only on (seed, agent, frame), so results do not depend on threads.
 
-use crate::dataset::GroundTruth;
+use crate::dataset::{GroundTruth, GtObject};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
+use crate::table::{
+    cell, markdown,
+    Align::{Left, Right},
+};
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -75,24 +79,15 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
         let slots = n_agents + cfg.methods.len();
-        let accs = (0..gt.frames.len())
-            .into_par_iter()
-            .fold(
-                || vec![Accumulator::new(); slots],
-                |mut accs, i| {
-                    let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                    let objects = &gt.frames[i].objects;
-                    for (a, d) in dets.iter().enumerate() {
-                        accs[a].add_frame(objects, d);
-                    }
-                    for (m, method) in cfg.methods.iter().enumerate() {
-                        accs[n_agents + m].add_frame(objects, &method.fuse(&dets));
-                    }
-                    tick();
-                    accs
-                },
-            )
-            .reduce(|| vec![Accumulator::new(); slots], merge_slots);
+        let accs = per_frame(gt, cfg, setting, slots, |accs, dets, objects| {
+            for (a, d) in dets.iter().enumerate() {
+                accs[a].add_frame(objects, d);
+            }
+            for (m, method) in cfg.methods.iter().enumerate() {
+                accs[n_agents + m].add_frame(objects, &method.fuse(dets));
+            }
+            tick();
+        });
         for a in 0..n_agents {
             rows.push(Row {
                 noise: setting.name.clone(),
@@ -127,22 +122,13 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
     let mut rows = Vec::new();
     for setting in &cfg.settings {
         let slots = 2 * cfg.methods.len();
-        let accs = (0..gt.frames.len())
-            .into_par_iter()
-            .fold(
-                || vec![Accumulator::new(); slots],
-                |mut accs, i| {
-                    let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                    let objects = &gt.frames[i].objects;
-                    for (m, method) in cfg.methods.iter().enumerate() {
-                        accs[2 * m].add_frame(objects, &method.fuse(&dets));
-                        let regional = region::fuse_regions(tiling, halo_m, method, &dets);
-                        accs[2 * m + 1].add_frame(objects, &regional);
-                    }
-                    accs
-                },
-            )
-            .reduce(|| vec![Accumulator::new(); slots], merge_slots);
+        let accs = per_frame(gt, cfg, setting, slots, |accs, dets, objects| {
+            for (m, method) in cfg.methods.iter().enumerate() {
+                accs[2 * m].add_frame(objects, &method.fuse(dets));
+                let regional = region::fuse_regions(tiling, halo_m, method, dets);
+                accs[2 * m + 1].add_frame(objects, &regional);
+            }
+        });
         for (m, method) in cfg.methods.iter().enumerate() {
             for (k, name) in [method.name(), format!("{method} regions")]
                 .into_iter()
@@ -406,28 +392,42 @@ fn track_scene(
 
 /// The tracking rows as a Markdown table.
 pub fn tracking_table(rows: &[TrackingRow]) -> String {
-    let mut s = String::from("| noise | boxes | precision | recall | mATE (m) | mAOE (deg) | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for r in rows {
-        let m = &r.metrics;
-        let t = r.tracking.as_ref();
-        s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            r.noise,
-            r.method,
-            cell(m.precision, 4),
-            cell(m.recall, 4),
-            cell(m.all.m_ate, 3),
-            cell(m.all.m_aoe, 2),
-            cell(t.map(|t| t.amota), 4),
-            cell(t.map(|t| t.amotp), 3),
-            cell(t.map(|t| t.mota), 4),
-            cell(t.map(|t| t.motp), 3),
-            t.map_or("-".into(), |t| t.ids.to_string()),
-            cell(t.map(|t| t.ids_per_100_tracks), 2),
-            t.map_or("-".into(), |t| t.frag.to_string()),
-        ));
-    }
-    s
+    let count = |n: Option<usize>| n.map_or("-".into(), |n| n.to_string());
+    markdown(
+        &[
+            ("noise", Left),
+            ("boxes", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mATE (m)", Right),
+            ("mAOE (deg)", Right),
+            ("AMOTA", Right),
+            ("AMOTP (m)", Right),
+            ("MOTA", Right),
+            ("MOTP (m)", Right),
+            ("IDS", Right),
+            ("IDS / 100 objects", Right),
+            ("FRAG", Right),
+        ],
+        rows.iter().map(|r| {
+            let (m, t) = (&r.metrics, r.tracking.as_ref());
+            vec![
+                r.noise.clone(),
+                r.method.clone(),
+                cell(m.precision, 4),
+                cell(m.recall, 4),
+                cell(m.all.m_ate, 3),
+                cell(m.all.m_aoe, 2),
+                cell(t.map(|t| t.amota), 4),
+                cell(t.map(|t| t.amotp), 3),
+                cell(t.map(|t| t.mota), 4),
+                cell(t.map(|t| t.motp), 3),
+                count(t.map(|t| t.ids)),
+                cell(t.map(|t| t.ids_per_100_tracks), 2),
+                count(t.map(|t| t.frag)),
+            ]
+        }),
+    )
 }
 
 /// Scores one frame's tracks of a scene: their boxes by id, their ids as the tracking
@@ -477,6 +477,28 @@ impl Slot for TrackingEval {
     }
 }
 
+/// Scores every frame of `gt` in parallel into `slots` accumulators: `add` takes each frame's
+/// agents' boxes (under `setting`) and its objects.
+fn per_frame(
+    gt: &GroundTruth,
+    cfg: &BenchConfig,
+    setting: &NoiseSetting,
+    slots: usize,
+    add: impl Fn(&mut [Accumulator], &[Vec<Detection>], &[GtObject]) + Sync,
+) -> Vec<Accumulator> {
+    (0..gt.frames.len())
+        .into_par_iter()
+        .fold(
+            || vec![Accumulator::new(); slots],
+            |mut accs, i| {
+                let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
+                add(&mut accs, &dets, &gt.frames[i].objects);
+                accs
+            },
+        )
+        .reduce(|| vec![Accumulator::new(); slots], merge_slots)
+}
+
 /// Adds `b`'s slots into `a`'s, one by one.
 pub(crate) fn merge_slots<T: Slot>(mut a: Vec<T>, b: Vec<T>) -> Vec<T> {
     for (x, y) in a.iter_mut().zip(b) {
@@ -497,51 +519,68 @@ pub(crate) fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
     scenes
 }
 
-/// A table cell: the value with `digits` decimals, or `-` when there is none.
-pub(crate) fn cell(v: Option<f64>, digits: usize) -> String {
-    v.map_or_else(|| "-".to_string(), |x| format!("{x:.digits$}"))
-}
-
 /// The rows as a Markdown table.
 pub fn table(rows: &[Row]) -> String {
-    let mut s = String::from("| noise | method | precision | recall | mATE (m) | mASE (m) | mAOE (deg) | TP-only mATE | TP-only mASE | TP-only mAOE |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for r in rows {
-        let m = &r.metrics;
-        s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            r.noise,
-            r.method,
-            cell(m.precision, 4),
-            cell(m.recall, 4),
-            cell(m.all.m_ate, 3),
-            cell(m.all.m_ase, 3),
-            cell(m.all.m_aoe, 2),
-            cell(m.tp_only.m_ate, 3),
-            cell(m.tp_only.m_ase, 3),
-            cell(m.tp_only.m_aoe, 2)
-        ));
-    }
-    s
+    markdown(
+        &[
+            ("noise", Left),
+            ("method", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mATE (m)", Right),
+            ("mASE (m)", Right),
+            ("mAOE (deg)", Right),
+            ("TP-only mATE", Right),
+            ("TP-only mASE", Right),
+            ("TP-only mAOE", Right),
+        ],
+        rows.iter().map(|r| {
+            let m = &r.metrics;
+            vec![
+                r.noise.clone(),
+                r.method.clone(),
+                cell(m.precision, 4),
+                cell(m.recall, 4),
+                cell(m.all.m_ate, 3),
+                cell(m.all.m_ase, 3),
+                cell(m.all.m_aoe, 2),
+                cell(m.tp_only.m_ate, 3),
+                cell(m.tp_only.m_ase, 3),
+                cell(m.tp_only.m_aoe, 2),
+            ]
+        }),
+    )
 }
 
 /// Distance-matched (nuScenes benchmark) figures as a Markdown table, one row per named result.
 pub fn detection_table(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
-    let mut s = String::from("| predictions | precision | recall | mAP | NDS | mATE (m) | mASE | mAOE (rad) | mAVE (m/s) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-    for (name, m) in rows {
-        s.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
-            name,
-            cell(m.precision, 4),
-            cell(m.recall, 4),
-            m.m_ap,
-            m.nds,
-            m.m_ate,
-            m.m_ase,
-            m.m_aoe,
-            m.m_ave
-        ));
-    }
-    s
+    let fixed = |v: f64, digits: usize| cell(Some(v), digits);
+    markdown(
+        &[
+            ("predictions", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mAP", Right),
+            ("NDS", Right),
+            ("mATE (m)", Right),
+            ("mASE", Right),
+            ("mAOE (rad)", Right),
+            ("mAVE (m/s)", Right),
+        ],
+        rows.iter().map(|(name, m)| {
+            vec![
+                name.clone(),
+                cell(m.precision, 4),
+                cell(m.recall, 4),
+                fixed(m.m_ap, 4),
+                fixed(m.nds, 4),
+                fixed(m.m_ate, 3),
+                fixed(m.m_ase, 3),
+                fixed(m.m_aoe, 3),
+                fixed(m.m_ave, 3),
+            ]
+        }),
+    )
 }
 
 /// Distance-matched figures as CSV.

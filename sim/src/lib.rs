@@ -10,6 +10,7 @@
 //! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
 //!   [`run`] (whole scenarios), [`load`] (the fuser under load) and [`certs`] (certificates and
 //!   the access-control policy for the secure mode).
+//! - [`table`]: the Markdown tables they print.
 
 pub mod asyncbench;
 pub mod bench;
@@ -22,6 +23,7 @@ pub mod plot;
 pub mod region_bench;
 pub mod run;
 pub mod scenario;
+pub mod table;
 pub mod timeline;
 
 pub use v2x_eval::{dair_eval, detection_eval, metrics, tracking_eval};

@@ -6,6 +6,10 @@ use super::schedule::Schedule;
 use crate::dataset::{GroundTruth, GtObject};
 use crate::metrics::{Accumulator, Metrics};
 use crate::scenario::Scenario;
+use crate::table::{
+    cell, markdown,
+    Align::{Left, Right},
+};
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -486,11 +490,6 @@ pub fn recorded(gt: &GroundTruth, schedule: &Schedule, outcome: &FuserOutcome) -
     r
 }
 
-/// A number with `digits` decimals, or `-`.
-fn opt(x: Option<f64>, digits: usize) -> String {
-    x.map_or("-".into(), |v| format!("{v:.digits$}"))
-}
-
 /// What agent roles without the fuser print: each one's own side.
 #[derive(Clone, Debug, Serialize)]
 pub struct AgentReport {
@@ -504,19 +503,31 @@ pub struct AgentReport {
 
 /// Prints an agent report as a table.
 pub fn print_agent_table(r: &AgentReport) {
-    println!("| agent | frames | payload B/frame | wire B/frame | Zenoh overhead B/msg | kbit/s | dropped by link |");
-    println!("|---|---:|---:|---:|---:|---:|---:|");
-    for (n, b) in &r.bandwidth {
-        println!(
-            "| {n} | {} | {:.0} | {} | {} | {:.1} | {} |",
-            b.frames,
-            b.payload_bytes_per_frame,
-            opt(b.wire_bytes_per_frame, 0),
-            opt(b.overhead_bytes_per_message, 1),
-            b.kbit_s,
-            r.sent.get(n).map_or(0, |s| s.1)
-        );
-    }
+    print!(
+        "{}",
+        markdown(
+            &[
+                ("agent", Left),
+                ("frames", Right),
+                ("payload B/frame", Right),
+                ("wire B/frame", Right),
+                ("Zenoh overhead B/msg", Right),
+                ("kbit/s", Right),
+                ("dropped by link", Right),
+            ],
+            r.bandwidth.iter().map(|(n, b)| {
+                vec![
+                    n.clone(),
+                    b.frames.to_string(),
+                    format!("{:.0}", b.payload_bytes_per_frame),
+                    cell(b.wire_bytes_per_frame, 0),
+                    cell(b.overhead_bytes_per_message, 1),
+                    format!("{:.1}", b.kbit_s),
+                    r.sent.get(n).map_or(0, |s| s.1).to_string(),
+                ]
+            }),
+        )
+    );
 }
 
 /// One region's own figures.
@@ -562,24 +573,38 @@ impl RegionReport {
     }
 }
 
-/// Prints the summary as tables.
 /// Prints a city's regions, one row each.
 pub fn print_regions(regions: &[RegionReport]) {
-    println!("| region | router | windows (incomplete) | captures incomplete | fused boxes | agents heard | fusion p50 / p99 (ms) |\n|---|---|---|---|---|---|---|");
-    for r in regions {
-        println!(
-            "| {} | {} | {} ({}) | {} | {} | {} | {:.2} / {:.2} |",
-            r.tile,
-            r.router,
-            r.windows,
-            r.windows_incomplete,
-            r.captures_incomplete,
-            r.fused_objects,
-            r.agents_heard.join(", "),
-            r.fusion_latency_ms.p50_ms.unwrap_or(f64::NAN),
-            r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN)
-        );
-    }
+    print!(
+        "{}",
+        markdown(
+            &[
+                ("region", Left),
+                ("router", Left),
+                ("windows (incomplete)", Left),
+                ("captures incomplete", Left),
+                ("fused boxes", Left),
+                ("agents heard", Left),
+                ("fusion p50 / p99 (ms)", Left),
+            ],
+            regions.iter().map(|r| {
+                let ms = |v: Option<f64>| v.unwrap_or(f64::NAN);
+                vec![
+                    r.tile.clone(),
+                    r.router.clone(),
+                    format!("{} ({})", r.windows, r.windows_incomplete),
+                    r.captures_incomplete.to_string(),
+                    r.fused_objects.to_string(),
+                    r.agents_heard.join(", "),
+                    format!(
+                        "{:.2} / {:.2}",
+                        ms(r.fusion_latency_ms.p50_ms),
+                        ms(r.fusion_latency_ms.p99_ms)
+                    ),
+                ]
+            }),
+        )
+    );
 }
 
 /// Prints a run's summary as tables.
@@ -611,26 +636,44 @@ pub fn print_table(s: &Summary) {
         );
         println!();
     }
-    println!("| agent | frames | objects/frame | payload B/frame | payload B/object | wire B/frame sent | Zenoh overhead B/msg | wire B/frame received | kbit/s | late | duplicate | invalid | dropped by link |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for (n, b) in &s.bandwidth {
-        let c = &s.counts[n];
-        println!(
-            "| {n} | {} | {:.1} | {:.0} | {:.1} | {} | {} | {} | {:.1} | {} | {} | {} | {} |",
-            b.frames,
-            b.objects_per_frame,
-            b.payload_bytes_per_frame,
-            b.payload_bytes_per_object,
-            opt(b.wire_bytes_per_frame, 0),
-            opt(b.overhead_bytes_per_message, 1),
-            opt(b.received_wire_bytes_per_frame, 0),
-            b.kbit_s,
-            c.late,
-            c.duplicate,
-            c.invalid,
-            c.dropped_by_link
-        );
-    }
+    print!(
+        "{}",
+        markdown(
+            &[
+                ("agent", Left),
+                ("frames", Right),
+                ("objects/frame", Right),
+                ("payload B/frame", Right),
+                ("payload B/object", Right),
+                ("wire B/frame sent", Right),
+                ("Zenoh overhead B/msg", Right),
+                ("wire B/frame received", Right),
+                ("kbit/s", Right),
+                ("late", Right),
+                ("duplicate", Right),
+                ("invalid", Right),
+                ("dropped by link", Right),
+            ],
+            s.bandwidth.iter().map(|(n, b)| {
+                let c = &s.counts[n];
+                vec![
+                    n.clone(),
+                    b.frames.to_string(),
+                    format!("{:.1}", b.objects_per_frame),
+                    format!("{:.0}", b.payload_bytes_per_frame),
+                    format!("{:.1}", b.payload_bytes_per_object),
+                    cell(b.wire_bytes_per_frame, 0),
+                    cell(b.overhead_bytes_per_message, 1),
+                    cell(b.received_wire_bytes_per_frame, 0),
+                    format!("{:.1}", b.kbit_s),
+                    c.late.to_string(),
+                    c.duplicate.to_string(),
+                    c.invalid.to_string(),
+                    c.dropped_by_link.to_string(),
+                ]
+            }),
+        )
+    );
     println!("(late-fusion reference in the paper: 2^9 = 512 bytes per frame)");
     println!();
     let l = |x: &Latency| {
