@@ -330,19 +330,13 @@ pub fn consistent(p: &CsbaParams, group: &Detection, member: &Detection) -> bool
 #[cfg(test)]
 mod tests {
     use super::*;
-    use v2x_protocol::{Class, Uncertainty};
 
     fn det(x: f64, y: f64, s: f64, id: u32) -> Detection {
         Detection {
-            class: Class::Car,
-            center: [x, y, 0.0],
-            size: [4.5, 1.9, 1.6],
             yaw: 0.3,
             score: 0.7,
-            std: Uncertainty::uniform(s, 0.1, 0.1),
-            pos_cov: None,
-            velocity: None,
             id,
+            ..Detection::car(x, y, s)
         }
     }
 

@@ -85,20 +85,14 @@ pub mod fuser {
     use v2x_agent::{now_us, Agent, Link};
     use v2x_fuser::node::{self, Fused, NodeConfig};
     use v2x_protocol::net::{open_session, ZenohArgs};
-    use v2x_protocol::{AgentKind, Class, Detection, Frame, Uncertainty};
+    use v2x_protocol::{AgentKind, Detection, Frame};
 
     /// A car at (x, 0) with mild stds and the given id.
     pub fn det(x: f64, id: u32) -> Detection {
         Detection {
-            class: Class::Car,
             center: [x, 0.0, 0.8],
-            size: [4.5, 1.9, 1.6],
-            yaw: 0.0,
-            score: 0.8,
-            std: Uncertainty::uniform(0.5, 0.1, 0.1),
-            pos_cov: None,
-            velocity: None,
             id,
+            ..Detection::car(x, 0.0, 0.5)
         }
     }
 

@@ -6,26 +6,13 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use v2x_protocol::{wrap_angle, Class, Detection, NoiseProfile, Uncertainty};
 
-const MIX: [Class; 10] = [
-    Class::Car,
-    Class::Car,
-    Class::Car,
-    Class::Car,
-    Class::Pedestrian,
-    Class::Pedestrian,
-    Class::Barrier,
-    Class::TrafficCone,
-    Class::Truck,
-    Class::Bicycle,
-];
-
 /// Ground truth of `n` objects, then one noisy copy per agent.
 pub fn scene(n: usize, agents: usize, noise: NoiseProfile, seed: u64) -> Vec<Vec<Detection>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let radius = 50.0 * (n as f64 / 80.0).sqrt();
     let gt: Vec<Detection> = (0..n)
         .map(|i| {
-            let class = MIX[rng.gen_range(0..MIX.len())];
+            let class = Class::URBAN_MIX[rng.gen_range(0..Class::URBAN_MIX.len())];
             let r = radius * rng.gen::<f64>().sqrt();
             let a = rng.gen::<f64>() * std::f64::consts::TAU;
             Detection {

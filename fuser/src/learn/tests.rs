@@ -6,15 +6,11 @@ use v2x_protocol::Velocity;
 
 fn car(x: f64, y: f64, std: f64) -> Detection {
     Detection {
-        class: Class::Car,
         center: [x, y, 1.0],
         size: [4.6, 1.95, 1.75],
         yaw: 0.3,
-        score: 0.8,
         std: Uncertainty::uniform(std, std / 5.0, std / 10.0),
-        pos_cov: None,
-        velocity: None,
-        id: NO_ID,
+        ..Detection::car(x, y, std)
     }
 }
 

@@ -1,5 +1,5 @@
 use super::*;
-use v2x_protocol::{AgentKind, Class, Uncertainty};
+use v2x_protocol::{AgentKind, Uncertainty};
 
 fn t(x: i32, y: i32) -> Tile {
     Tile { x, y }
@@ -7,15 +7,10 @@ fn t(x: i32, y: i32) -> Tile {
 
 fn det(x: f64) -> Detection {
     Detection {
-        class: Class::Car,
         center: [x, 0.0, 0.5],
-        size: [4.5, 1.9, 1.6],
-        yaw: 0.0,
-        score: 0.8,
         std: Uncertainty::uniform(0.3, 0.1, 0.05),
-        pos_cov: None,
-        velocity: None,
         id: 0,
+        ..Detection::car(x, 0.0, 0.3)
     }
 }
 

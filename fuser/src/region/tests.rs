@@ -1,19 +1,15 @@
 use super::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use v2x_protocol::{Class, Uncertainty};
+use v2x_protocol::Uncertainty;
 
 fn det(x: f64, y: f64, std: f64) -> Detection {
     Detection {
-        class: Class::Car,
         center: [x, y, 0.5],
-        size: [4.5, 1.9, 1.6],
         yaw: 0.2,
-        score: 0.8,
         std: Uncertainty::uniform(std, 0.1, 0.05),
-        pos_cov: None,
-        velocity: None,
         id: 0,
+        ..Detection::car(x, y, std)
     }
 }
 

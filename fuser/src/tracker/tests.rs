@@ -8,15 +8,9 @@ const HZ10: u64 = 100_000;
 /// A car at (x, y) heading `yaw`, with 0.5 m position std and no velocity.
 pub(super) fn car(x: f64, y: f64, yaw: f64) -> Detection {
     Detection {
-        class: Class::Car,
         center: [x, y, 1.0],
-        size: [4.5, 1.9, 1.6],
         yaw,
-        score: 0.8,
-        std: Uncertainty::uniform(0.5, 0.1, 0.1),
-        pos_cov: None,
-        velocity: None,
-        id: NO_ID,
+        ..Detection::car(x, y, 0.5)
     }
 }
 

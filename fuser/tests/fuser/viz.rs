@@ -6,22 +6,18 @@ use foxglove::Decode;
 use std::collections::BTreeMap;
 use v2x_fuser::align::Registration;
 use v2x_fuser::viz::{agent_colour, Viz, FUSED};
-use v2x_protocol::{AgentSet, Class, Detection, Provenance, Uncertainty, Velocity};
+use v2x_protocol::{AgentSet, Detection, Provenance, Velocity};
 
 fn car(x: f64, id: u32) -> Detection {
     Detection {
-        class: Class::Car,
         center: [x, 2.0, 0.9],
-        size: [4.5, 1.9, 1.6],
         yaw: 0.3,
-        score: 0.8,
-        std: Uncertainty::uniform(0.5, 0.1, 0.1),
-        pos_cov: None,
         velocity: Some(Velocity {
             v: [10.0, 0.0],
             std: [0.3, 0.3],
         }),
         id,
+        ..Detection::car(x, 2.0, 0.5)
     }
 }
 
