@@ -185,19 +185,17 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
     use std::f64::consts::FRAC_PI_4;
-    use v2x_protocol::{Class, Uncertainty};
+    use v2x_protocol::Uncertainty;
 
     fn bx(c: [f64; 3], s: [f64; 3], yaw: f64) -> Detection {
         Detection {
-            class: Class::Car,
             center: c,
             size: s,
             yaw,
             score: 1.0,
             std: Uncertainty::uniform(1.0, 1.0, 1.0),
-            pos_cov: None,
-            velocity: None,
             id: 0,
+            ..Detection::car(0.0, 0.0, 1.0)
         }
     }
 

@@ -204,7 +204,16 @@ struct Ctx<'a> {
     index: Option<usize>,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// The whole file, before any sample or box.
+    fn file(file: &'a Path) -> Self {
+        Ctx {
+            file,
+            sample: None,
+            index: None,
+        }
+    }
+
     fn err(&self, field: Option<&str>, message: impl Into<String>) -> JsonError {
         JsonError {
             file: self.file.to_path_buf(),
@@ -269,11 +278,7 @@ pub fn read_results(
     tokens: &mut TokenTable,
     missing: MissingStd,
 ) -> Result<Results, JsonError> {
-    let ctx = Ctx {
-        file: path,
-        sample: None,
-        index: None,
-    };
+    let ctx = Ctx::file(path);
     let text =
         std::fs::read_to_string(path).map_err(|e| ctx.err(None, format!("cannot read: {e}")))?;
     parse_results(path, &text, tokens, missing)
@@ -286,11 +291,7 @@ pub fn parse_results(
     tokens: &mut TokenTable,
     missing: MissingStd,
 ) -> Result<Results, JsonError> {
-    let ctx = Ctx {
-        file: path,
-        sample: None,
-        index: None,
-    };
+    let ctx = Ctx::file(path);
     let root: Value =
         serde_json::from_str(text).map_err(|e| ctx.err(None, format!("not valid JSON: {e}")))?;
     let root = root
@@ -338,11 +339,7 @@ pub fn parse_boxes(
     tokens: &mut TokenTable,
     missing: MissingStd,
 ) -> Result<Vec<Detection>, JsonError> {
-    let ctx = Ctx {
-        file: path,
-        sample: None,
-        index: None,
-    };
+    let ctx = Ctx::file(path);
     let boxes = boxes
         .as_array()
         .ok_or_else(|| ctx.err(None, "expected a list of boxes"))?;

@@ -44,9 +44,9 @@ const TAG_CLASS: u8 = 0x0f;
 const TAG_STD: u8 = 0x10;
 /// Tag bit: the object carries a velocity.
 const TAG_VEL: u8 = 0x20;
-/// The tag bits this version defines.
 /// Tag bit: an object id follows (4 bytes, little-endian); without it the object has none.
 const TAG_ID: u8 = 0x40;
+/// The tag bits this version defines.
 const TAG_KNOWN: u8 = TAG_CLASS | TAG_STD | TAG_VEL | TAG_ID;
 /// Index meaning "the frame itself" in errors.
 const FRAME: usize = usize::MAX;

@@ -88,6 +88,27 @@ struct Actor {
 }
 
 impl Actor {
+    /// An actor heading along its path: from `origin`, `s0` m along `dir` at t = 0, at `speed`.
+    fn heading(
+        (class, size): (Class, [f64; 3]),
+        origin: [f64; 2],
+        dir: [f64; 2],
+        s0: f64,
+        speed: f64,
+        wraps: bool,
+    ) -> Actor {
+        Actor {
+            class,
+            size,
+            origin,
+            dir,
+            s0,
+            speed,
+            wraps,
+            yaw: dir[1].atan2(dir[0]),
+        }
+    }
+
     /// Velocity over ground (m/s): constant along the path.
     fn velocity(&self) -> [f64; 2] {
         [self.dir[0] * self.speed, self.dir[1] * self.speed]
@@ -254,16 +275,8 @@ impl Layout {
             // right-hand traffic: lanes on the positive side drive against `along`
             let sign = if off > 0.0 { -1.0 } else { 1.0 };
             let dir = [along[0] * sign, along[1] * sign];
-            Actor {
-                class,
-                size,
-                origin: [across[0] * off, across[1] * off],
-                dir,
-                s0,
-                speed: lane_speed[lane],
-                wraps: true,
-                yaw: dir[1].atan2(dir[0]),
-            }
+            let origin = [across[0] * off, across[1] * off];
+            Actor::heading((class, size), origin, dir, s0, lane_speed[lane], true)
         };
         Some(actor)
     }
@@ -295,36 +308,32 @@ fn pedestrian(rng: &mut ChaCha8Rng, size: [f64; 3], along: [f64; 2], across: [f6
         let at = if rng.gen_bool(0.5) { 13.0 } else { -13.0 };
         let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let dir = [across[0] * sign, across[1] * sign];
-        Actor {
-            class,
-            size,
-            origin: [along[0] * at, along[1] * at],
+        Actor::heading(
+            (class, size),
+            [along[0] * at, along[1] * at],
             dir,
-            s0: rng.gen_range(-9.0..9.0),
-            speed: rng.gen_range(1.0..1.6),
-            wraps: false,
-            yaw: dir[1].atan2(dir[0]),
-        }
+            rng.gen_range(-9.0..9.0),
+            rng.gen_range(1.0..1.6),
+            false,
+        )
     } else {
         let side = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let off = side * (SIDEWALK + rng.gen_range(-1.0..1.0));
         let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let dir = [along[0] * sign, along[1] * sign];
         let standing = rng.gen_bool(0.2);
-        Actor {
-            class,
-            size,
-            origin: [across[0] * off, across[1] * off],
+        Actor::heading(
+            (class, size),
+            [across[0] * off, across[1] * off],
             dir,
-            s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
-            speed: if standing {
+            rng.gen_range(-HALF_SPAN..HALF_SPAN),
+            if standing {
                 0.0
             } else {
                 rng.gen_range(1.0..1.7)
             },
-            wraps: true,
-            yaw: dir[1].atan2(dir[0]),
-        }
+            true,
+        )
     }
 }
 
@@ -346,16 +355,9 @@ fn two_wheeler(
         (false, Class::Bicycle) => rng.gen_range(3.0..7.0),
         _ => rng.gen_range(6.0..12.0),
     };
-    Actor {
-        class,
-        size,
-        origin: [across[0] * off, across[1] * off],
-        dir,
-        s0: rng.gen_range(-HALF_SPAN..HALF_SPAN),
-        speed,
-        wraps: true,
-        yaw: dir[1].atan2(dir[0]),
-    }
+    let origin = [across[0] * off, across[1] * off];
+    let s0 = rng.gen_range(-HALF_SPAN..HALF_SPAN);
+    Actor::heading((class, size), origin, dir, s0, speed, true)
 }
 
 /// One scene of the town in continuous time: its actors, their ids, where the scene sits on the

@@ -11,19 +11,16 @@ fn det(
     yaw_std: f64,
 ) -> Detection {
     Detection {
-        class: Class::Car,
         center,
         size,
         yaw,
-        score: 0.8,
         std: Uncertainty {
             pos: [pos_std; 3],
             size: [size_std; 3],
             yaw: yaw_std,
         },
-        pos_cov: None,
-        velocity: None,
         id: 0,
+        ..Detection::car(0.0, 0.0, pos_std)
     }
 }
 

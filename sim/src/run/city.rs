@@ -183,14 +183,8 @@ pub async fn run_city_local(
         let _ = r.close().await;
     }
     let outcome = join(outcomes);
-    let mut summary = summarize(
-        scenario,
-        gt,
-        &schedule,
-        &outcome,
-        &totals,
-        start.elapsed().as_secs_f64(),
-    );
+    let wall_s = start.elapsed().as_secs_f64();
+    let mut summary = summarize(scenario, gt, &schedule, &outcome, &totals, wall_s);
     summary.regions = reports.clone();
     Ok((summary, outcome, reports))
 }

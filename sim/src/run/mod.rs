@@ -177,14 +177,8 @@ async fn run_local_until(
     if let Some(r) = router_session {
         let _ = r.close().await;
     }
-    let mut summary = summarize(
-        scenario,
-        gt,
-        &schedule,
-        &outcome,
-        &totals,
-        start.elapsed().as_secs_f64(),
-    );
+    let wall_s = start.elapsed().as_secs_f64();
+    let mut summary = summarize(scenario, gt, &schedule, &outcome, &totals, wall_s);
     summary.security.session_setup_ms = Some(setup.iter().sum::<f64>() / setup.len() as f64);
     Ok((summary, outcome))
 }
