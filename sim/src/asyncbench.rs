@@ -14,6 +14,7 @@
 //! left out of every row, so that every row scores the same instants.
 
 use crate::bench::BenchConfig;
+use crate::bench::{in_order, merge_slots};
 use crate::dataset::GroundTruth;
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
@@ -92,57 +93,54 @@ pub fn run_timing(
 ) -> Vec<(bool, String, Metrics)> {
     let params = MotionParams::default();
     let n = cfg.methods.len();
-    let accs = pairs(gt, timing, skip_us)
-        .into_par_iter()
-        .fold(
-            || vec![Accumulator::new(); 2 * n],
-            |mut accs, (k, t_ref, caps)| {
-                let frame = &gt.frames[k];
-                let places = place_agents(frame, 2, cfg.seed);
-                // Agent 2's draw at a half-period capture is its own.
-                let draw2 = if caps[1] == frame.timestamp_us {
-                    k as u64
-                } else {
-                    k as u64 | 1 << 40
-                };
-                let lists: Vec<Vec<Detection>> = (0..2)
-                    .map(|a| {
-                        let objects = gt.in_draw_order(gt.objects_at(frame.scene, caps[a]));
-                        let draw = if a == 0 { k as u64 } else { draw2 };
-                        let noise = &setting.agents[a];
-                        let capture = Capture {
-                            draw,
-                            scene: frame.scene,
-                            t_us: caps[a],
-                        };
-                        detect(
-                            &objects,
-                            capture,
-                            a,
-                            noise,
-                            places[a].position,
-                            cfg.range,
-                            cfg.seed,
-                        )
-                    })
-                    .collect();
-                let moved = compensate(
-                    &[(&lists[0][..], caps[0]), (&lists[1][..], caps[1])],
-                    t_ref,
-                    &params,
-                );
-                let truth = gt.objects_at(frame.scene, t_ref);
-                for (m, method) in cfg.methods.iter().enumerate() {
-                    accs[m].add_frame(&truth, &method.fuse(&lists));
-                    accs[n + m].add_frame(&truth, &method.fuse(&moved));
-                }
-                accs
-            },
-        )
-        .reduce(
-            || vec![Accumulator::new(); 2 * n],
-            crate::bench::merge_slots,
-        );
+    let accs = in_order(
+        pairs(gt, timing, skip_us).into_par_iter(),
+        |(k, t_ref, caps)| {
+            let mut accs = vec![Accumulator::new(); 2 * n];
+            let frame = &gt.frames[k];
+            let places = place_agents(frame, 2, cfg.seed);
+            // Agent 2's draw at a half-period capture is its own.
+            let draw2 = if caps[1] == frame.timestamp_us {
+                k as u64
+            } else {
+                k as u64 | 1 << 40
+            };
+            let lists: Vec<Vec<Detection>> = (0..2)
+                .map(|a| {
+                    let objects = gt.in_draw_order(gt.objects_at(frame.scene, caps[a]));
+                    let draw = if a == 0 { k as u64 } else { draw2 };
+                    let noise = &setting.agents[a];
+                    let capture = Capture {
+                        draw,
+                        scene: frame.scene,
+                        t_us: caps[a],
+                    };
+                    detect(
+                        &objects,
+                        capture,
+                        a,
+                        noise,
+                        places[a].position,
+                        cfg.range,
+                        cfg.seed,
+                    )
+                })
+                .collect();
+            let moved = compensate(
+                &[(&lists[0][..], caps[0]), (&lists[1][..], caps[1])],
+                t_ref,
+                &params,
+            );
+            let truth = gt.objects_at(frame.scene, t_ref);
+            for (m, method) in cfg.methods.iter().enumerate() {
+                accs[m].add_frame(&truth, &method.fuse(&lists));
+                accs[n + m].add_frame(&truth, &method.fuse(&moved));
+            }
+            accs
+        },
+        merge_slots,
+    )
+    .unwrap_or_else(|| vec![Accumulator::new(); 2 * n]);
     let mut rows = Vec::new();
     for (i, acc) in accs.iter().enumerate() {
         rows.push((i >= n, cfg.methods[i % n].name(), acc.summary()));

@@ -3,6 +3,7 @@
 //! scored by the nuScenes-style benchmark over the classes the ground truth holds and by the
 //! DAIR-V2X protocol in the vehicle's frame, with the bytes each frame costs on the wire.
 
+use crate::bench::{in_order, FRAMES_PER_TASK};
 use crate::dair::{Dair, AGENTS};
 use crate::dair_eval::{detection_boxes, gt_boxes, official_bytes, DairEval, DairMetrics};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
@@ -92,16 +93,17 @@ pub fn run(
     range: Option<f64>,
 ) -> Vec<DairRow> {
     let n = 2 + methods.len();
-    let slots = (0..d.gt.frames.len())
-        .into_par_iter()
-        .fold(
-            || Slots::new(n),
-            |mut s, i| {
+    let frames: Vec<usize> = (0..d.gt.frames.len()).collect();
+    let slots = in_order(
+        frames.par_chunks(FRAMES_PER_TASK),
+        |chunk| {
+            let mut s = Slots::new(n);
+            for &i in chunk {
                 let agents: Vec<Vec<Detection>> = (0..2)
                     .map(|a| d.detections(a, i, &setting.agents[a], seed, range))
                     .collect();
                 let Some(to_vehicle) = d.rec.pairs[i].veh_to_world.inverse() else {
-                    return s;
+                    continue;
                 };
                 let objects = &d.gt.frames[i].objects;
                 let truth = gt_boxes(objects, &to_vehicle);
@@ -120,10 +122,12 @@ pub fn run(
                 }
                 s.official += official_bytes(detection_boxes(&agents[1], &to_vehicle).len());
                 s.frames += 1;
-                s
-            },
-        )
-        .reduce(|| Slots::new(n), Slots::merge);
+            }
+            s
+        },
+        Slots::merge,
+    )
+    .unwrap_or_else(|| Slots::new(n));
     let per_frame = |b: usize| b as f64 / slots.frames.max(1) as f64;
     let names = AGENTS
         .iter()

@@ -5,7 +5,7 @@
 //! less the one fuser's.
 
 use crate::bench::{
-    agent_detections, merge_slots, scenes, score_tracked, BenchConfig, TrackingRow,
+    agent_detections, in_order, merge_pairs, scenes, score_tracked, BenchConfig, TrackingRow,
 };
 use crate::dataset::GroundTruth;
 use crate::metrics::Accumulator;
@@ -61,12 +61,12 @@ pub fn run_region_tracking(
                 vec![TrackingEval::new(); slots],
             )
         };
-        let (accs, evals) = scenes(gt)
-            .into_par_iter()
-            .map(|frames| scene(gt, &frames, setting, cfg, tiling, halo_m))
-            .reduce(empty, |(a, e), (b, f)| {
-                (merge_slots(a, b), merge_slots(e, f))
-            });
+        let (accs, evals) = in_order(
+            scenes(gt).into_par_iter(),
+            |frames| scene(gt, &frames, setting, cfg, tiling, halo_m),
+            merge_pairs,
+        )
+        .unwrap_or_else(empty);
         for (slot, method) in &names {
             rows.push(TrackingRow {
                 noise: setting.name.clone(),
