@@ -63,13 +63,18 @@ def tables(dataroot, version):
     return root
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def open_dataset(doc):
+    """The command line (--dataroot, --version, a results file) and the nuScenes tables it names."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--dataroot", required=True)
     ap.add_argument("--version", required=True)
     ap.add_argument("results")
     args = ap.parse_args()
-    nusc = NuScenes(version=args.version, dataroot=tables(args.dataroot, args.version), verbose=False)
+    return args, NuScenes(version=args.version, dataroot=tables(args.dataroot, args.version), verbose=False)
+
+
+def main():
+    args, nusc = open_dataset(__doc__)
     results = json.load(open(args.results))["results"]
     pred = EvalBoxes.deserialize(results, DetectionBox)
     # Every annotated sample is scored; those the file lacks have no predictions.

@@ -112,17 +112,22 @@ def to_tracks(scenes, gt):
                     tracking_id=str(b["id"]) if gt else b["track"],
                     tracking_name=name,
                     tracking_score=-1.0 if gt else b["score"]))
-        if not gt:  # as create_tracks: each box gets its track's mean score
-            scores = defaultdict(list)
-            for boxes in by_t.values():
-                for box in boxes:
-                    scores[box.tracking_id].append(box.tracking_score)
-            for boxes in by_t.values():
-                for box in boxes:
-                    box.tracking_score = float(np.mean(scores[box.tracking_id]))
+        if not gt:
+            mean_track_scores(by_t)
         tracks[f"scene{s}"] = interpolate_tracks(by_t)
         tracks[f"scene{s}"] = defaultdict(list, sorted(tracks[f"scene{s}"].items()))
     return tracks
+
+
+def mean_track_scores(by_t):
+    """As the devkit's create_tracks: each box of a track gets the track's mean score."""
+    scores = defaultdict(list)
+    for boxes in by_t.values():
+        for box in boxes:
+            scores[box.tracking_id].append(box.tracking_score)
+    for boxes in by_t.values():
+        for box in boxes:
+            box.tracking_score = float(np.mean(scores[box.tracking_id]))
 
 
 def tracking_config():

@@ -8,19 +8,16 @@ with `v2x-sim eval --tracking --format json` on the same files.
     python devkit_tracking_check.py --dataroot DATAROOT --version VERSION TRACKS.json
 """
 
-import argparse
 import json
 from collections import defaultdict
 
-import numpy as np
-from nuscenes import NuScenes
 from nuscenes.eval.common.loaders import load_prediction
 from nuscenes.eval.tracking.data_classes import TrackingBox
 from nuscenes.eval.tracking.loaders import interpolate_tracks
 from nuscenes.eval.tracking.utils import category_to_tracking_name
 
-from devkit_check import tables
-from devkit_tracking_case import score, tracking_config
+from devkit_check import open_dataset
+from devkit_tracking_case import mean_track_scores, score, tracking_config
 
 
 def ground_truth(nusc):
@@ -53,25 +50,14 @@ def create_tracks(nusc, boxes, gt):
             by_t[sample["timestamp"]] = list(boxes.get(token, []))
             token = sample["next"]
         if not gt:
-            scores = defaultdict(list)
-            for bs in by_t.values():
-                for b in bs:
-                    scores[b.tracking_id].append(b.tracking_score)
-            for bs in by_t.values():
-                for b in bs:
-                    b.tracking_score = float(np.mean(scores[b.tracking_id]))
+            mean_track_scores(by_t)
         by_t = interpolate_tracks(by_t)
         tracks[scene["token"]] = defaultdict(list, sorted(by_t.items(), key=lambda kv: kv[0]))
     return tracks
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dataroot", required=True)
-    ap.add_argument("--version", required=True)
-    ap.add_argument("results")
-    args = ap.parse_args()
-    nusc = NuScenes(version=args.version, dataroot=tables(args.dataroot, args.version), verbose=False)
+    args, nusc = open_dataset(__doc__)
     cfg = tracking_config()  # before loading: it sets the tracking names the loader accepts
     pred, _ = load_prediction(args.results, 500, TrackingBox, verbose=False)  # the official loader
     gt = create_tracks(nusc, ground_truth(nusc), True)
