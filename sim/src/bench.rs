@@ -398,12 +398,8 @@ pub fn tracking_table(rows: &[TrackingRow]) -> String {
         ],
         rows.iter().map(|r| {
             let (m, t) = (&r.metrics, r.tracking.as_ref());
-            vec![
-                r.noise.clone(),
-                r.method.clone(),
-                cell(m.precision, 4),
-                cell(m.recall, 4),
-                cell(m.all.m_ate, 3),
+            let mut cells = leading_cells(&r.noise, &r.method, m);
+            cells.extend([
                 cell(m.all.m_aoe, 2),
                 cell(t.map(|t| t.amota), 4),
                 cell(t.map(|t| t.amotp), 3),
@@ -412,7 +408,8 @@ pub fn tracking_table(rows: &[TrackingRow]) -> String {
                 count(t.map(|t| t.ids)),
                 cell(t.map(|t| t.ids_per_100_tracks), 2),
                 count(t.map(|t| t.frag)),
-            ]
+            ]);
+            cells
         }),
     )
 }
@@ -548,20 +545,28 @@ pub fn table(rows: &[Row]) -> String {
         ],
         rows.iter().map(|r| {
             let m = &r.metrics;
-            vec![
-                r.noise.clone(),
-                r.method.clone(),
-                cell(m.precision, 4),
-                cell(m.recall, 4),
-                cell(m.all.m_ate, 3),
+            let mut cells = leading_cells(&r.noise, &r.method, m);
+            cells.extend([
                 cell(m.all.m_ase, 3),
                 cell(m.all.m_aoe, 2),
                 cell(m.tp_only.m_ate, 3),
                 cell(m.tp_only.m_ase, 3),
                 cell(m.tp_only.m_aoe, 2),
-            ]
+            ]);
+            cells
         }),
     )
+}
+
+/// A table row's first cells: the noise, the boxes' name, precision, recall and mATE.
+fn leading_cells(noise: &str, name: &str, m: &Metrics) -> Vec<String> {
+    vec![
+        noise.to_string(),
+        name.to_string(),
+        cell(m.precision, 4),
+        cell(m.recall, 4),
+        cell(m.all.m_ate, 3),
+    ]
 }
 
 /// Distance-matched (nuScenes benchmark) figures as a Markdown table, one row per named result.
