@@ -8,6 +8,10 @@ use crate::dair::{Dair, AGENTS};
 use crate::dair_eval::{detection_boxes, gt_boxes, official_bytes, DairEval, DairMetrics};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::noise::NoiseSetting;
+use crate::table::{
+    markdown,
+    Align::{Left, Right},
+};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::Method;
@@ -202,36 +206,35 @@ fn opt(v: Option<f64>) -> String {
 /// The rows as a Markdown table (AP in percent, as DAIR-V2X reports it).
 pub fn table(rows: &[DairRow]) -> String {
     let keys = rows.first().map(|r| ap_keys(&r.dair)).unwrap_or_default();
-    let mut s = String::from("| agents / method | precision | recall | mAP | mATE (m)");
-    for (three_d, k) in &keys {
-        s.push_str(&format!(
-            " | AP-{} {k}",
-            if *three_d { "3D" } else { "BEV" }
-        ));
-    }
-    s.push_str(" | bytes/frame | AB (official) |\n|---|---:|---:|---:|---:");
-    s.push_str(&"|---:".repeat(keys.len()));
-    s.push_str("|---:|---:|\n");
-    for r in rows {
-        s.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.3}",
-            r.method,
-            opt(r.detection.precision),
-            opt(r.detection.recall),
-            r.detection.m_ap,
-            r.detection.m_ate
-        ));
-        for k in &keys {
-            s.push_str(&format!(" | {}", ap_cell(&r.dair, k)));
-        }
-        let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
-        s.push_str(&format!(
-            " | {} | {} |\n",
-            bytes(r.bytes_per_frame),
-            bytes(r.official_ab)
-        ));
-    }
-    s
+    let aps: Vec<String> = keys
+        .iter()
+        .map(|(three_d, k)| format!("AP-{} {k}", if *three_d { "3D" } else { "BEV" }))
+        .collect();
+    let mut columns = vec![
+        ("agents / method", Left),
+        ("precision", Right),
+        ("recall", Right),
+        ("mAP", Right),
+        ("mATE (m)", Right),
+    ];
+    columns.extend(aps.iter().map(|h| (h.as_str(), Right)));
+    columns.extend([("bytes/frame", Right), ("AB (official)", Right)]);
+    let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
+    markdown(
+        &columns,
+        rows.iter().map(|r| {
+            let mut cells = vec![
+                r.method.clone(),
+                opt(r.detection.precision),
+                opt(r.detection.recall),
+                format!("{:.4}", r.detection.m_ap),
+                format!("{:.3}", r.detection.m_ate),
+            ];
+            cells.extend(keys.iter().map(|k| ap_cell(&r.dair, k)));
+            cells.extend([bytes(r.bytes_per_frame), bytes(r.official_ab)]);
+            cells
+        }),
+    )
 }
 
 /// The rows as CSV.

@@ -1,4 +1,4 @@
-//! Markdown tables: the writer behind the benches' and run summaries' tables.
+//! Markdown tables: the one writer behind every table the simulator prints.
 
 /// How a column's cells align: text to the left, figures to the right.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,6 +5,10 @@ use std::path::PathBuf;
 use v2x_eval::calibrate::{error_samples, CalibrateOptions};
 use v2x_fuser::stdmodel::{Cell, ErrorModel};
 use v2x_sim::cli::DataArgs;
+use v2x_sim::table::{
+    markdown,
+    Align::{Left, Right},
+};
 
 /// The options of `v2x-sim calibrate`.
 #[derive(clap::Args)]
@@ -64,29 +68,34 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         samples.len(),
         output.display()
     );
-    println!("| class | boxes | bias x, y (m) | std x, y (m) | 95% of std x | std size l (m) | std yaw (deg) | std velocity (m/s) |");
-    println!("|---|---:|---|---|---|---:|---:|---:|");
     let row = |name: &str, c: &Cell| {
         let v = c
             .std
             .velocity
             .map_or("-".into(), |v| format!("{:.3}", 0.5 * (v[0] + v[1])));
-        println!(
-            "| {name} | {} | {:.3}, {:.3} | {:.3}, {:.3} | {:.3}-{:.3} | {:.3} | {:.2} | {v} |",
-            c.count,
-            c.bias.center[0],
-            c.bias.center[1],
-            c.std.center[0],
-            c.std.center[1],
-            c.std_low.center[0],
-            c.std_high.center[0],
-            c.std.size[0],
-            c.std.yaw.to_degrees()
-        );
+        vec![
+            name.to_string(),
+            c.count.to_string(),
+            format!("{:.3}, {:.3}", c.bias.center[0], c.bias.center[1]),
+            format!("{:.3}, {:.3}", c.std.center[0], c.std.center[1]),
+            format!("{:.3}-{:.3}", c.std_low.center[0], c.std_high.center[0]),
+            format!("{:.3}", c.std.size[0]),
+            format!("{:.2}", c.std.yaw.to_degrees()),
+            v,
+        ]
     };
-    for (name, c) in &model.classes {
-        row(name, &c.all);
-    }
-    row("all", &model.all);
+    let columns = [
+        ("class", Left),
+        ("boxes", Right),
+        ("bias x, y (m)", Left),
+        ("std x, y (m)", Left),
+        ("95% of std x", Left),
+        ("std size l (m)", Right),
+        ("std yaw (deg)", Right),
+        ("std velocity (m/s)", Right),
+    ];
+    let rows = model.classes.iter().map(|(name, c)| row(name, &c.all));
+    let all = std::iter::once(row("all", &model.all));
+    print!("{}", markdown(&columns, rows.chain(all)));
     Ok(())
 }

@@ -5,6 +5,10 @@ use anyhow::bail;
 use std::path::PathBuf;
 use v2x_sim::bench;
 use v2x_sim::cli::{evaluate_file, DataArgs, EvalOptions, Evaluation};
+use v2x_sim::table::{
+    markdown,
+    Align::{Left, Right},
+};
 
 /// The options of `v2x-sim eval`.
 #[derive(clap::Args)]
@@ -185,22 +189,35 @@ fn tracking_table(
     match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
         Format::Table | Format::Csv => {
-            println!("| predictions | AMOTA | AMOTP (m) | MOTA | MOTP (m) | IDS | IDS / 100 objects | FRAG | TP | FP | FN | objects |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-            println!(
-                "| {} | {:.4} | {:.3} | {:.4} | {:.3} | {} | {:.2} | {} | {} | {} | {} | {} |",
-                pred.display(),
-                m.amota,
-                m.amotp,
-                m.mota,
-                m.motp,
-                m.ids,
-                m.ids_per_100_tracks,
-                m.frag,
-                m.tp,
-                m.fp,
-                m.fn_,
-                m.gt_tracks
-            );
+            let row = vec![
+                pred.display().to_string(),
+                format!("{:.4}", m.amota),
+                format!("{:.3}", m.amotp),
+                format!("{:.4}", m.mota),
+                format!("{:.3}", m.motp),
+                m.ids.to_string(),
+                format!("{:.2}", m.ids_per_100_tracks),
+                m.frag.to_string(),
+                m.tp.to_string(),
+                m.fp.to_string(),
+                m.fn_.to_string(),
+                m.gt_tracks.to_string(),
+            ];
+            let columns = [
+                ("predictions", Left),
+                ("AMOTA", Right),
+                ("AMOTP (m)", Right),
+                ("MOTA", Right),
+                ("MOTP (m)", Right),
+                ("IDS", Right),
+                ("IDS / 100 objects", Right),
+                ("FRAG", Right),
+                ("TP", Right),
+                ("FP", Right),
+                ("FN", Right),
+                ("objects", Right),
+            ];
+            print!("{}", markdown(&columns, [row]));
         }
     }
     Ok(())

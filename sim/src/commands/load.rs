@@ -1,6 +1,7 @@
 //! `v2x-sim load`: the fuser under load, on a runtime of its own.
 
 use v2x_sim::load::LoadArgs;
+use v2x_sim::table::{markdown, Align::Left};
 
 /// Runs `v2x-sim load`: one load, the same load on 1, 2 and 4 regional fusers, or the search for
 /// the largest load one fuser holds.
@@ -29,24 +30,38 @@ fn regions(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()> 
             v2x_sim::load::BLOCK_M,
             args.seconds
         );
-        println!("| fusers | tile (m) | boxes in/s | boxes fused/s | windows (incomplete) | captures incomplete | windows lost | fusion p50 / p99 (ms) | e2e p99 (ms), worst fuser | CPU % |\n|---|---|---|---|---|---|---|---|---|---|");
-        for r in &rows {
-            println!(
-                "| {} | {} | {:.0} | {:.0} | {} ({}) | {} | {} | {:.3} / {:.3} | {:.1} | {:.0} |",
-                r.fusers,
-                r.tile_m,
-                r.input_boxes_per_s,
-                r.fused_boxes_per_s,
-                r.windows,
-                r.windows_incomplete,
-                r.captures_incomplete,
-                r.windows_lost,
-                r.fusion_latency_ms.p50_ms.unwrap_or(f64::NAN),
-                r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN),
-                r.e2e_p99_ms.unwrap_or(f64::NAN),
-                r.cpu_percent
-            );
-        }
+        let ms = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        let columns = [
+            ("fusers", Left),
+            ("tile (m)", Left),
+            ("boxes in/s", Left),
+            ("boxes fused/s", Left),
+            ("windows (incomplete)", Left),
+            ("captures incomplete", Left),
+            ("windows lost", Left),
+            ("fusion p50 / p99 (ms)", Left),
+            ("e2e p99 (ms), worst fuser", Left),
+            ("CPU %", Left),
+        ];
+        let cells = rows.iter().map(|r| {
+            vec![
+                r.fusers.to_string(),
+                r.tile_m.to_string(),
+                format!("{:.0}", r.input_boxes_per_s),
+                format!("{:.0}", r.fused_boxes_per_s),
+                format!("{} ({})", r.windows, r.windows_incomplete),
+                r.captures_incomplete.to_string(),
+                r.windows_lost.to_string(),
+                format!(
+                    "{:.3} / {:.3}",
+                    ms(r.fusion_latency_ms.p50_ms),
+                    ms(r.fusion_latency_ms.p99_ms)
+                ),
+                format!("{:.1}", ms(r.e2e_p99_ms)),
+                format!("{:.0}", r.cpu_percent),
+            ]
+        });
+        print!("{}", markdown(&columns, cells));
     }
     Ok(())
 }
@@ -65,19 +80,26 @@ fn max_load(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()>
         let v = serde_json::json!({"runs": v, "stopped_early": stopped});
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        println!("| agents | objects | boxes/s | windows | fusion p99 (ms) | held (p99 < {} ms) |\n|---|---|---|---|---|---|", v2x_sim::load::HOLD_P99_MS);
-        for (r, held) in &runs {
-            println!(
-                "| {} | {} | {:.0} | {} of {} | {:.3} | {} |",
-                r.agents,
-                r.objects,
-                (r.agents * r.objects) as f64 * r.hz,
-                r.windows,
-                r.frames_per_agent,
-                r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN),
-                if *held { "yes" } else { "no" }
-            );
-        }
+        let held = format!("held (p99 < {} ms)", v2x_sim::load::HOLD_P99_MS);
+        let columns = [
+            ("agents", Left),
+            ("objects", Left),
+            ("boxes/s", Left),
+            ("windows", Left),
+            ("fusion p99 (ms)", Left),
+            (held.as_str(), Left),
+        ];
+        let cells = runs.iter().map(|(r, held)| {
+            vec![
+                r.agents.to_string(),
+                r.objects.to_string(),
+                format!("{:.0}", (r.agents * r.objects) as f64 * r.hz),
+                format!("{} of {}", r.windows, r.frames_per_agent),
+                format!("{:.3}", r.fusion_latency_ms.p99_ms.unwrap_or(f64::NAN)),
+                (if *held { "yes" } else { "no" }).to_string(),
+            ]
+        });
+        print!("{}", markdown(&columns, cells));
         match runs.iter().rev().find(|(_, held)| *held) {
             Some((r, _)) => println!(
                 "largest load held: {} agents x {} objects at {} Hz",
@@ -105,22 +127,18 @@ fn single(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()> {
             )
         };
         println!("{} agents x {} objects at {} Hz: {} frames per agent, {} windows fused ({} incomplete), {} open at the end", r.agents, r.objects, r.hz, r.frames_per_agent, r.windows, r.windows_incomplete, r.open_windows_at_end);
-        println!("| latency (ms) | p50 / p95 / p99 / max |\n|---|---|");
-        println!(
-            "| fusion (window close to publish) | {} |",
-            l(&r.fusion_latency_ms)
-        );
-        println!(
-            "| fusion, first half | {} |",
-            l(&r.fusion_latency_first_half_ms)
-        );
-        println!(
-            "| fusion, second half | {} |",
-            l(&r.fusion_latency_second_half_ms)
-        );
-        println!(
-            "| end to end (capture to publish) | {} |",
-            l(&r.e2e_latency_ms)
+        let latencies = [
+            ("fusion (window close to publish)", &r.fusion_latency_ms),
+            ("fusion, first half", &r.fusion_latency_first_half_ms),
+            ("fusion, second half", &r.fusion_latency_second_half_ms),
+            ("end to end (capture to publish)", &r.e2e_latency_ms),
+        ];
+        print!(
+            "{}",
+            markdown(
+                &[("latency (ms)", Left), ("p50 / p95 / p99 / max", Left)],
+                latencies.map(|(what, x)| vec![what.to_string(), l(x)]),
+            )
         );
         println!("CPU {:.0}% of one core (whole process: agents, Zenoh and fuser); RSS {:.1} MiB at start, {:.1} MiB at the end", r.cpu_percent, r.rss_start_mib, r.rss_end_mib);
     }
