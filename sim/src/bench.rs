@@ -7,7 +7,7 @@ use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use crate::table::{
-    cell, markdown,
+    cell, markdown, Align,
     Align::{Left, Right},
 };
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
@@ -377,38 +377,49 @@ fn track_scene(
     (accs, evals)
 }
 
+/// The tracking benchmark's columns, as [`tracking_cells`] fills them.
+pub const TRACKING_COLUMNS: [(&str, Align); 7] = [
+    ("AMOTA", Right),
+    ("AMOTP (m)", Right),
+    ("MOTA", Right),
+    ("MOTP (m)", Right),
+    ("IDS", Right),
+    ("IDS / 100 objects", Right),
+    ("FRAG", Right),
+];
+
+/// The cells of [`TRACKING_COLUMNS`], dashes for boxes not tracked.
+pub fn tracking_cells(t: Option<&TrackingMetrics>) -> [String; 7] {
+    let count = |n: Option<usize>| n.map_or("-".into(), |n| n.to_string());
+    [
+        cell(t.map(|t| t.amota), 4),
+        cell(t.map(|t| t.amotp), 3),
+        cell(t.map(|t| t.mota), 4),
+        cell(t.map(|t| t.motp), 3),
+        count(t.map(|t| t.ids)),
+        cell(t.map(|t| t.ids_per_100_tracks), 2),
+        count(t.map(|t| t.frag)),
+    ]
+}
+
 /// The tracking rows as a Markdown table.
 pub fn tracking_table(rows: &[TrackingRow]) -> String {
-    let count = |n: Option<usize>| n.map_or("-".into(), |n| n.to_string());
+    let mut columns = vec![
+        ("noise", Left),
+        ("boxes", Left),
+        ("precision", Right),
+        ("recall", Right),
+        ("mATE (m)", Right),
+        ("mAOE (deg)", Right),
+    ];
+    columns.extend(TRACKING_COLUMNS);
     markdown(
-        &[
-            ("noise", Left),
-            ("boxes", Left),
-            ("precision", Right),
-            ("recall", Right),
-            ("mATE (m)", Right),
-            ("mAOE (deg)", Right),
-            ("AMOTA", Right),
-            ("AMOTP (m)", Right),
-            ("MOTA", Right),
-            ("MOTP (m)", Right),
-            ("IDS", Right),
-            ("IDS / 100 objects", Right),
-            ("FRAG", Right),
-        ],
+        &columns,
         rows.iter().map(|r| {
-            let (m, t) = (&r.metrics, r.tracking.as_ref());
+            let m = &r.metrics;
             let mut cells = leading_cells(&r.noise, &r.method, m);
-            cells.extend([
-                cell(m.all.m_aoe, 2),
-                cell(t.map(|t| t.amota), 4),
-                cell(t.map(|t| t.amotp), 3),
-                cell(t.map(|t| t.mota), 4),
-                cell(t.map(|t| t.motp), 3),
-                count(t.map(|t| t.ids)),
-                cell(t.map(|t| t.ids_per_100_tracks), 2),
-                count(t.map(|t| t.frag)),
-            ]);
+            cells.push(cell(m.all.m_aoe, 2));
+            cells.extend(tracking_cells(r.tracking.as_ref()));
             cells
         }),
     )

@@ -189,34 +189,17 @@ fn tracking_table(
     match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
         Format::Table | Format::Csv => {
-            let row = vec![
-                pred.display().to_string(),
-                format!("{:.4}", m.amota),
-                format!("{:.3}", m.amotp),
-                format!("{:.4}", m.mota),
-                format!("{:.3}", m.motp),
-                m.ids.to_string(),
-                format!("{:.2}", m.ids_per_100_tracks),
-                m.frag.to_string(),
-                m.tp.to_string(),
-                m.fp.to_string(),
-                m.fn_.to_string(),
-                m.gt_tracks.to_string(),
-            ];
-            let columns = [
-                ("predictions", Left),
-                ("AMOTA", Right),
-                ("AMOTP (m)", Right),
-                ("MOTA", Right),
-                ("MOTP (m)", Right),
-                ("IDS", Right),
-                ("IDS / 100 objects", Right),
-                ("FRAG", Right),
+            let mut row = vec![pred.display().to_string()];
+            row.extend(bench::tracking_cells(Some(&m)));
+            row.extend([m.tp, m.fp, m.fn_, m.gt_tracks].map(|n| n.to_string()));
+            let mut columns = vec![("predictions", Left)];
+            columns.extend(bench::TRACKING_COLUMNS);
+            columns.extend([
                 ("TP", Right),
                 ("FP", Right),
                 ("FN", Right),
                 ("objects", Right),
-            ];
+            ]);
             print!("{}", markdown(&columns, [row]));
         }
     }
