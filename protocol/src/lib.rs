@@ -3,14 +3,16 @@
 //! Everything that crosses a process boundary is defined here, once: the domain types
 //! ([`Class`], [`Detection`], [`Uncertainty`], [`Frame`]), the compact quantized wire encoding of a
 //! frame ([`wire`]), the Zenoh key expressions ([`keys`]) and the nuScenes detection-results JSON
-//! files with their uncertainty extension fields ([`nuscenes_json`]), the validity domain
+//! files with their uncertainty extension fields ([`nuscenes_json`]), the KITTI tracking text layouts
+//! V2V4Real's detections and labels come in ([`kitti`]), the validity domain
 //! ([`limits`]), the access-control policy ([`acl`]) and the Zenoh session options ([`net`]).
 //! Without the `session` feature this crate has no network or clock dependencies, and it touches
-//! files only to read and write JSON; with it, [`net`] opens Zenoh sessions.
+//! files only to read and write JSON and KITTI text; with it, [`net`] opens Zenoh sessions.
 
 pub mod acl;
 pub mod fuzzing;
 pub mod keys;
+pub mod kitti;
 pub mod limits;
 pub mod net;
 pub mod nuscenes_json;
