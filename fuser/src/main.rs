@@ -61,7 +61,8 @@ struct FilesArgs {
     method: Method,
     /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
     /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it (or --learn-std, or a
-    /// --std-model for every input), a missing std is an error.
+    /// --std-model for every input), a missing std is an error in a results file; KITTI rows,
+    /// which state none, take mild.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<v2x_protocol::Uncertainty>,
     #[command(flatten)]
@@ -71,6 +72,32 @@ struct FilesArgs {
     /// Window width delta t (ms) when the files carry capture times.
     #[arg(long, default_value_t = 100.0)]
     window_ms: f64,
+    /// The output's layout: auto (KITTI folders for KITTI folder inputs, else nuScenes JSON),
+    /// nuscenes (one results file) or kitti (a folder of NNNN.txt per sequence, as V2V4Real's
+    /// and AB3DMOT's evaluators read them).
+    #[arg(long, value_enum, default_value_t = Layout::Auto)]
+    output_format: Layout,
+}
+
+/// The layout of `fuse` and `track` output.
+#[derive(Copy, Clone, Debug, clap::ValueEnum)]
+enum Layout {
+    /// KITTI folders when the inputs are KITTI folders, else nuScenes JSON.
+    Auto,
+    /// One nuScenes results JSON file.
+    Nuscenes,
+    /// A folder of per-sequence NNNN.txt rows.
+    Kitti,
+}
+
+impl From<Layout> for v2x_fuser::offline::OutputFormat {
+    fn from(l: Layout) -> Self {
+        match l {
+            Layout::Auto => Self::Auto,
+            Layout::Nuscenes => Self::Nuscenes,
+            Layout::Kitti => Self::Kitti,
+        }
+    }
 }
 
 impl FilesArgs {
@@ -105,10 +132,12 @@ struct FuseArgs {
     /// `v2x-sim gen` writes the roadside unit as agent2.json.
     #[arg(long, default_value_t = 2, requires = "align")]
     align_to: usize,
-    /// Where to write the fused results file.
+    /// Where to write the fused results file (a folder with --output-format kitti).
     #[arg(long, short)]
     output: PathBuf,
-    /// Input results files, one per agent, in agent order.
+    /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
+    /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
+    /// as V2V4Real's per-car detections come).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
 }
@@ -134,10 +163,12 @@ struct TrackArgs {
     /// (docs/method.md §8.1). Default: track the fused boxes.
     #[arg(long)]
     guided: bool,
-    /// Where to write the tracking results file.
+    /// Where to write the tracking results file (a folder with --output-format kitti).
     #[arg(long, short)]
     output: PathBuf,
-    /// Input results files, one per agent, in agent order.
+    /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
+    /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
+    /// as V2V4Real's per-car detections come).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
 }
@@ -566,7 +597,14 @@ fn fuse(args: FuseArgs) -> anyhow::Result<()> {
         );
     }
     opts.align = align_params.map(|p| (p, align_to - 1));
-    let report = v2x_fuser::offline::fuse_files(&method, &inputs, &output, missing, &opts)?;
+    let report = v2x_fuser::offline::fuse_files(
+        &method,
+        &inputs,
+        &output,
+        missing,
+        &opts,
+        files.output_format.into(),
+    )?;
     let how = match (report.by_time, opts.motion.is_some()) {
         (true, true) => "grouped by capture time, motion-compensated",
         (true, false) => "grouped by capture time, not compensated",
@@ -629,8 +667,15 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         guided,
         ..Default::default()
     };
-    let tracks = v2x_fuser::offline::track_files(&method, &inputs, &output, missing, &opts, params)
-        .map_err(anyhow::Error::msg)?;
+    let tracks = v2x_fuser::offline::track_files(
+        &method,
+        &inputs,
+        &output,
+        missing,
+        &opts,
+        params,
+        files.output_format.into(),
+    )?;
     let boxes: usize = tracks.results.samples.values().map(Vec::len).sum();
     if let Some(v) = tracks.results.meta.get("v2x_learned_std") {
         print_learned(&serde_json::from_value(v.clone()).unwrap_or_default());

@@ -23,14 +23,93 @@ use std::path::PathBuf;
 use v2x_protocol::nuscenes_json::{
     read_results, tracking_json, write_results, JsonError, MissingStd, Results, TokenTable,
 };
-use v2x_protocol::{AgentKind, Detection, Frame};
+use v2x_protocol::kitti::{self, KittiError};
+use v2x_protocol::{AgentKind, Detection, Frame, Uncertainty};
 
 /// Per-agent results read from files, ready to fuse.
 pub struct Inputs {
-    /// One parsed file per agent, in the order given.
+    /// One parsed file (or KITTI folder) per agent, in the order given.
     pub agents: Vec<Results>,
     /// The shared instance-token table.
     pub tokens: TokenTable,
+    /// With KITTI folders, every sequence number any of them holds (else empty).
+    pub sequences: BTreeSet<u32>,
+}
+
+/// What went wrong reading, fusing or writing files.
+#[derive(Debug, thiserror::Error)]
+pub enum FilesError {
+    /// A results file.
+    #[error(transparent)]
+    Json(#[from] JsonError),
+    /// A KITTI-layout folder or file.
+    #[error(transparent)]
+    Kitti(#[from] KittiError),
+    /// The inputs do not suit the job.
+    #[error("{0}")]
+    Inputs(String),
+}
+
+/// The layout the fused or tracked output is written in.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// KITTI folders when the inputs are KITTI folders, else a nuScenes results file.
+    #[default]
+    Auto,
+    /// One nuScenes results (or tracking results) JSON file.
+    Nuscenes,
+    /// A folder of per-sequence `NNNN.txt` rows ([`v2x_protocol::kitti`]).
+    Kitti,
+}
+
+impl OutputFormat {
+    /// The layout for these inputs: `Auto` resolved.
+    fn resolve(self, inputs: &Inputs) -> OutputFormat {
+        match self {
+            OutputFormat::Auto if !inputs.sequences.is_empty() => OutputFormat::Kitti,
+            OutputFormat::Auto => OutputFormat::Nuscenes,
+            f => f,
+        }
+    }
+}
+
+/// The stds of KITTI rows, which state none, when no default is given: the `mild` profile.
+pub fn kitti_default_std() -> Uncertainty {
+    v2x_protocol::NoiseProfile::Mild.std()
+}
+
+/// Reads one input per agent with a shared token table: a results file, or a folder of KITTI
+/// detection rows (one `NNNN.txt` per sequence, [`v2x_protocol::kitti`]) whose boxes take the
+/// default std, [`kitti_default_std`] without one. Files and folders are not mixed.
+pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, FilesError> {
+    let mut tokens = TokenTable::new();
+    let mut agents = Vec::with_capacity(paths.len());
+    let mut sequences = BTreeSet::new();
+    let folders = paths.iter().filter(|p| p.is_dir()).count();
+    if folders != 0 && folders != paths.len() {
+        return Err(FilesError::Inputs(
+            "give every input as a results file, or every input as a folder of KITTI rows \
+             (NNNN.txt per sequence): not both"
+                .into(),
+        ));
+    }
+    for p in paths {
+        if p.is_dir() {
+            let std = match missing {
+                MissingStd::Default(u) => u,
+                MissingStd::Error => kitti_default_std(),
+            };
+            sequences.extend(kitti::sequence_files(p)?.into_keys());
+            agents.push(kitti::read_detection_dir(p, std)?);
+        } else {
+            agents.push(read_results(p, &mut tokens, missing)?);
+        }
+    }
+    Ok(Inputs {
+        agents,
+        tokens,
+        sequences,
+    })
 }
 
 /// How to fuse files.
@@ -61,16 +140,6 @@ impl Default for OfflineOptions {
             models: BTreeMap::new(),
         }
     }
-}
-
-/// Reads one results file per agent with a shared token table.
-pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, JsonError> {
-    let mut tokens = TokenTable::new();
-    let mut agents = Vec::with_capacity(paths.len());
-    for p in paths {
-        agents.push(read_results(p, &mut tokens, missing)?);
-    }
-    Ok(Inputs { agents, tokens })
 }
 
 /// The capture time of each sample of a file, when its meta gives one for every sample.
@@ -393,7 +462,8 @@ fn track_through(
     }
 }
 
-/// Reads, fuses, tracks and writes nuScenes tracking results: the `v2x-fuser track` command.
+/// Reads, fuses, tracks and writes tracking results (a nuScenes tracking file, or KITTI tracking
+/// rows per sequence): the `v2x-fuser track` command. KITTI sequences are tracked one by one.
 pub fn track_files(
     method: &Method,
     inputs: &[PathBuf],
@@ -401,16 +471,78 @@ pub fn track_files(
     missing: MissingStd,
     opts: &OfflineOptions,
     params: TrackerParams,
-) -> Result<Tracks, String> {
-    let Inputs { agents, tokens } = read_inputs(inputs, missing).map_err(|e| e.to_string())?;
-    let tracks = track_results(method, &agents, opts, params)?;
-    let doc = tracking_json(&tracks.results, &tracks.ids, &tokens);
+    format: OutputFormat,
+) -> Result<Tracks, FilesError> {
+    let read = read_inputs(inputs, missing)?;
+    let tracks = if read.sequences.is_empty() {
+        track_results(method, &read.agents, opts, params).map_err(FilesError::Inputs)?
+    } else {
+        track_sequences(method, &read.agents, opts, params)?
+    };
+    match format.resolve(&read) {
+        OutputFormat::Kitti => {
+            kitti::write_track_dir(output, &tracks.results, &tracks.ids, read.sequences)?;
+        }
+        _ => {
+            let doc = tracking_json(&tracks.results, &tracks.ids, &read.tokens);
+            write_json(output, &doc)?;
+        }
+    }
+    Ok(tracks)
+}
+
+/// Writes a JSON document to a file.
+fn write_json(output: &std::path::Path, doc: &Value) -> Result<(), FilesError> {
     std::fs::write(
         output,
-        serde_json::to_string(&doc).expect("JSON values always serialize"),
+        serde_json::to_string(doc).expect("JSON values always serialize"),
     )
-    .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
-    Ok(tracks)
+    .map_err(|e| FilesError::Inputs(format!("cannot write {}: {e}", output.display())))
+}
+
+/// Tracks each KITTI sequence on its own (a fresh tracker per sequence), joining the outputs.
+fn track_sequences(
+    method: &Method,
+    agents: &[Results],
+    opts: &OfflineOptions,
+    params: TrackerParams,
+) -> Result<Tracks, FilesError> {
+    let timed = || {
+        let mut r = Results {
+            meta: v2x_protocol::nuscenes_json::default_meta(),
+            ..Default::default()
+        };
+        r.meta["v2x_timestamps"] = Value::Object(Default::default());
+        r
+    };
+    let mut per_seq: BTreeMap<u32, Vec<Results>> = BTreeMap::new();
+    for (k, agent) in agents.iter().enumerate() {
+        for (token, dets) in &agent.samples {
+            let (seq, _) = kitti::parse_token(token).expect("read from KITTI folders");
+            let part = &mut per_seq
+                .entry(seq)
+                .or_insert_with(|| (0..agents.len()).map(|_| timed()).collect())[k];
+            part.meta["v2x_timestamps"][token] = agent.meta["v2x_timestamps"][token].clone();
+            part.samples.insert(token.clone(), dets.clone());
+        }
+    }
+    let mut all = Tracks {
+        results: Results {
+            meta: agents.first().map(|a| a.meta.clone()).unwrap_or_default(),
+            ..Default::default()
+        },
+        ids: BTreeMap::new(),
+        stats: TrackStats::default(),
+    };
+    for parts in per_seq.into_values() {
+        let t = track_results(method, &parts, opts, params).map_err(FilesError::Inputs)?;
+        all.results.samples.extend(t.results.samples);
+        all.ids.extend(t.ids);
+        all.stats.births += t.stats.births;
+        all.stats.deaths += t.stats.deaths;
+        all.stats.live += t.stats.live;
+    }
+    Ok(all)
 }
 
 /// What `v2x-fuser fuse` did.
@@ -431,17 +563,24 @@ pub struct FuseReport {
     pub learned: BTreeMap<String, AgentReport>,
 }
 
-/// Reads, fuses and writes: the `v2x-fuser fuse` command.
+/// Reads, fuses and writes (a nuScenes results file, or KITTI detection rows per sequence):
+/// the `v2x-fuser fuse` command.
 pub fn fuse_files(
     method: &Method,
     inputs: &[PathBuf],
     output: &std::path::Path,
     missing: MissingStd,
     opts: &OfflineOptions,
-) -> Result<FuseReport, JsonError> {
-    let Inputs { agents, tokens } = read_inputs(inputs, missing)?;
-    let (fused, report) = fuse_agents(method, &agents, inputs, opts)?;
-    write_results(output, &fused, &tokens)?;
+    format: OutputFormat,
+) -> Result<FuseReport, FilesError> {
+    let read = read_inputs(inputs, missing)?;
+    let (fused, report) = fuse_agents(method, &read.agents, inputs, opts)?;
+    match format.resolve(&read) {
+        OutputFormat::Kitti => {
+            kitti::write_detection_dir(output, &fused, read.sequences)?;
+        }
+        _ => write_results(output, &fused, &read.tokens)?,
+    }
     Ok(report)
 }
 

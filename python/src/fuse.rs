@@ -7,7 +7,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::{json, Value};
 use std::path::PathBuf;
-use v2x_fuser::offline::{self, FuseReport};
+use v2x_fuser::offline::{self, FuseReport, OutputFormat};
 use v2x_protocol::nuscenes_json::{box_json, parse_results, results_json, JsonError, TokenTable};
 
 fn value_error(e: JsonError) -> PyErr {
@@ -93,12 +93,27 @@ pub fn run_files(
     let params = options.tracker()?;
     py.detach(|| {
         if !track {
-            let report = offline::fuse_files(&method, &inputs, &output, missing, &opts)
-                .map_err(value_error)?;
+            let report = offline::fuse_files(
+                &method,
+                &inputs,
+                &output,
+                missing,
+                &opts,
+                OutputFormat::Auto,
+            )
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
             return Ok(report_json(&report).to_string());
         }
-        let tracks = offline::track_files(&method, &inputs, &output, missing, &opts, params)
-            .map_err(PyValueError::new_err)?;
+        let tracks = offline::track_files(
+            &method,
+            &inputs,
+            &output,
+            missing,
+            &opts,
+            params,
+            OutputFormat::Auto,
+        )
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(json!({
             "windows": tracks.results.samples.len(),
             "boxes": tracks.results.samples.values().map(Vec::len).sum::<usize>(),
