@@ -5,6 +5,7 @@
 //!   (`docs/method.md` §6).
 //! - [`detection_eval`]: the nuScenes detection protocol (mAP, TP errors, NDS).
 //! - [`dair_eval`]: the DAIR-V2X cooperative protocol (3D and BEV AP at fixed IoU thresholds).
+//! - [`v2v4real_eval`]: V2V4Real's protocol (BEV and 3D AP of cars at IoU 0.3, 0.5, 0.7).
 //! - [`file_eval`]: a results file scored against the ground truth, by either matching.
 //! - [`calibrate`]: an agent's errors against the ground truth, for its error model.
 //! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
@@ -15,3 +16,4 @@ pub mod detection_eval;
 pub mod file_eval;
 pub mod metrics;
 pub mod tracking_eval;
+pub mod v2v4real_eval;
