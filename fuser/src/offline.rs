@@ -11,6 +11,7 @@
 //! reference agent: pooled over windows when grouping by time, per sample otherwise.
 
 use crate::align::{AlignParams, Aligner, Registration};
+use crate::detector::{self, DetectorParams};
 use crate::learn::{AgentReport, LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
 use crate::stdmodel::{ErrorModel, Models};
@@ -20,10 +21,10 @@ use crate::Method;
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::PathBuf;
+use v2x_protocol::kitti::{self, KittiError};
 use v2x_protocol::nuscenes_json::{
     read_results, tracking_json, write_results, JsonError, MissingStd, Results, TokenTable,
 };
-use v2x_protocol::kitti::{self, KittiError};
 use v2x_protocol::{AgentKind, Detection, Frame, Uncertainty};
 
 /// Per-agent results read from files, ready to fuse.
@@ -34,6 +35,21 @@ pub struct Inputs {
     pub tokens: TokenTable,
     /// With KITTI folders, every sequence number any of them holds (else empty).
     pub sequences: BTreeSet<u32>,
+    /// Every input is a detector's KITTI rows and no std was given for them: they take the
+    /// detector's stds and scoring ([`OfflineOptions::detector`]).
+    pub from_detector: bool,
+}
+
+impl Inputs {
+    /// The options these inputs are fused with: `opts`, with the detector's stds and scoring
+    /// for a detector's rows when neither learned stds nor error models replace them.
+    pub fn options(&self, opts: &OfflineOptions) -> OfflineOptions {
+        let mut o = opts.clone();
+        if self.from_detector && o.detector.is_none() && o.learn.is_none() && o.models.is_empty() {
+            o.detector = Some(DetectorParams::default());
+        }
+        o
+    }
 }
 
 /// What went wrong reading, fusing or writing files.
@@ -106,6 +122,7 @@ pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, Fil
         }
     }
     Ok(Inputs {
+        from_detector: folders > 0 && matches!(missing, MissingStd::Error),
         agents,
         tokens,
         sequences,
@@ -128,6 +145,10 @@ pub struct OfflineOptions {
     /// Calibrated error models by input (an index into the inputs), applied to that input's
     /// boxes before anything else ([`crate::stdmodel`]).
     pub models: BTreeMap<usize, ErrorModel>,
+    /// The boxes are a detector's, with scores and no stds ([`crate::detector`]): they get the
+    /// detector's stds (the first input is the receiver), and CSBA-3D groups are scored by the
+    /// noisy-OR of their members with the tail dropped. `None`: the stds are the inputs' own.
+    pub detector: Option<DetectorParams>,
 }
 
 impl Default for OfflineOptions {
@@ -138,6 +159,7 @@ impl Default for OfflineOptions {
             align: None,
             learn: None,
             models: BTreeMap::new(),
+            detector: None,
         }
     }
 }
@@ -153,6 +175,34 @@ pub fn capture_times(r: &Results) -> Option<HashMap<String, u64>> {
         .keys()
         .all(|s| times.contains_key(s))
         .then_some(times)
+}
+
+/// A window's boxes with the detector's stds ([`OfflineOptions::detector`]; `receiver(k)`: list
+/// k is the first input's), or as they are.
+fn ready(
+    opts: &OfflineOptions,
+    mut per_agent: Vec<Vec<Detection>>,
+    receiver: impl Fn(usize) -> bool,
+) -> Vec<Vec<Detection>> {
+    if let Some(p) = &opts.detector {
+        for (k, dets) in per_agent.iter_mut().enumerate() {
+            detector::ready(p, dets, receiver(k));
+        }
+    }
+    per_agent
+}
+
+/// One window fused by `method`, a CSBA-3D method scoring a detector's groups
+/// ([`detector::fuse_scored`]) when the boxes are a detector's.
+pub fn fuse_window(
+    method: &Method,
+    opts: &OfflineOptions,
+    per_agent: &[Vec<Detection>],
+) -> Vec<Detection> {
+    match (&opts.detector, method.csba_params()) {
+        (Some(p), Some(csba)) => detector::fuse_scored(p, &csba, per_agent),
+        _ => method.fuse(per_agent),
+    }
 }
 
 /// Fuses the agents' files: by capture-time windows when every file has capture times, else by
@@ -238,7 +288,9 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
             }
             None => per_agent,
         };
-        out.samples.insert(s.clone(), method.fuse(&per_agent));
+        let per_agent = ready(opts, per_agent, |k| k == 0);
+        out.samples
+            .insert(s.clone(), fuse_window(method, opts, &per_agent));
     }
     if aligner.is_some() {
         set_meta(&mut out, "v2x_registration", Value::Object(registered));
@@ -258,7 +310,7 @@ fn fuse_by_time(
     };
     let mut samples = BTreeMap::new();
     let meta = by_time(agents, times, opts, |_, sample, per_agent| {
-        samples.insert(sample.clone(), method.fuse(per_agent));
+        samples.insert(sample.clone(), fuse_window(method, opts, per_agent));
     });
     out.samples = samples;
     meta.set(&mut out);
@@ -359,6 +411,7 @@ fn by_time(
             },
             None => per_agent,
         };
+        let per_agent = ready(opts, per_agent, |k| names[k] == name(0));
         each(t_ref, &latest, &per_agent);
         stamps.insert(latest, t_ref.into());
     }
@@ -474,6 +527,7 @@ pub fn track_files(
     format: OutputFormat,
 ) -> Result<Tracks, FilesError> {
     let read = read_inputs(inputs, missing)?;
+    let opts = &read.options(opts);
     let tracks = if read.sequences.is_empty() {
         track_results(method, &read.agents, opts, params).map_err(FilesError::Inputs)?
     } else {
@@ -574,7 +628,7 @@ pub fn fuse_files(
     format: OutputFormat,
 ) -> Result<FuseReport, FilesError> {
     let read = read_inputs(inputs, missing)?;
-    let (fused, report) = fuse_agents(method, &read.agents, inputs, opts)?;
+    let (fused, report) = fuse_agents(method, &read.agents, inputs, &read.options(opts))?;
     match format.resolve(&read) {
         OutputFormat::Kitti => {
             kitti::write_detection_dir(output, &fused, read.sequences)?;

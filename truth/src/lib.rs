@@ -4,6 +4,7 @@
 //!   tables (the types all modules share live here).
 //! - [`dair`]: DAIR-V2X-C and V2X-Seq-SPD cooperative data: its ground truth and its two real
 //!   agents.
+//! - [`v2v4real`]: V2V4Real's real detections of two cars, their labels and the dataset's references.
 //! - [`town`]: a synthetic town whose actors move continuously.
 //! - [`noise`] and [`faults`]: agents' noisy detections and detector faults drawn from the
 //!   ground truth; [`stated`]: the stds they state; [`seed`]: their independent random streams.
@@ -15,3 +16,4 @@ pub mod noise;
 pub mod seed;
 pub mod stated;
 pub mod town;
+pub mod v2v4real;
