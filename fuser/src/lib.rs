@@ -8,7 +8,8 @@
 //! [`parts`] (reassembly of a capture sent per tile),
 //! [`tracker`] (tracks over windows), [`learn`] (each agent's stds learned from its boxes, and
 //! the consistency monitor) and [`stdmodel`] (an agent's calibrated error model).
-//! [`motion`] predicts boxes to a window's time, [`ratelog`] bounds the node's warnings and
+//! [`detector`] readies a real detector's boxes (stds from score and range, group scores,
+//! duplicates and tail). [`motion`] predicts boxes to a window's time, [`ratelog`] bounds the node's warnings and
 //! [`fuzzing`] holds the fuzz targets' entry points. [`offline`] fuses nuScenes results files,
 //! and `node` (feature `node`, on by default) is the thin Zenoh shell the `v2x-fuser` binary
 //! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
@@ -17,6 +18,7 @@
 pub mod align;
 pub mod association;
 pub mod baselines;
+pub mod detector;
 pub mod fusion;
 pub mod fuzzing;
 pub mod geometry;

@@ -116,6 +116,7 @@ impl FilesArgs {
             align: None,
             learn: self.stds.params(self.motion.time_scale)?,
             models: self.stds.models_by_input(inputs)?,
+            detector: None,
         };
         Ok((self.stds.missing(self.default_std, inputs), opts))
     }

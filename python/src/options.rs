@@ -104,6 +104,7 @@ impl Options {
             align,
             learn,
             models,
+            detector: None,
         };
         Ok((method(&self.method)?, missing, opts))
     }

@@ -72,3 +72,58 @@ fn node_and_router_explain_their_options_and_refuse_bad_ones() {
         "{err}"
     );
 }
+
+/// Fuses the V2V4Real-layout fixture's two cars with `v2x-fuser fuse` and `extra` flags; the
+/// output's rows of sequence 0000.
+fn fuse_fixture_cars(extra: &[&str]) -> Vec<String> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
+        "../truth/fixtures/v2v4real/AB3DMOT/data/v2v4real/detection/multi_sensor_differentiable_kalman_filter_Car_train",
+    );
+    let out = std::env::temp_dir().join(format!(
+        "v2x-kitti-fuse-{}-{}",
+        std::process::id(),
+        extra.len()
+    ));
+    let status = Command::new(env!("CARGO_BIN_EXE_v2x-fuser"))
+        .args(["fuse", "--output-format", "kitti", "--output"])
+        .arg(&out)
+        .args(extra)
+        .arg(root.join("ego"))
+        .arg(root.join("1"))
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let rows = std::fs::read_to_string(out.join("0000.txt")).unwrap();
+    assert!(out.join("0001.txt").is_file());
+    std::fs::remove_dir_all(&out).unwrap();
+    rows.lines().map(str::to_string).collect()
+}
+
+#[test]
+fn a_detectors_rows_fuse_with_its_scores_and_without_its_tail() {
+    // Sequence 0000: frame 0's car seen by both (0.9 and 0.6: noisy-OR 0.96) and car 1's lone
+    // 0.7; frame 1's 0.85 and 0.75; frame 2's 0.8. The 0.25 and 0.3 boxes fall below 0.4.
+    let rows = fuse_fixture_cars(&[]);
+    let scores: Vec<(u32, f64)> = rows
+        .iter()
+        .map(|r| {
+            let f: Vec<&str> = r.split(',').collect();
+            (f[0].parse().unwrap(), f[6].parse().unwrap())
+        })
+        .collect();
+    let mut want: Vec<(u32, f64)> = vec![(0, 0.96), (0, 0.7), (1, 0.85), (1, 0.75), (2, 0.8)];
+    let mut got = scores.clone();
+    got.sort_by(|a, b| a.0.cmp(&b.0).then(b.1.total_cmp(&a.1)));
+    want.sort_by(|a, b| a.0.cmp(&b.0).then(b.1.total_cmp(&a.1)));
+    assert_eq!(got.len(), want.len(), "{rows:?}");
+    for (g, w) in got.iter().zip(&want) {
+        assert!(g.0 == w.0 && (g.1 - w.1).abs() < 1e-9, "{got:?}");
+    }
+    // Stated stds are the user's choice: every box is kept, scored as the paper fuses.
+    let stated = fuse_fixture_cars(&["--default-std", "mild"]);
+    assert_eq!(stated.len(), 7, "{stated:?}");
+}

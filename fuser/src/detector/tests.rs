@@ -1,0 +1,55 @@
+use super::*;
+
+fn car(x: f64, score: f64) -> Detection {
+    Detection {
+        score,
+        ..Detection::car(x, 0.0, 0.5)
+    }
+}
+
+#[test]
+fn stds_follow_the_score_and_the_pose() {
+    let p = DetectorParams::default();
+    assert!((stds(&p, &car(0.0, 1.0), true).pos[0] - 0.15).abs() < 1e-12);
+    // 0.15 + 1.2 x 0.5^2
+    assert!((stds(&p, &car(0.0, 0.5), true).pos[2] - 0.45).abs() < 1e-12);
+    // Another agent's box: sqrt(0.15^2 + 0.7^2).
+    let other = stds(&p, &car(0.0, 1.0), false);
+    assert!((other.pos[1] - 0.15f64.hypot(0.7)).abs() < 1e-12);
+    assert_eq!((other.size, other.yaw), ([0.2; 3], 0.15));
+}
+
+#[test]
+fn a_group_scores_the_noisy_or_of_its_members() {
+    assert!((group_score([0.5, 0.5]) - 0.75).abs() < 1e-12);
+    assert!((group_score([0.6, 0.5]) - 0.8).abs() < 1e-12);
+    assert_eq!(group_score([]), 0.0);
+    assert_eq!(group_score([0.3]), 0.3);
+}
+
+#[test]
+fn seen_twice_is_kept_and_the_lone_tail_is_dropped() {
+    let p = DetectorParams::default();
+    let mut ego = vec![car(10.0, 0.6), car(40.0, 0.3), car(-30.0, 0.45)];
+    let mut other = vec![car(10.3, 0.5), car(70.0, 0.35)];
+    ready(&p, &mut ego, true);
+    ready(&p, &mut other, false);
+    let fused = fuse_scored(&p, &CsbaParams::PLUS, &[ego, other]);
+    let mut got: Vec<(f64, f64)> = fused.iter().map(|d| (d.center[0], d.score)).collect();
+    got.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(got.len(), 2, "{got:?}");
+    // The lone 0.45 box stays; the pair scores 1 - 0.4 x 0.5 and lies nearer the ego car's box,
+    // whose std is the smaller: (10 / 0.15^2 + 10.3 / (0.45^2 + 0.7^2)) / (its weights' sum).
+    assert_eq!(got[0], (-30.0, 0.45));
+    assert!((got[1].1 - 0.8).abs() < 1e-12);
+    let (w0, w1) = (
+        1.0 / (0.15 + 1.2 * 0.16f64).powi(2),
+        1.0 / (0.45f64.powi(2) + 0.49),
+    );
+    let want = (10.0 * w0 + 10.3 * w1) / (w0 + w1);
+    assert!(
+        (got[1].0 - want).abs() < 1e-9,
+        "{} against {want}",
+        got[1].0
+    );
+}
