@@ -18,6 +18,9 @@ pub enum DatasetKind {
     /// DAIR-V2X-C or V2X-Seq-SPD (DATAROOT holds cooperative/, vehicle-side/ and
     /// infrastructure-side/): the agents are the data's vehicle `veh` and roadside unit `inf`.
     DairV2x,
+    /// V2V4Real's detections in the AB3DMOT layout (DATAROOT is the AB3DMOT/ folder of a
+    /// DMSTrack checkout): the agents are the two cars `ego` and `1`, real PointPillars output.
+    V2v4real,
 }
 
 /// On or off.
@@ -53,6 +56,9 @@ pub struct DataArgs {
     /// virtual LiDAR frame).
     #[arg(long, requires = "dataroot")]
     pub inf_results: Option<PathBuf>,
+    /// V2V4Real: the split, train (develop and tune here) or val (the dataset's test split).
+    #[arg(long, default_value = "train")]
+    pub split: v2x_truth::v2v4real::Split,
     /// nuScenes version folder name, e.g. v1.0-mini.
     #[arg(long)]
     pub version: Option<String>,
@@ -92,6 +98,24 @@ impl DataArgs {
     /// Whether the data is DAIR-V2X cooperative data.
     pub fn is_dair(&self) -> bool {
         self.dataroot.is_some() && self.dataset == DatasetKind::DairV2x
+    }
+
+    /// Whether the data is V2V4Real's.
+    pub fn is_v2v4real(&self) -> bool {
+        self.dataroot.is_some() && self.dataset == DatasetKind::V2v4real
+    }
+
+    /// Loads V2V4Real's split (`--dataset v2v4real`), the cars' boxes with `std`.
+    pub fn load_v2v4real(
+        &self,
+        std: v2x_protocol::Uncertainty,
+    ) -> anyhow::Result<v2x_truth::v2v4real::V2v4real> {
+        match (&self.dataroot, self.dataset) {
+            (Some(root), DatasetKind::V2v4real) => {
+                Ok(v2x_truth::v2v4real::load(root, self.split, std)?)
+            }
+            _ => bail!("this needs --dataset v2v4real --dataroot AB3DMOT_DIR"),
+        }
     }
 
     /// Loads DAIR-V2X cooperative data (`--dataset dair-v2x`).
@@ -135,6 +159,9 @@ impl DataArgs {
         }
         if self.is_dair() {
             return Ok(self.load_dair()?.gt);
+        }
+        if self.is_v2v4real() {
+            bail!("--dataset v2v4real is read by `v2x-sim bench`; for a fusion's own output use `v2x-fuser fuse --output-format kitti` and `v2x-sim bench --dataset v2v4real`");
         }
         match (&self.dataroot, &self.version) {
             (Some(root), Some(version)) => Ok(load_nuscenes(root, version)?),

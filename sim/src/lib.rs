@@ -5,7 +5,8 @@
 //! - Re-exported from `v2x-eval`: [`metrics`], [`detection_eval`], [`tracking_eval`] and
 //!   [`dair_eval`]; [`cli`] reads files into them.
 //! - Offline experiments: [`bench`] (the paper's Table 2), [`asyncbench`] (asynchronous agents),
-//!   [`region_bench`] (tracks across regions), [`dair_bench`] (real vehicle and roadside data)
+//!   [`region_bench`] (tracks across regions), [`dair_bench`] (real vehicle and roadside data),
+//!   [`v2v4real_bench`] (real detections of two cars)
 //!   and [`plot`] (a bird's-eye view).
 //! - Over Zenoh: [`scenario`] and [`timeline`] (scenario files and their scripted events),
 //!   [`run`] (whole scenarios), [`load`] (the fuser under load) and [`certs`] (certificates and
@@ -25,6 +26,7 @@ pub mod run;
 pub mod scenario;
 pub mod table;
 pub mod timeline;
+pub mod v2v4real_bench;
 
-pub use v2x_eval::{dair_eval, detection_eval, metrics, tracking_eval};
-pub use v2x_truth::{dair, dataset, faults, noise, seed, town};
+pub use v2x_eval::{dair_eval, detection_eval, metrics, tracking_eval, v2v4real_eval};
+pub use v2x_truth::{dair, dataset, faults, noise, seed, town, v2v4real};

@@ -72,6 +72,7 @@ impl DatasetSpec {
             } else {
                 crate::cli::Switch::Off
             },
+            split: Default::default(),
             version: self.version.clone(),
             scenes: self.scenes,
             seconds: self.seconds,

@@ -71,12 +71,19 @@ pub struct BenchArgs {
     /// csba-wls+ and gt-wls.
     #[arg(long = "async")]
     pub asynchronous: bool,
+    /// With --dataset v2v4real: also score these folders of KITTI detection rows (one NNNN.txt
+    /// per sequence, e.g. `v2x-fuser fuse --output-format kitti`'s output), a row each.
+    #[arg(long, value_name = "DIR")]
+    pub results: Vec<PathBuf>,
 }
 
 /// Runs `v2x-sim bench`: one of its modes.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     if args.data.is_dair() {
         return dair(&args);
+    }
+    if args.data.is_v2v4real() {
+        return v2v4real(&args);
     }
     let gt = args.data.load()?;
     if let Some(size) = args.tile_size {
@@ -141,6 +148,50 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
                 start.elapsed().as_secs_f64()
             );
             print!("{}", v2x_sim::dair_bench::table(&rows));
+        }
+    }
+    Ok(())
+}
+
+/// `--dataset v2v4real`: each car, the dataset's references and every method on real
+/// detections of two cars, by V2V4Real's protocol.
+fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
+    if args.tile_size.is_some()
+        || args.tracking
+        || args.profile.is_some()
+        || args.asynchronous
+        || args.plot.is_some()
+    {
+        bail!("--dataset v2v4real runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
+    }
+    let mut d = args
+        .data
+        .load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
+    for dir in &args.results {
+        d.add_reference(dir.display().to_string(), dir)?;
+    }
+    let methods: Vec<Method> = if args.methods == "all" {
+        Method::all()
+            .into_iter()
+            .filter(|m| m.name() != "gt-wls")
+            .collect()
+    } else {
+        parse_list(&args.methods, vec![], |s| s.parse())?
+    };
+    let start = Instant::now();
+    let sources = v2x_sim::v2v4real_bench::sources(&d, &methods);
+    let rows = v2x_sim::v2v4real_bench::run(&d, &sources);
+    match args.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
+        Format::Csv | Format::Table => {
+            println!(
+                "V2V4Real {} split: {} frames, {} labelled cars; AP of cars by V2V4Real's protocol (frames in order, VOC 2010); {:.1} s\n",
+                d.split,
+                d.frames.len(),
+                d.boxes(),
+                start.elapsed().as_secs_f64()
+            );
+            print!("{}", v2x_sim::v2v4real_bench::table(&rows));
         }
     }
     Ok(())

@@ -1,0 +1,237 @@
+//! V2V4Real offline (`v2x-sim bench --dataset v2v4real`): each car's real detections alone,
+//! the dataset's own fused references, its late-fusion rule, and every method fusing the two
+//! cars, each scored by V2V4Real's detection protocol, with the bytes a frame costs.
+
+use crate::bench::{in_order, FRAMES_PER_TASK};
+use crate::table::{
+    markdown,
+    Align::{Left, Right},
+};
+use rayon::prelude::*;
+use serde::Serialize;
+use v2x_eval::dair_eval::View;
+use v2x_eval::v2v4real_eval::{V2v4realEval, V2v4realMetrics, THRESHOLDS};
+use v2x_fuser::baselines::nms;
+use v2x_fuser::detector::{ready, DetectorParams};
+use v2x_fuser::geometry::bev_iou;
+use v2x_fuser::offline::{fuse_window, OfflineOptions};
+use v2x_fuser::Method;
+use v2x_protocol::{wire, AgentKind, Detection, Frame};
+use v2x_truth::v2v4real::{V2v4real, CARS};
+
+/// One row of the table.
+#[derive(Clone, Debug, Serialize)]
+pub struct V2v4realRow {
+    /// `ego alone`, `car 1 alone`, a reference's name, or a method's.
+    pub method: String,
+    /// V2V4Real's protocol.
+    pub ap: V2v4realMetrics,
+    /// Mean bytes per frame on the wire that the row needs (both cars' frames for a fusion);
+    /// none for a reference, whose traffic is not the project's.
+    pub bytes_per_frame: Option<f64>,
+}
+
+/// What a row fuses or shows.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// One car's detections alone (an index into [`CARS`]).
+    Car(usize),
+    /// A reference the dataset publishes (an index into [`V2v4real::references`]).
+    Reference(usize),
+    /// The dataset's late-fusion rule: both cars' boxes pooled, greedy NMS on BEV IoU > 0.15.
+    LateFusionRule,
+    /// The late-fusion rule with the tail a CSBA-3D method drops ([`DetectorParams::min_score`]).
+    LateFusionRuleTail,
+    /// A method fusing both cars, as `v2x-fuser fuse` fuses a detector's rows.
+    Method(Method),
+}
+
+impl Source {
+    /// The row's name.
+    pub fn name(&self, d: &V2v4real) -> String {
+        match self {
+            Source::Car(0) => "ego alone".into(),
+            Source::Car(k) => format!("car {} alone", CARS[*k]),
+            Source::Reference(k) => d.references[*k].0.clone(),
+            Source::LateFusionRule => "late fusion rule (BEV NMS 0.15)".into(),
+            Source::LateFusionRuleTail => format!(
+                "late fusion rule, score >= {}",
+                DetectorParams::default().min_score
+            ),
+            Source::Method(m) => m.name(),
+        }
+    }
+
+    /// The row's boxes in frame `i`.
+    fn boxes(&self, d: &V2v4real, i: usize) -> Vec<Detection> {
+        let both = || [d.cars[0][i].clone(), d.cars[1][i].clone()];
+        let rule = || nms(&both(), bev_iou, 0.15).into_iter().map(|s| s.det);
+        match self {
+            Source::Car(k) => d.cars[*k][i].clone(),
+            Source::Reference(k) => d.references[*k].1[i].clone(),
+            Source::LateFusionRule => rule().collect(),
+            Source::LateFusionRuleTail => {
+                let min = DetectorParams::default().min_score;
+                rule().filter(|b| b.score >= min).collect()
+            }
+            Source::Method(m) => {
+                let opts = OfflineOptions {
+                    detector: Some(DetectorParams::default()),
+                    ..Default::default()
+                };
+                let mut agents = both();
+                for (k, dets) in agents.iter_mut().enumerate() {
+                    ready(&DetectorParams::default(), dets, k == 0);
+                }
+                fuse_window(m, &opts, &agents)
+            }
+        }
+    }
+
+    /// The cars whose frames the row sends.
+    fn senders(&self) -> &'static [usize] {
+        match self {
+            Source::Car(0) => &[0],
+            Source::Car(_) => &[1],
+            Source::Reference(_) => &[],
+            _ => &[0, 1],
+        }
+    }
+}
+
+/// Every row: each car, the references present, the late-fusion rule, then `methods`.
+pub fn sources(d: &V2v4real, methods: &[Method]) -> Vec<Source> {
+    let mut s = vec![Source::Car(0), Source::Car(1)];
+    s.extend((0..d.references.len()).map(Source::Reference));
+    s.push(Source::LateFusionRule);
+    s.push(Source::LateFusionRuleTail);
+    s.extend(methods.iter().map(|m| Source::Method(*m)));
+    s
+}
+
+/// What one car's frame costs on the wire (bytes).
+pub fn frame_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> usize {
+    let frame = Frame {
+        agent: CARS[car].to_string(),
+        kind: AgentKind::Vehicle,
+        seq: 0,
+        capture_us,
+        origin: [0.0; 3],
+        detections: dets.to_vec(),
+    }
+    .with_centroid_origin();
+    wire::encode(&frame).map_or(0, |b| b.len())
+}
+
+/// Per-row accumulators, with each car's bytes.
+#[derive(Clone)]
+struct Slots {
+    eval: Vec<V2v4realEval>,
+    bytes: [usize; 2],
+}
+
+impl Slots {
+    fn new(n: usize) -> Self {
+        Slots {
+            eval: vec![V2v4realEval::new(); n],
+            bytes: [0; 2],
+        }
+    }
+
+    fn merge(mut self, other: Slots) -> Slots {
+        for (a, b) in self.eval.iter_mut().zip(other.eval) {
+            a.merge(b);
+        }
+        self.bytes[0] += other.bytes[0];
+        self.bytes[1] += other.bytes[1];
+        self
+    }
+}
+
+/// Scores every source over every frame, in frame order.
+pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
+    let n = sources.len();
+    let frames: Vec<usize> = (0..d.frames.len()).collect();
+    let slots = in_order(
+        frames.par_chunks(FRAMES_PER_TASK),
+        |chunk| {
+            let mut s = Slots::new(n);
+            for &i in chunk {
+                for (k, src) in sources.iter().enumerate() {
+                    s.eval[k].add_frame(&d.gt[i], &src.boxes(d, i));
+                }
+                for car in 0..2 {
+                    s.bytes[car] += frame_bytes(car, d.frames[i].capture_us(), &d.cars[car][i]);
+                }
+            }
+            s
+        },
+        Slots::merge,
+    )
+    .unwrap_or_else(|| Slots::new(n));
+    let frames = d.frames.len().max(1) as f64;
+    sources
+        .iter()
+        .zip(slots.eval)
+        .map(|(src, eval)| {
+            let senders = src.senders();
+            V2v4realRow {
+                method: src.name(d),
+                ap: eval.summary(),
+                bytes_per_frame: (!senders.is_empty()).then(|| {
+                    senders.iter().map(|&c| slots.bytes[c]).sum::<usize>() as f64 / frames
+                }),
+            }
+        })
+        .collect()
+}
+
+fn ap_headers() -> Vec<String> {
+    [View::Bev, View::ThreeD]
+        .iter()
+        .flat_map(|v| {
+            THRESHOLDS
+                .iter()
+                .map(move |t| format!("AP-{}@{t}", if *v == View::Bev { "BEV" } else { "3D" }))
+        })
+        .collect()
+}
+
+fn ap_cells(m: &V2v4realMetrics) -> Vec<String> {
+    [&m.ap_bev, &m.ap_3d]
+        .iter()
+        .flat_map(|map| {
+            THRESHOLDS.iter().map(move |t| {
+                map.get(&format!("{t:.2}"))
+                    .map_or_else(|| "-".into(), |v| format!("{v:.3}"))
+            })
+        })
+        .collect()
+}
+
+/// The rows as a Markdown table.
+pub fn table(rows: &[V2v4realRow]) -> String {
+    let heads = ap_headers();
+    let mut columns = vec![("boxes / method", Left)];
+    columns.extend(heads.iter().map(|h| (h.as_str(), Right)));
+    columns.extend([("boxes/frame", Right), ("bytes/frame", Right)]);
+    markdown(
+        &columns,
+        rows.iter().map(|r| {
+            let mut cells = vec![r.method.clone()];
+            cells.extend(ap_cells(&r.ap));
+            cells.push(format!(
+                "{:.1}",
+                r.ap.predictions as f64 / r.ap.frames.max(1) as f64
+            ));
+            cells.push(
+                r.bytes_per_frame
+                    .map_or_else(|| "-".into(), |b| format!("{b:.0}")),
+            );
+            cells
+        }),
+    )
+}
+
+#[cfg(test)]
+mod tests;

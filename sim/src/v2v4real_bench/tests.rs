@@ -1,0 +1,51 @@
+use super::*;
+use std::path::Path;
+use v2x_protocol::Uncertainty;
+use v2x_truth::v2v4real::{load, Split};
+
+fn fixture() -> V2v4real {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../truth/fixtures/v2v4real/AB3DMOT");
+    load(&root, Split::Train, Uncertainty::uniform(0.5, 0.1, 0.1)).unwrap()
+}
+
+#[test]
+fn each_row_scores_as_worked_by_hand() {
+    let d = fixture();
+    let methods = ["csba-wls+".parse().unwrap()];
+    let rows = run(&d, &sources(&d, &methods));
+    let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "ego alone",
+            "car 1 alone",
+            "dataset late fusion",
+            "late fusion rule (BEV NMS 0.15)",
+            "late fusion rule, score >= 0.4",
+            "csba-wls+"
+        ]
+    );
+    let bev = |k: usize| rows[k].ap.ap_bev["0.50"];
+    let close = |got: f64, want: f64| assert!((got - want).abs() < 1e-12, "{got} against {want}");
+    // Eight labelled cars over five frames. The ego car: hit, false | hit | hit hit | hit | -.
+    close(bev(0), 1.0 / 8.0 + 4.0 / 8.0 * 5.0 / 6.0);
+    // Car 1: four hits and nothing else.
+    close(bev(1), 0.5);
+    // The reference holds frame 0's two cars only.
+    close(bev(2), 0.25);
+    // Pooled and suppressed: every car found, the ego car's false box the only miss.
+    close(bev(3), 2.0 / 8.0 + 6.0 / 8.0 * 8.0 / 9.0);
+    assert_eq!(rows[3].ap.predictions, 9);
+    // The tail below 0.4 dropped: the false box goes, and so does the last frame's lone 0.3 car.
+    close(bev(4), 7.0 / 8.0);
+    // csba-wls+ on a detector's boxes: the ego car's and car 1's first car fuse (0.96), the
+    // same two boxes fall below 0.4.
+    close(bev(5), 7.0 / 8.0);
+    assert_eq!((rows[4].ap.predictions, rows[5].ap.predictions), (7, 7));
+    // Bytes: a fusion sends both cars' frames; a reference, none of the project's.
+    let b = |k: usize| rows[k].bytes_per_frame;
+    assert!(b(0).unwrap() > 0.0 && b(1).unwrap() > 0.0);
+    assert!((b(5).unwrap() - b(0).unwrap() - b(1).unwrap()).abs() < 1e-9);
+    assert_eq!(b(2), None);
+    assert!(table(&rows).contains("| late fusion rule (BEV NMS 0.15) |"));
+}
