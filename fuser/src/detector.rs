@@ -1,4 +1,4 @@
-//! Real detectors' boxes (`docs/method.md` §10): a detector states a score and no stds, sends a
+//! Real detectors' boxes (`docs/method.md` §11): a detector states a score and no stds, sends a
 //! long tail of low-score false positives, and the boxes another agent brings into the
 //! receiving frame carry that agent's pose error on top of its detector's. This module gives
 //! such boxes their stds before association and scores the fused groups after it:
