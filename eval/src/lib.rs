@@ -8,8 +8,10 @@
 //! - [`v2v4real_eval`]: V2V4Real's protocol (BEV and 3D AP of cars at IoU 0.3, 0.5, 0.7).
 //! - [`file_eval`]: a results file scored against the ground truth, by either matching.
 //! - [`calibrate`]: an agent's errors against the ground truth, for its error model.
+//! - [`ab3dmot_eval`]: AB3DMOT's KITTI tracking evaluation (sAMOTA, AMOTA, MOTA at 3D IoU 0.25).
 //! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
 
+pub mod ab3dmot_eval;
 pub mod calibrate;
 pub mod dair_eval;
 pub mod detection_eval;
