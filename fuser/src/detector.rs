@@ -26,8 +26,9 @@ pub struct DetectorParams {
     pub pos_std: f64,
     /// Centre std added at score s as sigma_s (1 - s)^2 (m): sigma_s.
     pub pos_std_per_miss: f64,
-    /// Centre std of the pose of every agent but the receiver (m), added in quadrature.
-    pub pose_std: f64,
+    /// Centre std (x, y, z) of the pose of every agent but the receiver (m), added in
+    /// quadrature.
+    pub pose_std: [f64; 3],
     /// Size std (m).
     pub size_std: f64,
     /// Yaw std (rad).
@@ -41,7 +42,7 @@ impl Default for DetectorParams {
         DetectorParams {
             pos_std: 0.15,
             pos_std_per_miss: 1.2,
-            pose_std: 0.7,
+            pose_std: [0.7, 0.7, 0.7],
             size_std: 0.2,
             yaw_std: 0.15,
             min_score: 0.4,
@@ -54,9 +55,11 @@ impl Default for DetectorParams {
 pub fn stds(p: &DetectorParams, d: &Detection, receiver: bool) -> Uncertainty {
     let miss = (1.0 - d.score).clamp(0.0, 1.0);
     let own = p.pos_std + p.pos_std_per_miss * miss * miss;
-    let pos = clamp_std(if receiver { own } else { own.hypot(p.pose_std) });
+    let pos = p
+        .pose_std
+        .map(|pose| clamp_std(if receiver { own } else { own.hypot(pose) }));
     Uncertainty {
-        pos: [pos; 3],
+        pos,
         size: [clamp_std(p.size_std); 3],
         yaw: clamp_std(p.yaw_std),
     }

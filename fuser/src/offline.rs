@@ -554,8 +554,9 @@ fn write_json(output: &std::path::Path, doc: &Value) -> Result<(), FilesError> {
     .map_err(|e| FilesError::Inputs(format!("cannot write {}: {e}", output.display())))
 }
 
-/// Tracks each KITTI sequence on its own (a fresh tracker per sequence), joining the outputs.
-fn track_sequences(
+/// Tracks each KITTI sequence on its own (a fresh tracker per sequence), joining the outputs:
+/// what `v2x-fuser track` does with KITTI folders.
+pub fn track_sequences(
     method: &Method,
     agents: &[Results],
     opts: &OfflineOptions,

@@ -9,13 +9,20 @@ use crate::table::{
 };
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use v2x_eval::ab3dmot_eval::{evaluate, Ab3dmotMetrics, Sequence};
 use v2x_eval::dair_eval::View;
 use v2x_eval::v2v4real_eval::{V2v4realEval, V2v4realMetrics, THRESHOLDS};
 use v2x_fuser::baselines::nms;
 use v2x_fuser::detector::{ready, DetectorParams};
 use v2x_fuser::geometry::bev_iou;
-use v2x_fuser::offline::{fuse_window, OfflineOptions};
+use v2x_fuser::offline::{fuse_window, read_inputs, track_sequences, FilesError, OfflineOptions};
+use v2x_fuser::tracker::TrackerParams;
 use v2x_fuser::Method;
+use v2x_protocol::kitti::{self, KittiError};
+use v2x_protocol::nuscenes_json::MissingStd;
+use v2x_protocol::Uncertainty;
 use v2x_protocol::{wire, AgentKind, Detection, Frame};
 use v2x_truth::v2v4real::{V2v4real, CARS};
 
@@ -121,6 +128,143 @@ pub fn frame_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> usize {
     }
     .with_centroid_origin();
     wire::encode(&frame).map_or(0, |b| b.len())
+}
+
+/// A tracked row: `v2x-fuser track` over both cars' folders, scored by AB3DMOT's evaluation.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrackedRow {
+    /// `METHOD tracked`, or `METHOD guided`.
+    pub method: String,
+    /// AB3DMOT's figures.
+    pub metrics: Ab3dmotMetrics,
+    /// Tracked boxes per frame.
+    pub boxes_per_frame: f64,
+}
+
+/// Tracks both cars' folders (`cars`, the receiving car first) as `v2x-fuser track` does, with
+/// `method` and `params`, and scores the tracks against the split's labels.
+pub fn tracked(
+    d: &V2v4real,
+    cars: &[PathBuf],
+    method: &Method,
+    params: TrackerParams,
+) -> Result<TrackedRow, FilesError> {
+    let read = read_inputs(cars, MissingStd::Error)?;
+    let tracks = track_sequences(
+        method,
+        &read.agents,
+        &read.options(&OfflineOptions::default()),
+        params,
+    )?;
+    let rows = |token: &str| match (tracks.results.samples.get(token), tracks.ids.get(token)) {
+        (Some(dets), Some(ids)) => dets
+            .iter()
+            .zip(ids)
+            .map(|(d, &id)| Detection { id, ..d.clone() })
+            .collect(),
+        _ => Vec::new(),
+    };
+    let seqs = sequences(d, rows);
+    let name = format!(
+        "{} {}",
+        method.name(),
+        if params.guided { "guided" } else { "tracked" }
+    );
+    Ok(row(name, d, &seqs))
+}
+
+/// The split's labels and, per frame, the tracked boxes `rows` gives for its sample token (ids
+/// the tracks'), cut into sequences.
+pub fn sequences(d: &V2v4real, rows: impl Fn(&str) -> Vec<Detection>) -> Vec<Sequence> {
+    let mut out: Vec<Sequence> = Vec::new();
+    for (i, f) in d.frames.iter().enumerate() {
+        if i == 0 || d.frames[i - 1].seq != f.seq {
+            out.push(Sequence::default());
+        }
+        let s = out.last_mut().expect("pushed above");
+        s.gt.push(d.gt[i].clone());
+        s.tracks.push(rows(&f.token()));
+    }
+    out
+}
+
+/// A folder of KITTI tracking rows (`v2x-fuser track --output-format kitti`'s output) scored
+/// by AB3DMOT's evaluation against the split's labels.
+pub fn score_track_dir(d: &V2v4real, dir: &Path) -> Result<TrackedRow, KittiError> {
+    let mut by_token: BTreeMap<String, Vec<Detection>> = BTreeMap::new();
+    for (seq, path) in kitti::sequence_files(dir)? {
+        for r in kitti::read_tracks(&path)? {
+            let det = kitti::DetectionRow {
+                frame: r.frame,
+                class: r.class,
+                score: r.score.unwrap_or(0.0),
+                bbox: r.bbox,
+            }
+            .detection(Uncertainty::uniform(0.5, 0.1, 0.1));
+            by_token
+                .entry(kitti::token(seq, r.frame))
+                .or_default()
+                .push(Detection { id: r.id, ..det });
+        }
+    }
+    let seqs = sequences(d, |t| by_token.get(t).cloned().unwrap_or_default());
+    Ok(row(dir.display().to_string(), d, &seqs))
+}
+
+/// A tracked row of these sequences.
+fn row(method: String, d: &V2v4real, seqs: &[Sequence]) -> TrackedRow {
+    let boxes: usize = seqs.iter().flat_map(|s| &s.tracks).map(Vec::len).sum();
+    TrackedRow {
+        method,
+        metrics: evaluate(seqs).unwrap_or_default(),
+        boxes_per_frame: boxes as f64 / d.frames.len().max(1) as f64,
+    }
+}
+
+/// A folder of KITTI detection rows scored by V2V4Real's detection protocol.
+pub fn score_detection_dir(d: &V2v4real, dir: &Path) -> Result<V2v4realMetrics, KittiError> {
+    let mut d = d.clone();
+    d.references.clear();
+    d.add_reference(String::new(), dir)?;
+    Ok(run(&d, &[Source::Reference(0)]).remove(0).ap)
+}
+
+/// The tracked rows as a Markdown table (percent, as AB3DMOT's script prints them).
+pub fn tracked_table(rows: &[TrackedRow]) -> String {
+    let pct = |v: f64| format!("{:.2}", 100.0 * v);
+    markdown(
+        &[
+            ("tracks", Left),
+            ("sAMOTA", Right),
+            ("AMOTA", Right),
+            ("AMOTP", Right),
+            ("MOTA", Right),
+            ("MOTP", Right),
+            ("MT", Right),
+            ("ML", Right),
+            ("IDS", Right),
+            ("FRAG", Right),
+            ("recall", Right),
+            ("boxes/frame", Right),
+        ],
+        rows.iter().map(|r| {
+            let m = &r.metrics;
+            vec![
+                r.method.clone(),
+                pct(m.samota),
+                pct(m.amota),
+                pct(m.amotp),
+                pct(m.mota),
+                pct(m.motp),
+                pct(m.mt),
+                pct(m.ml),
+                m.ids.to_string(),
+                m.frag.to_string(),
+                pct(m.recall),
+                format!("{:.1}", r.boxes_per_frame),
+            ]
+        }),
+    )
 }
 
 /// Per-row accumulators, with each car's bytes.

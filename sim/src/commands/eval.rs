@@ -71,6 +71,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         classes,
         pred,
     } = args;
+    if data.is_v2v4real() {
+        return v2v4real(&data, &pred, tracking, format);
+    }
     if tracking {
         return tracking_table(&data, &pred, all_frames, format);
     }
@@ -201,6 +204,45 @@ fn tracking_table(
                 ("objects", Right),
             ]);
             print!("{}", markdown(&columns, [row]));
+        }
+    }
+    Ok(())
+}
+
+/// `--dataset v2v4real`: a folder of KITTI rows scored by V2V4Real's detection protocol, or with
+/// `--tracking` by AB3DMOT's tracking evaluation.
+fn v2v4real(
+    data: &DataArgs,
+    dir: &std::path::Path,
+    tracking: bool,
+    format: Format,
+) -> anyhow::Result<()> {
+    let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
+    if !dir.is_dir() {
+        bail!(
+            "{}: --dataset v2v4real scores a folder of KITTI rows (one NNNN.txt per sequence)",
+            dir.display()
+        );
+    }
+    if tracking {
+        let row = v2x_sim::v2v4real_bench::score_track_dir(&d, dir)?;
+        match format {
+            Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
+            _ => print!("{}", v2x_sim::v2v4real_bench::tracked_table(&[row])),
+        }
+    } else {
+        let m = v2x_sim::v2v4real_bench::score_detection_dir(&d, dir)?;
+        match format {
+            Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
+            _ => println!(
+                "{}: AP-BEV {} · AP-3D {} ({} frames, {} labelled cars, {} boxes)",
+                dir.display(),
+                serde_json::to_string(&m.ap_bev)?,
+                serde_json::to_string(&m.ap_3d)?,
+                m.frames,
+                m.gt,
+                m.predictions
+            ),
         }
     }
     Ok(())

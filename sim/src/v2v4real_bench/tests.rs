@@ -49,3 +49,21 @@ fn each_row_scores_as_worked_by_hand() {
     assert_eq!(b(2), None);
     assert!(table(&rows).contains("| late fusion rule (BEV NMS 0.15) |"));
 }
+
+#[test]
+fn the_fixtures_tracks_score_as_ab3dmots_script_scores_them() {
+    // `truth/fixtures/v2v4real/tracks` scored by AB3DMOT's scripts/KITTI/evaluate.py
+    // (`late_fusion_Car_train_H1 1 3D 0.25 all train`, the fixture as the AB3DMOT/ folder): its
+    // summary to the digits it prints.
+    let d = fixture();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../truth/fixtures/v2v4real/tracks");
+    let row = score_track_dir(&d, &dir).unwrap();
+    let m = &row.metrics;
+    let four = |v: f64| format!("{v:.4}");
+    assert_eq!(
+        [m.samota, m.amota, m.amotp, m.mota, m.motp, m.mt, m.ml, m.recall].map(four),
+        ["0.1500", "0.0750", "0.1288", "0.6250", "0.9637", "0.6667", "0.0000", "0.8750"]
+    );
+    assert_eq!((m.tp, m.fp, m.fn_, m.ids, m.frag), (7, 0, 1, 2, 1));
+    assert!((row.boxes_per_frame - 10.0 / 5.0).abs() < 1e-12);
+}
