@@ -42,13 +42,28 @@ impl Default for DetectorParams {
         DetectorParams {
             pos_std: 0.15,
             pos_std_per_miss: 1.2,
-            pose_std: [0.7, 0.7, 0.7],
+            pose_std: [0.5; 3],
             size_std: 0.2,
             yaw_std: 0.15,
             min_score: 0.4,
         }
     }
 }
+
+impl DetectorParams {
+    /// The parameters for a tracker's input: no tail dropped, since the tracker's scores rank
+    /// its tracks and a box dropped is an object the track may miss.
+    pub fn for_tracking(self) -> DetectorParams {
+        DetectorParams {
+            min_score: 0.0,
+            ..self
+        }
+    }
+}
+
+/// Hits that confirm a track of a detector's boxes when none is given: 1, every box is shown at
+/// once and its track's mean score ranks it.
+pub const CONFIRM_HITS: u32 = 1;
 
 /// The stds a detector's box is given from its score; `receiver`: the box is in its own
 /// agent's frame (no pose error).

@@ -148,9 +148,11 @@ struct FuseArgs {
 struct TrackArgs {
     #[command(flatten)]
     files: FilesArgs,
-    /// Hits in a row that confirm a track (a box seen once never becomes one at 2).
-    #[arg(long, default_value_t = 2)]
-    confirm_hits: u32,
+    /// Hits in a row that confirm a track: by default 2 (a box seen once never becomes one),
+    /// and 1 for a detector's KITTI rows with no stated std (each box shown at once, its
+    /// track's mean score ranking it).
+    #[arg(long)]
+    confirm_hits: Option<u32>,
     /// Windows in a row without a box a confirmed track survives.
     #[arg(long, default_value_t = 3)]
     max_misses: u32,
@@ -656,11 +658,19 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
         output,
         inputs,
     } = args;
-    if confirm_hits == 0 {
+    if confirm_hits == Some(0) {
         anyhow::bail!("--confirm-hits must be at least 1");
     }
     let method = files.method;
     let (missing, opts) = files.options(inputs.len())?;
+    let detector = v2x_fuser::offline::from_detector(&inputs, missing)
+        && opts.learn.is_none()
+        && opts.models.is_empty();
+    let confirm_hits = confirm_hits.unwrap_or(if detector {
+        v2x_fuser::detector::CONFIRM_HITS
+    } else {
+        v2x_fuser::tracker::TrackerParams::default().confirm_hits
+    });
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
         max_misses,

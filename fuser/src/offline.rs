@@ -50,6 +50,14 @@ impl Inputs {
         }
         o
     }
+
+    /// [`Inputs::options`] for tracking: a detector's boxes reach the tracker without their
+    /// tail dropped ([`DetectorParams::for_tracking`]).
+    pub fn tracking_options(&self, opts: &OfflineOptions) -> OfflineOptions {
+        let mut o = self.options(opts);
+        o.detector = o.detector.map(DetectorParams::for_tracking);
+        o
+    }
 }
 
 /// What went wrong reading, fusing or writing files.
@@ -94,6 +102,12 @@ pub fn kitti_default_std() -> Uncertainty {
     v2x_protocol::NoiseProfile::Mild.std()
 }
 
+/// Whether these inputs are a detector's KITTI rows without stds: every input a folder, and no
+/// default std given for them.
+pub fn from_detector(paths: &[PathBuf], missing: MissingStd) -> bool {
+    !paths.is_empty() && paths.iter().all(|p| p.is_dir()) && matches!(missing, MissingStd::Error)
+}
+
 /// Reads one input per agent with a shared token table: a results file, or a folder of KITTI
 /// detection rows (one `NNNN.txt` per sequence, [`v2x_protocol::kitti`]) whose boxes take the
 /// default std, [`kitti_default_std`] without one. Files and folders are not mixed.
@@ -122,7 +136,7 @@ pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, Fil
         }
     }
     Ok(Inputs {
-        from_detector: folders > 0 && matches!(missing, MissingStd::Error),
+        from_detector: from_detector(paths, missing),
         agents,
         tokens,
         sequences,
@@ -527,7 +541,7 @@ pub fn track_files(
     format: OutputFormat,
 ) -> Result<Tracks, FilesError> {
     let read = read_inputs(inputs, missing)?;
-    let opts = &read.options(opts);
+    let opts = &read.tracking_options(opts);
     let tracks = if read.sequences.is_empty() {
         track_results(method, &read.agents, opts, params).map_err(FilesError::Inputs)?
     } else {

@@ -153,7 +153,7 @@ pub fn tracked(
     let tracks = track_sequences(
         method,
         &read.agents,
-        &read.options(&OfflineOptions::default()),
+        &read.tracking_options(&OfflineOptions::default()),
         params,
     )?;
     let rows = |token: &str| match (tracks.results.samples.get(token), tracks.ids.get(token)) {

@@ -13,9 +13,9 @@ fn stds_follow_the_score_and_the_pose() {
     assert!((stds(&p, &car(0.0, 1.0), true).pos[0] - 0.15).abs() < 1e-12);
     // 0.15 + 1.2 x 0.5^2
     assert!((stds(&p, &car(0.0, 0.5), true).pos[2] - 0.45).abs() < 1e-12);
-    // Another agent's box: sqrt(0.15^2 + 0.7^2).
+    // Another agent's box: sqrt(0.15^2 + 0.5^2).
     let other = stds(&p, &car(0.0, 1.0), false);
-    assert!((other.pos[1] - 0.15f64.hypot(0.7)).abs() < 1e-12);
+    assert!((other.pos[1] - 0.15f64.hypot(0.5)).abs() < 1e-12);
     assert_eq!((other.size, other.yaw), ([0.2; 3], 0.15));
 }
 
@@ -39,12 +39,12 @@ fn seen_twice_is_kept_and_the_lone_tail_is_dropped() {
     got.sort_by(|a, b| a.0.total_cmp(&b.0));
     assert_eq!(got.len(), 2, "{got:?}");
     // The lone 0.45 box stays; the pair scores 1 - 0.4 x 0.5 and lies nearer the ego car's box,
-    // whose std is the smaller: (10 / 0.15^2 + 10.3 / (0.45^2 + 0.7^2)) / (its weights' sum).
+    // whose std is the smaller: (10 / 0.342^2 + 10.3 / (0.45^2 + 0.5^2)) / (its weights' sum).
     assert_eq!(got[0], (-30.0, 0.45));
     assert!((got[1].1 - 0.8).abs() < 1e-12);
     let (w0, w1) = (
         1.0 / (0.15 + 1.2 * 0.16f64).powi(2),
-        1.0 / (0.45f64.powi(2) + 0.49),
+        1.0 / (0.45f64.powi(2) + 0.25),
     );
     let want = (10.0 * w0 + 10.3 * w1) / (w0 + w1);
     assert!(
@@ -52,4 +52,11 @@ fn seen_twice_is_kept_and_the_lone_tail_is_dropped() {
         "{} against {want}",
         got[1].0
     );
+}
+
+#[test]
+fn a_tracker_gets_the_tail_too() {
+    let p = DetectorParams::default().for_tracking();
+    assert_eq!(p.min_score, 0.0);
+    assert_eq!(p.pose_std, DetectorParams::default().pose_std);
 }

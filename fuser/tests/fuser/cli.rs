@@ -76,16 +76,22 @@ fn node_and_router_explain_their_options_and_refuse_bad_ones() {
 /// Fuses the V2V4Real-layout fixture's two cars with `v2x-fuser fuse` and `extra` flags; the
 /// output's rows of sequence 0000.
 fn fuse_fixture_cars(extra: &[&str]) -> Vec<String> {
+    run_on_fixture_cars("fuse", extra)
+}
+
+/// `v2x-fuser COMMAND --output-format kitti` over the V2V4Real-layout fixture's two cars; the
+/// output's rows of sequence 0000.
+fn run_on_fixture_cars(command: &str, extra: &[&str]) -> Vec<String> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
         "../truth/fixtures/v2v4real/AB3DMOT/data/v2v4real/detection/multi_sensor_differentiable_kalman_filter_Car_train",
     );
     let out = std::env::temp_dir().join(format!(
-        "v2x-kitti-fuse-{}-{}",
+        "v2x-kitti-{command}-{}-{}",
         std::process::id(),
         extra.len()
     ));
     let status = Command::new(env!("CARGO_BIN_EXE_v2x-fuser"))
-        .args(["fuse", "--output-format", "kitti", "--output"])
+        .args([command, "--output-format", "kitti", "--output"])
         .arg(&out)
         .args(extra)
         .arg(root.join("ego"))
@@ -126,4 +132,25 @@ fn a_detectors_rows_fuse_with_its_scores_and_without_its_tail() {
     // Stated stds are the user's choice: every box is kept, scored as the paper fuses.
     let stated = fuse_fixture_cars(&["--default-std", "mild"]);
     assert_eq!(stated.len(), 7, "{stated:?}");
+}
+
+#[test]
+fn a_detectors_rows_are_tracked_from_their_first_box_with_their_tail() {
+    // Frame 0 of sequence 0000: the pair (0.96), car 1's 0.7 and the ego car's 0.25 box all
+    // start tracks shown at once (one hit confirms a detector's track; no tail is dropped).
+    let rows = run_on_fixture_cars("track", &[]);
+    let frame0: Vec<f64> = rows
+        .iter()
+        .map(|r| r.split_whitespace().collect::<Vec<_>>())
+        .filter(|f| f[0] == "0")
+        .map(|f| f[17].parse().unwrap())
+        .collect();
+    assert_eq!(frame0.len(), 3, "{rows:?}");
+    assert!(
+        frame0.iter().any(|&s| (s - 0.25).abs() < 1e-9),
+        "{frame0:?}"
+    );
+    // --confirm-hits 2: a box seen once is not shown.
+    let rows = run_on_fixture_cars("track", &["--confirm-hits", "2"]);
+    assert!(rows.iter().all(|r| !r.starts_with("0 ")), "{rows:?}");
 }

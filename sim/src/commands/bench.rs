@@ -198,6 +198,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         for guided in [false, true] {
             let params = v2x_fuser::tracker::TrackerParams {
                 guided,
+                confirm_hits: v2x_fuser::detector::CONFIRM_HITS,
                 ..Default::default()
             };
             tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
