@@ -37,13 +37,19 @@ pub struct DairRow {
 
 /// What one agent's frame costs on the wire (bytes).
 pub fn wire_bytes(agent: usize, capture_us: u64, dets: &[Detection]) -> usize {
+    let kind = if agent == 0 {
+        AgentKind::Vehicle
+    } else {
+        AgentKind::Infrastructure
+    };
+    frame_bytes(AGENTS[agent], kind, capture_us, dets)
+}
+
+/// What a frame of `dets` from `agent` costs on the wire (bytes), encoded as agents send it.
+pub fn frame_bytes(agent: &str, kind: AgentKind, capture_us: u64, dets: &[Detection]) -> usize {
     let frame = Frame {
-        agent: AGENTS[agent].to_string(),
-        kind: if agent == 0 {
-            AgentKind::Vehicle
-        } else {
-            AgentKind::Infrastructure
-        },
+        agent: agent.to_string(),
+        kind,
         seq: 0,
         capture_us,
         origin: [0.0; 3],

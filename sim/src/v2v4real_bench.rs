@@ -3,6 +3,7 @@
 //! cars, each scored by V2V4Real's detection protocol, with the bytes a frame costs.
 
 use crate::bench::{in_order, FRAMES_PER_TASK};
+use crate::dair_bench::frame_bytes;
 use crate::table::{
     markdown,
     Align::{Left, Right},
@@ -23,7 +24,7 @@ use v2x_fuser::Method;
 use v2x_protocol::kitti::{self, KittiError};
 use v2x_protocol::nuscenes_json::MissingStd;
 use v2x_protocol::Uncertainty;
-use v2x_protocol::{wire, AgentKind, Detection, Frame};
+use v2x_protocol::{AgentKind, Detection};
 use v2x_truth::v2v4real::{V2v4real, CARS};
 
 /// One row of the table.
@@ -117,17 +118,8 @@ pub fn sources(d: &V2v4real, methods: &[Method]) -> Vec<Source> {
 }
 
 /// What one car's frame costs on the wire (bytes).
-pub fn frame_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> usize {
-    let frame = Frame {
-        agent: CARS[car].to_string(),
-        kind: AgentKind::Vehicle,
-        seq: 0,
-        capture_us,
-        origin: [0.0; 3],
-        detections: dets.to_vec(),
-    }
-    .with_centroid_origin();
-    wire::encode(&frame).map_or(0, |b| b.len())
+pub fn car_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> usize {
+    frame_bytes(CARS[car], AgentKind::Vehicle, capture_us, dets)
 }
 
 /// A tracked row: `v2x-fuser track` over both cars' folders, scored by AB3DMOT's evaluation.
@@ -305,7 +297,7 @@ pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
                     s.eval[k].add_frame(&d.gt[i], &src.boxes(d, i));
                 }
                 for car in 0..2 {
-                    s.bytes[car] += frame_bytes(car, d.frames[i].capture_us(), &d.cars[car][i]);
+                    s.bytes[car] += car_bytes(car, d.frames[i].capture_us(), &d.cars[car][i]);
                 }
             }
             s

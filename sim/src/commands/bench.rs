@@ -115,14 +115,7 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
         bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
     }
     let d = args.data.load_dair()?;
-    let methods: Vec<Method> = if args.methods == "all" {
-        Method::all()
-            .into_iter()
-            .filter(|m| m.name() != "gt-wls")
-            .collect()
-    } else {
-        parse_list(&args.methods, vec![], |s| s.parse())?
-    };
+    let methods = real_data_methods(&args.methods)?;
     if methods.iter().any(|m| m.name() == "gt-wls") {
         bail!("gt-wls groups boxes by ground-truth id, which DAIR-V2X's own labels do not carry");
     }
@@ -153,6 +146,19 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--methods` on real data: `all` is every method but the oracle, which needs ground-truth
+/// ids the data's own boxes do not carry.
+fn real_data_methods(list: &str) -> anyhow::Result<Vec<Method>> {
+    Ok(if list == "all" {
+        Method::all()
+            .into_iter()
+            .filter(|m| m.name() != "gt-wls")
+            .collect()
+    } else {
+        parse_list(list, vec![], |s| s.parse())?
+    })
+}
+
 /// `--dataset v2v4real`: each car, the dataset's references and every method on real
 /// detections of two cars, by V2V4Real's protocol.
 fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
@@ -169,14 +175,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     for dir in &args.results {
         d.add_reference(dir.display().to_string(), dir)?;
     }
-    let methods: Vec<Method> = if args.methods == "all" {
-        Method::all()
-            .into_iter()
-            .filter(|m| m.name() != "gt-wls")
-            .collect()
-    } else {
-        parse_list(&args.methods, vec![], |s| s.parse())?
-    };
+    let methods = real_data_methods(&args.methods)?;
     let start = Instant::now();
     let sources = v2x_sim::v2v4real_bench::sources(&d, &methods);
     let rows = v2x_sim::v2v4real_bench::run(&d, &sources);
