@@ -663,14 +663,7 @@ fn track(args: TrackArgs) -> anyhow::Result<()> {
     }
     let method = files.method;
     let (missing, opts) = files.options(inputs.len())?;
-    let detector = v2x_fuser::offline::from_detector(&inputs, missing)
-        && opts.learn.is_none()
-        && opts.models.is_empty();
-    let confirm_hits = confirm_hits.unwrap_or(if detector {
-        v2x_fuser::detector::CONFIRM_HITS
-    } else {
-        v2x_fuser::tracker::TrackerParams::default().confirm_hits
-    });
+    let confirm_hits = v2x_fuser::offline::confirm_hits(confirm_hits, &inputs, missing, &opts);
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
         max_misses,

@@ -108,6 +108,26 @@ pub fn from_detector(paths: &[PathBuf], missing: MissingStd) -> bool {
     !paths.is_empty() && paths.iter().all(|p| p.is_dir()) && matches!(missing, MissingStd::Error)
 }
 
+/// The hits that confirm a track: `given`, else 1 for a detector's rows that [`Inputs::options`]
+/// gives the detector's treatment ([`crate::detector::CONFIRM_HITS`]), else the tracker's
+/// default.
+pub fn confirm_hits(
+    given: Option<u32>,
+    paths: &[PathBuf],
+    missing: MissingStd,
+    opts: &OfflineOptions,
+) -> u32 {
+    let detector = from_detector(paths, missing)
+        && opts.detector.is_none()
+        && opts.learn.is_none()
+        && opts.models.is_empty();
+    given.unwrap_or(if detector {
+        crate::detector::CONFIRM_HITS
+    } else {
+        TrackerParams::default().confirm_hits
+    })
+}
+
 /// Reads one input per agent with a shared token table: a results file, or a folder of KITTI
 /// detection rows (one `NNNN.txt` per sequence, [`v2x_protocol::kitti`]) whose boxes take the
 /// default std, [`kitti_default_std`] without one. Files and folders are not mixed.

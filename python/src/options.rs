@@ -29,7 +29,7 @@ pub struct Options {
     learn_std: bool,
     std_flag_ratio: f64,
     std_models: BTreeMap<String, PathBuf>,
-    confirm_hits: u32,
+    confirm_hits: Option<u32>,
     max_misses: u32,
     all_classes: bool,
     guided: bool,
@@ -136,10 +136,17 @@ impl Options {
         Ok(out)
     }
 
-    /// The tracker's parameters.
-    pub fn tracker(&self) -> PyResult<TrackerParams> {
+    /// The tracker's parameters for these inputs (`confirm_hits` resolved as `v2x-fuser track`
+    /// resolves it).
+    pub fn tracker(
+        &self,
+        inputs: &[PathBuf],
+        missing: MissingStd,
+        opts: &OfflineOptions,
+    ) -> PyResult<TrackerParams> {
+        let confirm = v2x_fuser::offline::confirm_hits(self.confirm_hits, inputs, missing, opts);
         // As `v2x-fuser track`: the files' capture times are the data's own, not a replay's.
-        let mut p = tracker_params(self.confirm_hits, self.max_misses, self.all_classes, 1.0)?;
+        let mut p = tracker_params(confirm, self.max_misses, self.all_classes, 1.0)?;
         p.guided = self.guided;
         Ok(p)
     }

@@ -6,7 +6,7 @@ import logging
 import pytest
 
 import v2x_fusion as v
-from conftest import TOWN, load, run
+from conftest import REPO, TOWN, load, run
 
 AGENTS = ("agent1.json", "agent2.json")
 TOWN_FLAGS = ("--seconds", TOWN["seconds"], "--hz", TOWN["hz"])
@@ -118,3 +118,15 @@ def test_through_the_tracks_equals_the_cli(generated, tmp_path):
             assert g["translation"] == pytest.approx(w["translation"], abs=1e-9)
     with pytest.raises(TypeError, match="guided"):
         v.fuse_files(paths, tmp_path / "x.json", guided=True)
+
+
+def test_kitti_folders_track_as_the_cli_tracks_them(tmp_path):
+    """A detector's KITTI folders (the V2V4Real-layout fixture's two cars): the same rows as
+    `v2x-fuser track --output-format kitti`, a track shown from its first box."""
+    cars = REPO / "truth/fixtures/v2v4real/AB3DMOT/data/v2v4real/detection/multi_sensor_differentiable_kalman_filter_Car_train"
+    run("v2x-fuser", "track", "--output-format", "kitti", "--output", tmp_path / "cli", cars / "ego", cars / "1")
+    v.track_files([cars / "ego", cars / "1"], tmp_path / "py")
+    for seq in ("0000.txt", "0001.txt"):
+        assert (tmp_path / "py" / seq).read_text() == (tmp_path / "cli" / seq).read_text()
+    frame0 = [r for r in (tmp_path / "py" / "0000.txt").read_text().splitlines() if r.startswith("0 ")]
+    assert len(frame0) == 3

@@ -243,7 +243,7 @@ def _options(
     learn_std: bool = False,
     std_flag_ratio: float = 2.0,
     std_models: Optional[Mapping[str, PathLike]] = None,
-    confirm_hits: int = 2,
+    confirm_hits: Optional[int] = None,
     max_misses: int = 3,
     all_classes: bool = False,
     guided: bool = False,
