@@ -108,6 +108,12 @@ pub fn from_detector(paths: &[PathBuf], missing: MissingStd) -> bool {
     !paths.is_empty() && paths.iter().all(|p| p.is_dir()) && matches!(missing, MissingStd::Error)
 }
 
+/// Whether a detector's rows get the detector's treatment under `opts`: unless it is given
+/// already, or learned stds or error models replace it.
+fn detector_applies(from_detector: bool, opts: &OfflineOptions) -> bool {
+    from_detector && opts.detector.is_none() && opts.learn.is_none() && opts.models.is_empty()
+}
+
 /// The hits that confirm a track: `given`, else 1 for a detector's rows that [`Inputs::options`]
 /// gives the detector's treatment ([`crate::detector::CONFIRM_HITS`]), else the tracker's
 /// default.
@@ -117,11 +123,7 @@ pub fn confirm_hits(
     missing: MissingStd,
     opts: &OfflineOptions,
 ) -> u32 {
-    let detector = from_detector(paths, missing)
-        && opts.detector.is_none()
-        && opts.learn.is_none()
-        && opts.models.is_empty();
-    given.unwrap_or(if detector {
+    given.unwrap_or(if detector_applies(from_detector(paths, missing), opts) {
         crate::detector::CONFIRM_HITS
     } else {
         TrackerParams::default().confirm_hits
