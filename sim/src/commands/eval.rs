@@ -29,7 +29,8 @@ pub struct EvalArgs {
     /// Score a tracking results file (`v2x-fuser track`) as the nuScenes tracking benchmark
     /// does: AMOTA, AMOTP, and MOTA, MOTP, IDS, FRAG at each class's best score threshold,
     /// 2 m centre distance, the seven tracking classes. The same file without --tracking
-    /// scores its boxes as detections.
+    /// scores its boxes as detections. With --dataset v2v4real: a folder of KITTI tracking rows
+    /// scored by AB3DMOT's evaluation (3D IoU 0.25), as DMSTrack reports V2V4Real.
     #[arg(long, conflicts_with_all = ["replay_start_at", "at", "classes"])]
     pub tracking: bool,
     /// Output format.
@@ -53,7 +54,8 @@ pub struct EvalArgs {
     /// benchmark's headline averaged over the classes the ground truth holds.
     #[arg(long, value_delimiter = ',')]
     pub classes: Option<Vec<v2x_protocol::Class>>,
-    /// The results file to score.
+    /// The results file to score (with --dataset v2v4real, a folder of KITTI rows: detection
+    /// rows scored by V2V4Real's protocol, or tracking rows with --tracking).
     pub pred: PathBuf,
 }
 
