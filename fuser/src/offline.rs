@@ -215,7 +215,7 @@ pub fn capture_times(r: &Results) -> Option<HashMap<String, u64>> {
 
 /// A window's boxes with the detector's stds ([`OfflineOptions::detector`]; `receiver(k)`: list
 /// k is the first input's), or as they are.
-fn ready(
+pub fn ready(
     opts: &OfflineOptions,
     mut per_agent: Vec<Vec<Detection>>,
     receiver: impl Fn(usize) -> bool,

@@ -16,9 +16,11 @@ use v2x_eval::ab3dmot_eval::{evaluate, Ab3dmotMetrics, Sequence};
 use v2x_eval::dair_eval::View;
 use v2x_eval::v2v4real_eval::{V2v4realEval, V2v4realMetrics, THRESHOLDS};
 use v2x_fuser::baselines::nms;
-use v2x_fuser::detector::{ready, DetectorParams};
+use v2x_fuser::detector::DetectorParams;
 use v2x_fuser::geometry::bev_iou;
-use v2x_fuser::offline::{fuse_window, read_inputs, track_sequences, FilesError, OfflineOptions};
+use v2x_fuser::offline::{
+    fuse_window, read_inputs, ready, track_sequences, FilesError, OfflineOptions,
+};
 use v2x_fuser::tracker::TrackerParams;
 use v2x_fuser::Method;
 use v2x_protocol::kitti::{self, KittiError};
@@ -87,11 +89,7 @@ impl Source {
                     detector: Some(DetectorParams::default()),
                     ..Default::default()
                 };
-                let mut agents = both();
-                for (k, dets) in agents.iter_mut().enumerate() {
-                    ready(&DetectorParams::default(), dets, k == 0);
-                }
-                fuse_window(m, &opts, &agents)
+                fuse_window(m, &opts, &ready(&opts, both().into(), |k| k == 0))
             }
         }
     }
@@ -215,10 +213,11 @@ fn row(method: String, d: &V2v4real, seqs: &[Sequence]) -> TrackedRow {
 
 /// A folder of KITTI detection rows scored by V2V4Real's detection protocol.
 pub fn score_detection_dir(d: &V2v4real, dir: &Path) -> Result<V2v4realMetrics, KittiError> {
-    let mut d = d.clone();
-    d.references.clear();
-    d.add_reference(String::new(), dir)?;
-    Ok(run(&d, &[Source::Reference(0)]).remove(0).ap)
+    let mut eval = V2v4realEval::new();
+    for (gt, preds) in d.gt.iter().zip(d.read_rows(dir)?) {
+        eval.add_frame(gt, &preds);
+    }
+    Ok(eval.summary())
 }
 
 /// The tracked rows as a Markdown table (percent, as AB3DMOT's script prints them).

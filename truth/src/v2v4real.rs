@@ -129,6 +129,15 @@ impl Paths {
     }
 }
 
+/// Each frame's index by its sample token.
+fn frame_index(frames: &[FrameRef]) -> BTreeMap<String, usize> {
+    frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (f.token(), i))
+        .collect()
+}
+
 /// Boxes of a results set placed on the frames (boxes of frames not listed are dropped).
 fn per_frame(results: Results, index: &BTreeMap<String, usize>) -> Vec<Vec<Detection>> {
     let mut out = vec![Vec::new(); index.len()];
@@ -159,11 +168,7 @@ pub fn load(root: &Path, split: Split, std: Uncertainty) -> Result<V2v4real, Kit
         .iter()
         .flat_map(|e| (e.first..=e.last).map(move |frame| FrameRef { seq: e.seq, frame }))
         .collect();
-    let index: BTreeMap<String, usize> = frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| (f.token(), i))
-        .collect();
+    let index = frame_index(&frames);
     let mut gt = vec![Vec::new(); frames.len()];
     for e in &seqmap {
         let path = p.labels.join(format!("{:04}.txt", e.seq));
@@ -203,15 +208,16 @@ impl V2v4real {
     /// Adds a folder of KITTI detection rows (a fusion's output, say) as a reference named
     /// `name`; boxes of frames the split does not score are left out.
     pub fn add_reference(&mut self, name: String, dir: &Path) -> Result<(), KittiError> {
-        let index: BTreeMap<String, usize> = self
-            .frames
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (f.token(), i))
-            .collect();
-        let rows = kitti::read_detection_dir(dir, Uncertainty::uniform(0.5, 0.1, 0.1))?;
-        self.references.push((name, per_frame(rows, &index)));
+        let rows = self.read_rows(dir)?;
+        self.references.push((name, rows));
         Ok(())
+    }
+
+    /// A folder of KITTI detection rows placed on the split's frames (boxes of frames the split
+    /// does not score are left out).
+    pub fn read_rows(&self, dir: &Path) -> Result<Vec<Vec<Detection>>, KittiError> {
+        let rows = kitti::read_detection_dir(dir, Uncertainty::uniform(0.5, 0.1, 0.1))?;
+        Ok(per_frame(rows, &frame_index(&self.frames)))
     }
 
     /// Label boxes over every frame.
