@@ -65,6 +65,14 @@ struct FilesArgs {
     /// which state none, take mild.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<v2x_protocol::Uncertainty>,
+    /// The inputs are a detector's boxes (docs/method.md §11): each box's stds from its score,
+    /// replacing any it states (the first input is the receiver, the others add a pose std);
+    /// CSBA-3D groups scored by the noisy-OR of their members; `fuse` drops fused boxes below
+    /// 0.4, `track` keeps them and shows a track from its first box. The default for KITTI
+    /// folders given without --default-std; give it for results files, such as
+    /// `v2x-sim gen --dataset v2v4real` writes.
+    #[arg(long, conflicts_with_all = ["default_std", "learn_std", "std_model"])]
+    detector: bool,
     #[command(flatten)]
     motion: MotionArgs,
     #[command(flatten)]
@@ -116,9 +124,16 @@ impl FilesArgs {
             align: None,
             learn: self.stds.params(self.motion.time_scale)?,
             models: self.stds.models_by_input(inputs)?,
-            detector: None,
+            detector: self
+                .detector
+                .then(v2x_fuser::detector::DetectorParams::default),
         };
-        Ok((self.stds.missing(self.default_std, inputs), opts))
+        let missing = match self.detector {
+            // Every std is replaced by the detector's.
+            true => MissingStd::Default(v2x_fuser::offline::kitti_default_std()),
+            false => self.stds.missing(self.default_std, inputs),
+        };
+        Ok((missing, opts))
     }
 }
 
@@ -149,8 +164,8 @@ struct TrackArgs {
     #[command(flatten)]
     files: FilesArgs,
     /// Hits in a row that confirm a track: by default 2 (a box seen once never becomes one),
-    /// and 1 for a detector's KITTI rows with no stated std (each box shown at once, its
-    /// track's mean score ranking it).
+    /// and 1 for a detector's boxes (--detector, or KITTI rows with no stated std: each box
+    /// shown at once, its track's mean score ranking it).
     #[arg(long)]
     confirm_hits: Option<u32>,
     /// Windows in a row without a box a confirmed track survives.

@@ -114,16 +114,17 @@ fn detector_applies(from_detector: bool, opts: &OfflineOptions) -> bool {
     from_detector && opts.detector.is_none() && opts.learn.is_none() && opts.models.is_empty()
 }
 
-/// The hits that confirm a track: `given`, else 1 for a detector's rows that [`Inputs::options`]
-/// gives the detector's treatment ([`crate::detector::CONFIRM_HITS`]), else the tracker's
-/// default.
+/// The hits that confirm a track: `given`, else 1 for a detector's boxes (`opts.detector`, or
+/// rows that [`Inputs::options`] gives the detector's treatment;
+/// [`crate::detector::CONFIRM_HITS`]), else the tracker's default.
 pub fn confirm_hits(
     given: Option<u32>,
     paths: &[PathBuf],
     missing: MissingStd,
     opts: &OfflineOptions,
 ) -> u32 {
-    given.unwrap_or(if detector_applies(from_detector(paths, missing), opts) {
+    let detector = opts.detector.is_some() || detector_applies(from_detector(paths, missing), opts);
+    given.unwrap_or(if detector {
         crate::detector::CONFIRM_HITS
     } else {
         TrackerParams::default().confirm_hits

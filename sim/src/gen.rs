@@ -12,6 +12,7 @@ use crate::dair::Dair;
 use crate::dataset::GroundTruth;
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use v2x_protocol::nuscenes_json::{default_meta, Results};
+use v2x_truth::v2v4real::{V2v4real, CARS};
 
 /// When an agent captures.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -194,11 +195,60 @@ pub fn generate_dair(
         .collect()
 }
 
+/// Time between two V2V4Real sequences in the files [`generate_v2v4real`] writes (us): longer
+/// than any window and than the tracker's largest gap, short enough that a replay does not wait.
+pub const V2V4REAL_SEQUENCE_GAP_US: u64 = 3_000_000;
+
+/// V2V4Real's two cars (ego, then car 1) as results files: every frame of the split keyed by
+/// its sample token (`SSSS_FFFFFF`), each car's detections with the stds a detector's boxes are
+/// given (`docs/method.md` §11; the ego car is the receiver), every frame 100 ms after the one
+/// before and each sequence [`V2V4REAL_SEQUENCE_GAP_US`] after the last, so that `v2x-agent`
+/// replays the split in one go and `v2x-fuser fuse --detector` fuses it as the bench does.
+pub fn generate_v2v4real(d: &V2v4real, p: &v2x_fuser::detector::DetectorParams) -> Vec<Results> {
+    let mut times = Vec::with_capacity(d.frames.len());
+    let mut t = 1_000_000;
+    for (i, f) in d.frames.iter().enumerate() {
+        if i > 0 {
+            t += if d.frames[i - 1].seq == f.seq {
+                v2x_protocol::kitti::FRAME_US
+            } else {
+                V2V4REAL_SEQUENCE_GAP_US
+            };
+        }
+        times.push(t);
+    }
+    (0..2)
+        .map(|k| {
+            let mut r = Results::default();
+            let mut stamps = serde_json::Map::new();
+            for (i, f) in d.frames.iter().enumerate() {
+                let token = f.token();
+                let mut dets = d.cars[k][i].clone();
+                v2x_fuser::detector::ready(p, &mut dets, k == 0);
+                stamps.insert(token.clone(), times[i].into());
+                r.order.push(token.clone());
+                r.samples.insert(token, dets);
+            }
+            let mut meta = default_meta();
+            meta["v2x_timestamps"] = serde_json::Value::Object(stamps);
+            meta["v2x_data_start_us"] = times.first().copied().unwrap_or(0).into();
+            meta["v2x_agent"] = if k == 0 {
+                CARS[0].into()
+            } else {
+                "car1".into()
+            };
+            r.meta = meta;
+            r
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bench::agent_detections;
     use crate::town::{generate as town, TownConfig};
+    use v2x_protocol::Uncertainty;
 
     #[test]
     fn agents_capture_at_their_own_rates_and_phases() {
@@ -242,5 +292,79 @@ mod tests {
         assert!(gap(&gt.frames[0].objects) > 0.1);
         assert!(Timing::parse(Some("10,20,30"), None, 2).is_err());
         assert!(Timing::parse(None, Some("-5"), 2).is_err());
+    }
+
+    #[test]
+    fn v2v4real_cars_become_files_that_fuse_as_their_folders_do() {
+        use v2x_fuser::detector::{stds, DetectorParams};
+        use v2x_fuser::offline::{fuse_results, read_inputs, OfflineOptions};
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../truth/fixtures/v2v4real/AB3DMOT");
+        let split = v2x_truth::v2v4real::Split::Train;
+        let d =
+            v2x_truth::v2v4real::load(&root, split, Uncertainty::uniform(0.5, 0.1, 0.1)).unwrap();
+        let p = DetectorParams::default();
+        let files = generate_v2v4real(&d, &p);
+        // Sequence 0 has frames 0-2, sequence 1 frames 0-1: every frame, empty ones too.
+        let tokens = [
+            "0000_000000",
+            "0000_000001",
+            "0000_000002",
+            "0001_000000",
+            "0001_000001",
+        ];
+        assert_eq!(files[0].order, tokens);
+        let t: Vec<u64> = tokens
+            .iter()
+            .map(|k| files[1].meta["v2x_timestamps"][k].as_u64().unwrap())
+            .collect();
+        assert_eq!(t, [1_000_000, 1_100_000, 1_200_000, 4_200_000, 4_300_000]);
+        assert_eq!(files[0].meta["v2x_data_start_us"], 1_000_000);
+        assert_eq!(files[1].meta["v2x_agent"], "car1");
+        // Each box keeps its score; the ego car's stds are its detector's, car 1's add the pose.
+        let (ego, car1) = (
+            &files[0].samples["0000_000000"],
+            &files[1].samples["0000_000000"],
+        );
+        assert_eq!((ego.len(), car1.len()), (2, 2));
+        assert_eq!((ego[0].score, car1[1].score), (0.9, 0.6));
+        assert_eq!(ego[0].std, stds(&p, &ego[0], true));
+        assert_eq!(car1[1].std, stds(&p, &car1[1], false));
+        assert!(car1[1].std.pos[0] > ego[0].std.pos[0]);
+        // Fused with the detector's treatment, the files give what the folders give.
+        let opts = OfflineOptions {
+            detector: Some(p),
+            ..Default::default()
+        };
+        let folders = read_inputs(
+            &v2x_truth::v2v4real::Paths::new(&root, split).cars,
+            v2x_protocol::nuscenes_json::MissingStd::Error,
+        )
+        .unwrap();
+        let from_folders = fuse_results(
+            &"csba-wls+".parse::<v2x_fuser::Method>().unwrap(),
+            &folders.agents,
+            &folders.options(&Default::default()),
+        );
+        let from_files = fuse_results(
+            &"csba-wls+".parse::<v2x_fuser::Method>().unwrap(),
+            &files,
+            &opts,
+        );
+        let boxes = |r: &Results| -> Vec<(String, Vec<[f64; 3]>, Vec<f64>)> {
+            r.samples
+                .iter()
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(k, v)| {
+                    (
+                        k.clone(),
+                        v.iter().map(|d| d.center).collect(),
+                        v.iter().map(|d| d.score).collect(),
+                    )
+                })
+                .collect()
+        };
+        assert_eq!(boxes(&from_files), boxes(&from_folders));
+        assert_eq!(boxes(&from_files).len(), 5);
     }
 }

@@ -13,7 +13,8 @@ pub struct GenArgs {
     pub data: DataArgs,
     /// Noise: mild, moderate, large, realistic, a mix such as mild+large (one per agent), or
     /// POS,SIZE,YAW_DEG, or labels (each object exactly as labelled, stating 0.5 m, 0.2 m and
-    /// 0.1 rad) [default: mild+large; with --dataset dair-v2x: labels, each side's own].
+    /// 0.1 rad) [default: mild+large; with --dataset dair-v2x: labels, each side's own; with
+    /// --dataset v2v4real none applies: the cars' own detections are written].
     #[arg(long)]
     pub noise: Option<String>,
     /// Detector faults, replacing the noise profile's own (none, except for `realistic`):
@@ -64,6 +65,43 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         phase_ms,
         out,
     } = args;
+    if data.is_v2v4real() {
+        if noise.is_some()
+            || faults.is_some()
+            || stated_std.is_some()
+            || range.is_some()
+            || agent_hz.is_some()
+            || phase_ms.is_some()
+            || agents != 2
+        {
+            anyhow::bail!("--dataset v2v4real writes the two cars' own detections as they are: leave out --noise, --faults, --stated-std, --range, --agent-hz, --phase-ms and --agents");
+        }
+        let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
+        std::fs::create_dir_all(&out)
+            .with_context(|| format!("cannot create {}", out.display()))?;
+        let files = v2x_sim::gen::generate_v2v4real(&d, &Default::default());
+        let tokens = v2x_protocol::nuscenes_json::TokenTable::new();
+        for (k, r) in files.iter().enumerate() {
+            let p = out.join(format!("agent{}.json", k + 1));
+            write_results(&p, r, &tokens)?;
+            eprintln!(
+                "wrote {} ({}: {} frames, {} boxes, stds from each box's score)",
+                p.display(),
+                if k == 0 {
+                    "the ego car"
+                } else {
+                    "car 1, in the ego car's frame"
+                },
+                r.samples.len(),
+                r.samples.values().map(Vec::len).sum::<usize>()
+            );
+        }
+        eprintln!(
+            "V2V4Real {} split: fuse them with `v2x-fuser fuse --detector`, or replay them with `v2x-agent`",
+            d.split
+        );
+        return Ok(());
+    }
     if data.is_dair() {
         if agent_hz.is_some() || phase_ms.is_some() || agents != 2 {
             anyhow::bail!("--agent-hz, --phase-ms and --agents do not apply to DAIR-V2X: its two agents capture at their recorded times");
