@@ -15,6 +15,7 @@
 //! calibrated on V2V4Real's training split (`docs/results.md`). Sans-IO.
 
 use crate::association::CsbaParams;
+use crate::fusion::Sourced;
 use crate::method::csba_groups;
 use v2x_protocol::limits::clamp_std;
 use v2x_protocol::{Detection, Uncertainty};
@@ -103,15 +104,30 @@ pub fn fuse_scored(
     csba: &CsbaParams,
     agents: &[Vec<Detection>],
 ) -> Vec<Detection> {
+    fuse_scored_sourced(p, csba, agents)
+        .into_iter()
+        .map(|s| s.det)
+        .collect()
+}
+
+/// [`fuse_scored`] with the agents of each fused box.
+pub fn fuse_scored_sourced(
+    p: &DetectorParams,
+    csba: &CsbaParams,
+    agents: &[Vec<Detection>],
+) -> Vec<Sourced> {
     let (fused, groups) = csba_groups(csba, agents);
     fused
         .into_iter()
         .zip(&groups)
-        .map(|(d, g)| Detection {
-            score: group_score(g.iter().map(|&(k, j)| agents[k][j].score)),
-            ..d
+        .map(|(d, g)| Sourced {
+            det: Detection {
+                score: group_score(g.iter().map(|&(k, j)| agents[k][j].score)),
+                ..d
+            },
+            sources: g.iter().map(|&(k, _)| k).collect(),
         })
-        .filter(|d| d.score >= p.min_score)
+        .filter(|s| s.det.score >= p.min_score)
         .collect()
 }
 

@@ -206,6 +206,11 @@ struct NodeArgs {
     /// Longest wait for missing live agents after a window's first frame (ms).
     #[arg(long, default_value_t = 150.0)]
     max_wait_ms: f64,
+    /// The agents send a detector's boxes with the stds it is given (as `v2x-agent` replays
+    /// `v2x-sim gen --dataset v2v4real`'s files): CSBA-3D groups are scored by the noisy-OR of
+    /// their members and fused boxes below 0.4 dropped, as `v2x-fuser fuse --detector` does.
+    #[arg(long)]
+    detector: bool,
     #[command(flatten)]
     limits: Box<IngestArgs>,
     #[command(flatten)]
@@ -717,6 +722,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         method,
         window_ms,
         max_wait_ms,
+        detector,
         limits,
         motion,
         stds,
@@ -741,6 +747,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         let mut cfg = node::NodeConfig::new(&ns, method);
         cfg.window_ms = window_ms;
         cfg.max_wait_ms = max_wait_ms;
+        cfg.detector = detector.then(v2x_fuser::detector::DetectorParams::default);
         limits.apply(&mut cfg)?;
         cfg.motion = motion.params()?;
         cfg.region = region.region()?;

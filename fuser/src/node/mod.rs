@@ -44,6 +44,10 @@ pub struct NodeConfig {
     pub ns: String,
     /// Fusion method.
     pub method: Method,
+    /// The agents send a detector's boxes (`crate::detector`): a CSBA-3D method's groups are
+    /// scored by the noisy-OR of their members and fused boxes below the threshold dropped;
+    /// the stds are the agents' own. `None`: the method's own scores, every box kept.
+    pub detector: Option<crate::detector::DetectorParams>,
     /// Window width delta t (ms).
     pub window_ms: f64,
     /// Longest wait for missing agents after a window's first frame (ms).
@@ -85,6 +89,7 @@ impl NodeConfig {
         NodeConfig {
             ns: ns.to_string(),
             method,
+            detector: None,
             window_ms: 100.0,
             max_wait_ms: 150.0,
             ingest: IngestConfig::default(),
@@ -594,6 +599,7 @@ pub async fn run(
     };
     let fusion = worker::Fusion {
         method: cfg.method,
+        detector: cfg.detector,
         motion: cfg.motion,
         align: cfg.align,
         track: cfg.track,

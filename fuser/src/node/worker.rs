@@ -6,6 +6,7 @@
 
 use super::{Clock, Fused};
 use crate::align::{reference_agent, AlignParams, Aligner};
+use crate::detector::DetectorParams;
 use crate::learn::{LearnParams, Learner};
 use crate::motion::{align_window, MotionParams};
 use crate::tracker::handover::{id_block, published, step_region, Handover};
@@ -39,9 +40,11 @@ pub(super) struct Done {
 /// stamped with the window's reference time: its latest capture. With `motion`, every frame is
 /// first predicted to that time; with an `aligner`, every agent is then registered to the
 /// roadside unit (`crate::align`). With a `learner`, the boxes are first given the stds learned
-/// for their agent (`crate::learn`).
+/// for their agent (`crate::learn`). With `detector`, a CSBA-3D method's groups are scored as a
+/// detector's and its tail dropped (`crate::detector::fuse_scored`).
 pub fn fuse_window(
     method: &Method,
+    detector: Option<&DetectorParams>,
     motion: Option<&MotionParams>,
     aligner: Option<&mut Aligner>,
     learner: Option<&mut Learner>,
@@ -67,11 +70,11 @@ pub fn fuse_window(
             registration.extend(r.map(|r| (name.clone(), r)));
         }
     }
-    let (detections, sources) = method
-        .fuse_sourced(&lists)
-        .into_iter()
-        .map(|s| (s.det, s.sources))
-        .unzip();
+    let sourced = match (detector, method.csba_params()) {
+        (Some(p), Some(csba)) => crate::detector::fuse_scored_sourced(p, &csba, &lists),
+        _ => method.fuse_sourced(&lists),
+    };
+    let (detections, sources) = sourced.into_iter().map(|s| (s.det, s.sources)).unzip();
     let fused = Fused {
         frame: Frame {
             agent: "fuser".into(),
@@ -112,6 +115,7 @@ fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
 #[derive(Clone, Debug)]
 pub(super) struct Fusion {
     pub method: Method,
+    pub detector: Option<DetectorParams>,
     pub motion: Option<MotionParams>,
     pub align: Option<AlignParams>,
     pub track: Option<TrackerParams>,
@@ -194,6 +198,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> Job
     f.models.apply_window(&mut closed);
     let (mut fused, lists) = fuse_window(
         &f.method,
+        f.detector.as_ref(),
         f.motion.as_ref(),
         state.aligner.as_mut(),
         state.learner.as_mut(),

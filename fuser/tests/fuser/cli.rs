@@ -135,11 +135,22 @@ fn a_detectors_rows_fuse_with_its_scores_and_without_its_tail() {
     // --detector asks for what KITTI folders get by default, and is no std of its own.
     assert_eq!(fuse_fixture_cars(&["--detector"]), rows);
     let out = Command::new(env!("CARGO_BIN_EXE_v2x-fuser"))
-        .args(["fuse", "--detector", "--default-std", "mild", "-o", "x", "a.json"])
+        .args([
+            "fuse",
+            "--detector",
+            "--default-std",
+            "mild",
+            "-o",
+            "x",
+            "a.json",
+        ])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("--default-std"), "{err}");
+    assert!(
+        !out.status.success() && err.contains("--default-std"),
+        "{err}"
+    );
 }
 
 #[test]

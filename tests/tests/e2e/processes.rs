@@ -396,3 +396,149 @@ async fn memory_an_attacker_takes_from_the_fuser_comes_back() {
 fn now() -> u64 {
     v2x_agent::now_us()
 }
+
+/// The fused boxes' scores per window of a results file, in time order, windows without a box
+/// left out; each window's scores in descending order.
+fn scores_by_window(path: &std::path::Path) -> Vec<Vec<f64>> {
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let results = doc["results"].as_object().unwrap();
+    let time = |k: &str| -> u64 {
+        match doc["meta"]["v2x_timestamps"].get(k) {
+            Some(t) => t.as_u64().unwrap(),
+            None => k.trim_start_matches('t').parse().unwrap(),
+        }
+    };
+    let mut windows: Vec<(u64, Vec<f64>)> = results
+        .iter()
+        .map(|(k, boxes)| {
+            let mut s: Vec<f64> = boxes
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|b| b["detection_score"].as_f64().unwrap())
+                .collect();
+            s.sort_by(|a, b| b.total_cmp(a));
+            (time(k), s)
+        })
+        .filter(|(_, s)| !s.is_empty())
+        .collect();
+    windows.sort_by_key(|(t, _)| *t);
+    windows.into_iter().map(|(_, s)| s).collect()
+}
+
+#[test]
+fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
+    // `v2x-sim gen --dataset v2v4real` on the layout's fixture, both cars replayed by
+    // `v2x-agent` to `v2x-fuser node --detector`: each window as `v2x-fuser fuse --detector`.
+    let dir = tempdir("v2v4real-processes");
+    let root =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../truth/fixtures/v2v4real/AB3DMOT");
+    let out = Command::new(bin("v2x-sim"))
+        .args([
+            "gen",
+            "--dataset",
+            "v2v4real",
+            "--split",
+            "train",
+            "--dataroot",
+        ])
+        .arg(&root)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "gen: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (a1, a2) = (dir.join("agent1.json"), dir.join("agent2.json"));
+    let offline = dir.join("offline.json");
+    let out = Command::new(bin("v2x-fuser"))
+        .args(["fuse", "--detector", "-o"])
+        .arg(&offline)
+        .arg(&a1)
+        .arg(&a2)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "fuse: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let port = free_port().unwrap();
+    let start_at = format!(
+        "{:.3}",
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs_f64()
+            + 3.0
+    );
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let record = dir.join("fused.json");
+    let mut fuser = Command::new(bin("v2x-fuser"))
+        .args(["node", "--ns", "v2v", "--detector", "--max-wait-ms", "400"])
+        .args([
+            "--duration-s",
+            "7",
+            "--no-multicast-scouting",
+            "-l",
+            &endpoint,
+        ])
+        .arg("--record")
+        .arg(&record)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let agents: Vec<_> = [("ego", &a1), ("car1", &a2)]
+        .iter()
+        .map(|(name, file)| {
+            Command::new(bin("v2x-agent"))
+                .arg(file)
+                .args(["--name", name, "--ns", "v2v", "--speed", "4"])
+                .args([
+                    "--start-at",
+                    &start_at,
+                    "--no-multicast-scouting",
+                    "-e",
+                    &endpoint,
+                ])
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for mut a in agents {
+        let status = wait_exit(&mut a, 60, "an agent");
+        let mut err = String::new();
+        std::io::Read::read_to_string(a.stderr.as_mut().unwrap(), &mut err).unwrap();
+        assert!(status.success(), "agent failed: {err}");
+        assert!(err.contains("sent 5 of 5 frames"), "{err}");
+    }
+    let status = wait_exit(&mut fuser, 60, "the fuser");
+    assert!(status.success());
+    let mut stats = String::new();
+    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut stats).unwrap();
+    let stats: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    assert_eq!(stats["windows"], 5, "{stats}");
+
+    // Frame 0 of sequence 0000: the pair (0.9, 0.6: noisy-OR 0.96) and car 1's lone 0.7; the
+    // ego car's 0.25 falls below 0.4 in both.
+    let (live, off) = (scores_by_window(&record), scores_by_window(&offline));
+    assert_eq!(live.len(), off.len(), "{live:?} against {off:?}");
+    assert!(
+        (off[0][0] - 0.96).abs() < 1e-9 && off[0].len() == 2,
+        "{off:?}"
+    );
+    for (l, o) in live.iter().zip(&off) {
+        assert_eq!(l.len(), o.len(), "{live:?} against {off:?}");
+        for (a, b) in l.iter().zip(o) {
+            // Scores cross the wire in 1/255 steps.
+            assert!((a - b).abs() < 0.005, "{live:?} against {off:?}");
+        }
+    }
+}
