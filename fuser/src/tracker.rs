@@ -51,6 +51,10 @@ pub struct TrackerParams {
     pub init_velocity_std: f64,
     /// Std (rad/s) of the yaw's change per second.
     pub yaw_rate_std: f64,
+    /// Variance (m^2) the centre's height gains per second between boxes: 1, so that the
+    /// height follows its boxes (a detector's heights scatter by tenths of a metre, and another
+    /// car's pitch moves them more) instead of keeping the first box's.
+    pub height_var_per_s: f64,
     /// Seconds of motion per second of window time: the replay speed when agents replay
     /// recorded data faster than real time on the wall clock (1 live).
     pub time_scale: f64,
@@ -78,6 +82,7 @@ impl Default for TrackerParams {
             max_gap_s: 2.0,
             init_velocity_std: 10.0,
             yaw_rate_std: 0.5,
+            height_var_per_s: 1.0,
             time_scale: 1.0,
             by_id: false,
             all_classes: false,
@@ -208,7 +213,7 @@ impl Tracker {
             hit[i] = true;
             used[j] = true;
             ids[index[j]] = self.tracks[i].id;
-            update(&mut self.tracks[i], &boxes[j], dt);
+            update(&mut self.tracks[i], &boxes[j], dt, &self.params);
         }
         // 5. lifecycle
         let mut out = self.lifecycle(&hit);
@@ -487,7 +492,7 @@ fn innovation(t: &Track, b: &Detection) -> (DVector<f64>, DMatrix<f64>, DMatrix<
 }
 
 /// The Kalman update of the kinematic state (Joseph form), then size, z and yaw.
-fn update(t: &mut Track, b: &Detection, dt: f64) {
+fn update(t: &mut Track, b: &Detection, dt: f64, p: &TrackerParams) {
     let (y, s, h) = innovation(t, b);
     let (_, _, r) = measurement(b);
     if let Some(s_inv) = s.try_inverse() {
@@ -500,7 +505,7 @@ fn update(t: &mut Track, b: &Detection, dt: f64) {
         t.p = Matrix4::from_column_slice(p.as_slice());
     }
     let c = b.position_covariance();
-    t.z = blend(t.z, (b.center[2], c[2][2]), 0.01 * dt);
+    t.z = blend(t.z, (b.center[2], c[2][2]), p.height_var_per_s * dt);
     for k in 0..3 {
         t.size[k] = blend(t.size[k], (b.size[k], b.std.size[k].powi(2)), 0.0);
     }

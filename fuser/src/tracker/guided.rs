@@ -152,7 +152,12 @@ impl Tracker {
         hit: &mut [bool],
         surest: &mut [Option<(f64, u32)>],
     ) {
-        update(&mut self.tracks[i], b, if hit[i] { 0.0 } else { dt });
+        update(
+            &mut self.tracks[i],
+            b,
+            if hit[i] { 0.0 } else { dt },
+            &self.params,
+        );
         hit[i] = true;
         let v = b.total_variance();
         if surest[i].is_none_or(|(s, _)| v < s) {

@@ -301,3 +301,26 @@ fn only_the_tracking_classes_are_followed_unless_asked() {
         assert_eq!(tr.stats().births, want.len() as u64);
     }
 }
+
+#[test]
+fn the_height_follows_its_boxes() {
+    // Born at 1 m (box std 0.5 m: variance 0.25), then boxes at 2 m, 10 Hz. The first update
+    // gains 1 m^2/s x 0.1 s: P = 0.35, K = 0.35 / 0.60, height 1 + K = 1.5833.
+    let mut tr = Tracker::new(TrackerParams::default());
+    tr.step(0, &[car(0.0, 0.0, 0.0)]);
+    let at = |z: f64| Detection {
+        center: [0.0, 0.0, z],
+        ..car(0.0, 0.0, 0.0)
+    };
+    let out = tr.step(HZ10, &[at(2.0)]);
+    assert!(
+        (out[0].det.center[2] - (1.0 + 0.35 / 0.6)).abs() < 1e-12,
+        "{out:?}"
+    );
+    // Ten boxes later it is there; an average of every box would still be 0.09 m short.
+    let mut last = out;
+    for k in 2..11 {
+        last = tr.step(k * HZ10, &[at(2.0)]);
+    }
+    assert!(last[0].det.center[2] > 1.97, "{last:?}");
+}

@@ -203,6 +203,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
             tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
         }
     }
+    tracked.push(v2x_sim::v2v4real_bench::ceiling(&d));
     match args.format {
         Format::Json => println!(
             "{}",

@@ -67,3 +67,15 @@ fn the_fixtures_tracks_score_as_ab3dmots_script_scores_them() {
     assert_eq!((m.tp, m.fp, m.fn_, m.ids, m.frag), (7, 0, 1, 2, 1));
     assert!((row.boxes_per_frame - 10.0 / 5.0).abs() < 1e-12);
 }
+
+#[test]
+fn the_ceiling_shows_every_box_with_its_labels_id() {
+    let d = fixture();
+    let c = ceiling(&d);
+    // Eight labelled cars over five frames, every one of them seen by a car; the ego car's false
+    // box (30 m from any label) takes a fresh id and, unmatched, costs nothing.
+    let boxes: usize = d.cars.iter().flatten().map(Vec::len).sum();
+    assert!((c.boxes_per_frame - boxes as f64 / 5.0).abs() < 1e-12);
+    assert!((c.metrics.recall - 1.0).abs() < 1e-12, "{:?}", c.metrics);
+    assert_eq!((c.metrics.ids, c.metrics.fp), (0, 0), "{:?}", c.metrics);
+}

@@ -21,6 +21,81 @@ fn wait_exit(child: &mut std::process::Child, secs: u64, what: &str) -> std::pro
     }
 }
 
+/// A Unix time `secs` from now, as `--start-at` takes it.
+fn start_in(secs: f64) -> String {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    format!("{:.3}", now + secs)
+}
+
+/// A `v2x-fuser node` process with `args`, listening on `endpoint` and recording to `record`.
+fn fuser_node(args: &[&str], endpoint: &str, record: &std::path::Path) -> std::process::Child {
+    Command::new(bin("v2x-fuser"))
+        .arg("node")
+        .args(args)
+        .args(["--no-multicast-scouting", "-l", endpoint, "--record"])
+        .arg(record)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// A command's output, which must have succeeded (`what` names it).
+fn succeeded(out: std::process::Output, what: &str) -> std::process::Output {
+    assert!(
+        out.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A `v2x-agent` process replaying `file` with `args`, from `start_at`, to the fuser at
+/// `endpoint`.
+fn replay_agent(
+    file: &std::path::Path,
+    args: &[&str],
+    start_at: &str,
+    endpoint: &str,
+) -> std::process::Child {
+    Command::new(bin("v2x-agent"))
+        .arg(file)
+        .args(args)
+        .args([
+            "--start-at",
+            start_at,
+            "--no-multicast-scouting",
+            "-e",
+            endpoint,
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits for each agent process to finish and checks it sent `sent` ("sent N of N frames").
+fn agents_done(agents: Vec<std::process::Child>, sent: &str) {
+    for mut a in agents {
+        let status = wait_exit(&mut a, 60, "an agent");
+        let mut err = String::new();
+        std::io::Read::read_to_string(a.stderr.as_mut().unwrap(), &mut err).unwrap();
+        assert!(status.success(), "agent failed: {err}");
+        assert!(err.contains(sent), "{err}");
+    }
+}
+
+/// Waits for the fuser process to stop by itself; its statistics.
+fn fuser_stats(mut fuser: std::process::Child) -> serde_json::Value {
+    let status = wait_exit(&mut fuser, 60, "the fuser");
+    assert!(status.success());
+    let mut stats = String::new();
+    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut stats).unwrap();
+    serde_json::from_str(&stats).unwrap()
+}
+
 #[test]
 fn agents_and_fuser_as_separate_processes() {
     let dir = tempdir("processes");
@@ -51,86 +126,41 @@ fn agents_and_fuser_as_separate_processes() {
         .args(town)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "gen: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(out, "gen");
 
     let port = free_port().unwrap();
     // Both agents replay on the real clock from the same start, so their frames meet in windows.
-    let start_at = format!(
-        "{:.3}",
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs_f64()
-            + 3.0
-    );
+    let start_at = start_in(3.0);
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let record = dir.join("fused.json");
-    let mut fuser = Command::new(bin("v2x-fuser"))
-        .args([
-            "node",
-            "--ns",
-            "procs",
-            "--method",
-            "csba-wls+",
-            "--max-wait-ms",
-            "400",
-            "--duration-s",
-            "8",
-            "--no-multicast-scouting",
-            "-l",
-            &endpoint,
-            "--record",
-        ])
-        .arg(&record)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let agents: Vec<_> = [
+    let args = [
+        "--ns",
+        "procs",
+        "--method",
+        "csba-wls+",
+        "--max-wait-ms",
+        "400",
+    ];
+    let fuser = fuser_node(
+        &[&args[..], &["--duration-s", "8"]].concat(),
+        &endpoint,
+        &record,
+    );
+    let agents = [
         ("veh", "vehicle", "agent1.json"),
         ("rsu", "infrastructure", "agent2.json"),
     ]
     .iter()
     .map(|(name, kind, file)| {
-        Command::new(bin("v2x-agent"))
-            .arg(dir.join(file))
-            .args([
-                "--name",
-                name,
-                "--kind",
-                kind,
-                "--ns",
-                "procs",
-                "--speed",
-                "2",
-                "--start-at",
-                &start_at,
-                "--no-multicast-scouting",
-                "-e",
-                &endpoint,
-            ])
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap()
+        let args = [
+            "--name", name, "--kind", kind, "--ns", "procs", "--speed", "2",
+        ];
+        replay_agent(&dir.join(file), &args, &start_at, &endpoint)
     })
     .collect();
-    for mut a in agents {
-        let status = wait_exit(&mut a, 60, "an agent");
-        let mut err = String::new();
-        std::io::Read::read_to_string(a.stderr.as_mut().unwrap(), &mut err).unwrap();
-        assert!(status.success(), "agent failed: {err}");
-        assert!(err.contains("sent 30 of 30 frames"), "{err}");
-    }
+    agents_done(agents, "sent 30 of 30 frames");
     // The fuser stops by itself after --duration-s and writes its recording and statistics.
-    let status = wait_exit(&mut fuser, 60, "the fuser");
-    assert!(status.success());
-    let mut stats = String::new();
-    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut stats).unwrap();
-    let stats: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    let stats = fuser_stats(fuser);
     assert_eq!(stats["windows"], 30, "{stats}");
     assert_eq!(stats["windows_incomplete"], 0, "{stats}");
     assert_eq!(stats["agents"]["veh"]["fused"], 30);
@@ -448,11 +478,7 @@ fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "gen: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(out, "gen");
     let (a1, a2) = (dir.join("agent1.json"), dir.join("agent2.json"));
     let offline = dir.join("offline.json");
     let out = Command::new(bin("v2x-fuser"))
@@ -462,68 +488,31 @@ fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
         .arg(&a2)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "fuse: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(out, "fuse");
 
     let port = free_port().unwrap();
-    let start_at = format!(
-        "{:.3}",
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_secs_f64()
-            + 3.0
-    );
+    let start_at = start_in(3.0);
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let record = dir.join("fused.json");
-    let mut fuser = Command::new(bin("v2x-fuser"))
-        .args(["node", "--ns", "v2v", "--detector", "--max-wait-ms", "400"])
-        .args([
-            "--duration-s",
-            "7",
-            "--no-multicast-scouting",
-            "-l",
-            &endpoint,
-        ])
-        .arg("--record")
-        .arg(&record)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let agents: Vec<_> = [("ego", &a1), ("car1", &a2)]
+    let args = [
+        "--ns",
+        "v2v",
+        "--detector",
+        "--max-wait-ms",
+        "400",
+        "--duration-s",
+        "7",
+    ];
+    let fuser = fuser_node(&args, &endpoint, &record);
+    let agents = [("ego", &a1), ("car1", &a2)]
         .iter()
         .map(|(name, file)| {
-            Command::new(bin("v2x-agent"))
-                .arg(file)
-                .args(["--name", name, "--ns", "v2v", "--speed", "4"])
-                .args([
-                    "--start-at",
-                    &start_at,
-                    "--no-multicast-scouting",
-                    "-e",
-                    &endpoint,
-                ])
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap()
+            let args = ["--name", name, "--ns", "v2v", "--speed", "4"];
+            replay_agent(file, &args, &start_at, &endpoint)
         })
         .collect();
-    for mut a in agents {
-        let status = wait_exit(&mut a, 60, "an agent");
-        let mut err = String::new();
-        std::io::Read::read_to_string(a.stderr.as_mut().unwrap(), &mut err).unwrap();
-        assert!(status.success(), "agent failed: {err}");
-        assert!(err.contains("sent 5 of 5 frames"), "{err}");
-    }
-    let status = wait_exit(&mut fuser, 60, "the fuser");
-    assert!(status.success());
-    let mut stats = String::new();
-    std::io::Read::read_to_string(fuser.stdout.as_mut().unwrap(), &mut stats).unwrap();
-    let stats: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    agents_done(agents, "sent 5 of 5 frames");
+    let stats = fuser_stats(fuser);
     assert_eq!(stats["windows"], 5, "{stats}");
 
     // Frame 0 of sequence 0000: the pair (0.9, 0.6: noisy-OR 0.96) and car 1's lone 0.7; the
