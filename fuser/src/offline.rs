@@ -317,6 +317,7 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
                 dets
             })
             .collect();
+        let per_agent = ready(opts, per_agent, |k| k == 0);
         let per_agent = match &mut aligner {
             Some((a, reference)) => {
                 let (aligned, regs) = a.align(None, &names, &per_agent, *reference);
@@ -325,7 +326,6 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
             }
             None => per_agent,
         };
-        let per_agent = ready(opts, per_agent, |k| k == 0);
         out.samples
             .insert(s.clone(), fuse_window(method, opts, &per_agent));
     }
@@ -436,6 +436,7 @@ fn by_time(
         // A window holds the agents that sent frames, in name order: the reference is found by
         // name, and an absent reference leaves the window unregistered.
         let names: Vec<&str> = closed.frames.keys().map(String::as_str).collect();
+        let per_agent = ready(opts, per_agent, |k| names[k] == name(0));
         let per_agent = match &mut aligner {
             Some((a, r)) => match names.iter().position(|n| *n == name(*r)) {
                 Some(k) => {
@@ -448,7 +449,6 @@ fn by_time(
             },
             None => per_agent,
         };
-        let per_agent = ready(opts, per_agent, |k| names[k] == name(0));
         each(t_ref, &latest, &per_agent);
         stamps.insert(latest, t_ref.into());
     }
