@@ -30,6 +30,7 @@ pub mod motion;
 pub mod node;
 pub mod offline;
 pub mod parts;
+pub mod pipeline;
 pub mod ratelog;
 pub mod region;
 pub mod stdmodel;

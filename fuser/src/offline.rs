@@ -10,10 +10,11 @@
 //! are. With registration ([`crate::align`]), each window's agents are first aligned to the
 //! reference agent: pooled over windows when grouping by time, per sample otherwise.
 
-use crate::align::{AlignParams, Aligner, Registration};
-use crate::detector::{self, DetectorParams};
-use crate::learn::{AgentReport, LearnParams, Learner};
-use crate::motion::{align_window, MotionParams};
+use crate::align::{AlignParams, Registration};
+use crate::detector::DetectorParams;
+use crate::learn::{AgentReport, LearnParams};
+use crate::motion::MotionParams;
+use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
 use crate::stdmodel::{ErrorModel, Models};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Windows;
@@ -214,32 +215,50 @@ pub fn capture_times(r: &Results) -> Option<HashMap<String, u64>> {
         .then_some(times)
 }
 
-/// A window's boxes with the detector's stds ([`OfflineOptions::detector`]; `receiver(k)`: list
-/// k is the first input's), or as they are.
-pub fn ready(
-    opts: &OfflineOptions,
-    mut per_agent: Vec<Vec<Detection>>,
-    receiver: impl Fn(usize) -> bool,
-) -> Vec<Vec<Detection>> {
-    if let Some(p) = &opts.detector {
-        for (k, dets) in per_agent.iter_mut().enumerate() {
-            detector::ready(p, dets, receiver(k));
-        }
-    }
-    per_agent
+/// The name input `a` goes by in windows and in the pipeline (`a00000`, ...: name order is
+/// input order).
+fn name(a: usize) -> String {
+    format!("a{a:05}")
 }
 
-/// One window fused by `method`, a CSBA-3D method scoring a detector's groups
-/// ([`detector::fuse_scored`]) when the boxes are a detector's.
-pub fn fuse_window(
+impl OfflineOptions {
+    /// The per-window pipeline these options give `method` over inputs named by [`name`]: the
+    /// first input receives a detector's boxes, and the reference is `align`'s.
+    pub fn pipeline(&self, method: &Method) -> Pipeline {
+        let steps = Steps {
+            method: *method,
+            detector: self.detector,
+            motion: self.motion,
+            align: self.align.map(|(p, _)| p),
+            learn: self.learn,
+            models: std::sync::Arc::new(Models(
+                self.models
+                    .iter()
+                    .map(|(a, m)| (name(*a), m.clone()))
+                    .collect(),
+            )),
+        };
+        let reference = Reference::Agent(name(self.align.map_or(0, |(_, r)| r)));
+        Pipeline::new(steps, reference, Some(name(0)))
+    }
+}
+
+/// One time step of every input's boxes (`per_agent[k]`, input k's), each box as it was
+/// captured, through the pipeline's detector and fusion steps (no registration, no history).
+pub fn fuse_step(
     method: &Method,
     opts: &OfflineOptions,
     per_agent: &[Vec<Detection>],
 ) -> Vec<Detection> {
-    match (&opts.detector, method.csba_params()) {
-        (Some(p), Some(csba)) => detector::fuse_scored(p, &csba, per_agent),
-        _ => method.fuse(per_agent),
+    let mut p = OfflineOptions {
+        align: None,
+        ..opts.clone()
     }
+    .pipeline(method);
+    let names: Vec<String> = (0..per_agent.len()).map(name).collect();
+    let kinds = vec![AgentKind::Vehicle; per_agent.len()];
+    let (lists, _) = p.register(None, &names, &kinds, per_agent.to_vec());
+    p.steps().fuse_boxes(&lists)
 }
 
 /// Fuses the agents' files: by capture-time windows when every file has capture times, else by
@@ -260,7 +279,7 @@ fn input_name(internal: &str) -> String {
 
 /// A window's registrations as `meta.v2x_registration` holds them per sample: each registered
 /// input's estimate, its stds, its matches and whether it was applied.
-fn registration_json(names: &[&str], regs: &[Option<Registration>]) -> Option<Value> {
+fn registration_json(names: &[String], regs: &[Option<Registration>]) -> Option<Value> {
     let m: serde_json::Map<String, Value> = names
         .iter()
         .zip(regs)
@@ -296,10 +315,10 @@ fn set_meta(out: &mut Results, key: &str, value: Value) {
 
 fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> Results {
     // Sample tokens carry no order, so each sample is registered on its own evidence.
-    let mut aligner = opts.align.map(|(p, r)| (Aligner::new(p), r));
+    let mut pipeline = opts.pipeline(method);
     let mut registered = serde_json::Map::new();
-    let names: Vec<String> = (0..agents.len()).map(|a| format!("a{a:05}")).collect();
-    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let names: Vec<String> = (0..agents.len()).map(name).collect();
+    let kinds = vec![AgentKind::Vehicle; agents.len()];
     let samples: BTreeSet<&String> = agents.iter().flat_map(|r| r.samples.keys()).collect();
     let mut out = Results {
         meta: agents.first().map(|r| r.meta.clone()).unwrap_or_default(),
@@ -311,25 +330,16 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
             .enumerate()
             .map(|(a, r)| {
                 let mut dets = r.samples.get(s).cloned().unwrap_or_default();
-                if let Some(m) = opts.models.get(&a) {
-                    dets.iter_mut().for_each(|d| m.apply(d));
-                }
+                pipeline.steps().models.apply(&name(a), &mut dets);
                 dets
             })
             .collect();
-        let per_agent = ready(opts, per_agent, |k| k == 0);
-        let per_agent = match &mut aligner {
-            Some((a, reference)) => {
-                let (aligned, regs) = a.align(None, &names, &per_agent, *reference);
-                registered.extend(registration_json(&names, &regs).map(|r| (s.clone(), r)));
-                aligned
-            }
-            None => per_agent,
-        };
+        let (per_agent, regs) = pipeline.register(None, &names, &kinds, per_agent);
+        registered.extend(registration_json(&names, &regs).map(|r| (s.clone(), r)));
         out.samples
-            .insert(s.clone(), fuse_window(method, opts, &per_agent));
+            .insert(s.clone(), pipeline.steps().fuse_boxes(&per_agent));
     }
-    if aligner.is_some() {
+    if opts.align.is_some() {
         set_meta(&mut out, "v2x_registration", Value::Object(registered));
     }
     out
@@ -346,8 +356,8 @@ fn fuse_by_time(
         ..Default::default()
     };
     let mut samples = BTreeMap::new();
-    let meta = by_time(agents, times, opts, |_, sample, per_agent| {
-        samples.insert(sample.clone(), fuse_window(method, opts, per_agent));
+    let meta = by_time(method, agents, times, opts, |steps, sample, prepared| {
+        samples.insert(sample.clone(), steps.fuse_boxes(&prepared.lists));
     });
     out.samples = samples;
     meta.set(&mut out);
@@ -379,14 +389,14 @@ impl TimeMeta {
 }
 
 /// Every frame of every agent, in capture order, through the node's window state machine: each
-/// window's boxes (models applied, stds learned, motion-compensated to its reference time and,
-/// with registration, aligned to the reference agent) go to `each` with the window's reference
-/// time and sample (that of its latest frame), in time order.
+/// window prepared by `method`'s pipeline ([`OfflineOptions::pipeline`]) goes to `each` with the
+/// pipeline's steps and the window's sample (that of its latest frame), in time order.
 fn by_time(
+    method: &Method,
     agents: &[Results],
     times: &[HashMap<String, u64>],
     opts: &OfflineOptions,
-    mut each: impl FnMut(u64, &String, &[Vec<Detection>]),
+    mut each: impl FnMut(&Steps, &String, &Prepared),
 ) -> TimeMeta {
     let mut frames: Vec<(u64, usize, &String, &Vec<Detection>)> = Vec::new();
     for (a, r) in agents.iter().enumerate() {
@@ -395,7 +405,6 @@ fn by_time(
         }
     }
     frames.sort_by_key(|f| (f.0, f.1));
-    let name = |a: usize| format!("a{a:05}");
     let mut windows = Windows::new((opts.window_ms * 1000.0) as u64, 0);
     let mut token_of: HashMap<(String, u32), &String> = HashMap::new();
     for (seq, (t, a, token, dets)) in frames.iter().enumerate() {
@@ -412,51 +421,35 @@ fn by_time(
     }
     let all: BTreeSet<String> = (0..agents.len()).map(name).collect();
     let mut stamps = serde_json::Map::new();
-    let mut aligner = opts.align.map(|(p, r)| (Aligner::new(p), r));
+    let mut pipeline = opts.pipeline(method);
     let mut registered = serde_json::Map::new();
-    let mut learner = opts.learn.map(Learner::new);
-    let models = Models(
-        opts.models
-            .iter()
-            .map(|(a, m)| (name(*a), m.clone()))
-            .collect(),
-    );
-    for mut closed in windows.flush(|_| all.clone()) {
-        models.apply_window(&mut closed);
-        if let Some(l) = &mut learner {
-            l.learn_window(&mut closed);
-        }
-        let (t_ref, per_agent) = align_window(&closed, opts.motion.as_ref());
-        let latest = closed
+    for closed in windows.flush(|_| all.clone()) {
+        let captured: Vec<(String, u32, u64)> = closed
             .frames
             .values()
-            .find(|f| f.capture_us == t_ref)
-            .map(|f| token_of[&(f.agent.clone(), f.seq)].clone())
+            .map(|f| (f.agent.clone(), f.seq, f.capture_us))
+            .collect();
+        let prepared = pipeline.prepare(closed);
+        let latest = captured
+            .iter()
+            .find(|f| f.2 == prepared.t_ref)
+            .map(|(agent, seq, _)| token_of[&(agent.clone(), *seq)].clone())
             .unwrap_or_default();
-        // A window holds the agents that sent frames, in name order: the reference is found by
-        // name, and an absent reference leaves the window unregistered.
-        let names: Vec<&str> = closed.frames.keys().map(String::as_str).collect();
-        let per_agent = ready(opts, per_agent, |k| names[k] == name(0));
-        let per_agent = match &mut aligner {
-            Some((a, r)) => match names.iter().position(|n| *n == name(*r)) {
-                Some(k) => {
-                    let (aligned, regs) = a.align(Some(t_ref), &names, &per_agent, k);
-                    registered
-                        .extend(registration_json(&names, &regs).map(|r| (latest.clone(), r)));
-                    aligned
-                }
-                None => per_agent,
-            },
-            None => per_agent,
-        };
-        each(t_ref, &latest, &per_agent);
-        stamps.insert(latest, t_ref.into());
+        if opts.align.is_some() {
+            registered.extend(
+                registration_json(&prepared.agents, &prepared.registration)
+                    .map(|r| (latest.clone(), r)),
+            );
+        }
+        each(pipeline.steps(), &latest, &prepared);
+        stamps.insert(latest, prepared.t_ref.into());
     }
     TimeMeta {
         stamps,
-        registered: aligner.is_some().then_some(registered),
-        learned: learner.map(|l| {
-            l.report()
+        registered: opts.align.is_some().then_some(registered),
+        learned: opts.learn.map(|_| {
+            pipeline
+                .learned()
                 .into_iter()
                 .map(|(name, r)| (input_name(&name), r))
                 .collect()
@@ -535,9 +528,9 @@ fn track_through(
         ..Default::default()
     };
     let mut ids = BTreeMap::new();
-    let meta = by_time(agents, &times, opts, |t_ref, sample, per_agent| {
+    let meta = by_time(method, agents, &times, opts, |_, sample, prepared| {
         let (boxes, track_ids) = tracker
-            .step_agents(t_ref, per_agent, method)
+            .step_agents(prepared.t_ref, &prepared.lists, method)
             .into_iter()
             .map(|tr| (tr.det, tr.tracking_id))
             .unzip();

@@ -26,6 +26,7 @@ pub struct Options {
     time_scale: f64,
     window_ms: f64,
     align_to: Option<usize>,
+    detector: bool,
     learn_std: bool,
     std_flag_ratio: f64,
     std_models: BTreeMap<String, PathBuf>,
@@ -88,8 +89,13 @@ impl Options {
             p
         });
         let models = self.models(inputs)?;
+        if self.detector && (self.default_std.is_some() || self.learn_std || !models.is_empty()) {
+            return bad("detector gives every box its stds: leave out default_std, learn_std and std_models".into());
+        }
         let replaced = self.learn_std || (inputs > 0 && models.len() >= inputs);
         let missing = match (&self.default_std, replaced) {
+            // Every std is replaced by the detector's.
+            _ if self.detector => MissingStd::Default(v2x_fuser::offline::kitti_default_std()),
             (Some(s), _) => missing_std(Some(s))?,
             (None, true) => MissingStd::Default(LearnParams::default().prior),
             (None, false) => MissingStd::Error,
@@ -104,7 +110,9 @@ impl Options {
             align,
             learn,
             models,
-            detector: None,
+            detector: self
+                .detector
+                .then(v2x_fuser::detector::DetectorParams::default),
         };
         Ok((method(&self.method)?, missing, opts))
     }

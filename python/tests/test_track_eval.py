@@ -130,3 +130,24 @@ def test_kitti_folders_track_as_the_cli_tracks_them(tmp_path):
         assert (tmp_path / "py" / seq).read_text() == (tmp_path / "cli" / seq).read_text()
     frame0 = [r for r in (tmp_path / "py" / "0000.txt").read_text().splitlines() if r.startswith("0 ")]
     assert len(frame0) == 3
+
+
+def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
+    """`v2x-sim gen --dataset v2v4real`'s files with `detector=True`: the same files as
+    `v2x-fuser fuse --detector` and `track --detector`; without it the tail is kept."""
+    root = REPO / "truth/fixtures/v2v4real/AB3DMOT"
+    run("v2x-sim", "gen", "--dataset", "v2v4real", "--dataroot", root, "--out", tmp_path / "cars")
+    paths = [tmp_path / "cars" / a for a in AGENTS]
+    run("v2x-fuser", "fuse", "--detector", "-o", tmp_path / "cli.json", *paths)
+    run("v2x-fuser", "track", "--detector", "-o", tmp_path / "cli_tracks.json", *paths)
+    v.fuse_files(paths, tmp_path / "py.json", detector=True)
+    v.track_files(paths, tmp_path / "py_tracks.json", detector=True)
+    assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
+    assert load(tmp_path / "py_tracks.json") == load(tmp_path / "cli_tracks.json")
+    scores = sorted(b["detection_score"] for boxes in load(tmp_path / "py.json")["results"].values() for b in boxes)
+    assert min(scores) >= 0.4 and len(scores) == 7
+    v.fuse_files(paths, tmp_path / "kept.json")
+    kept = [b for boxes in load(tmp_path / "kept.json")["results"].values() for b in boxes]
+    assert len(kept) > len(scores)
+    with pytest.raises(ValueError, match="detector"):
+        v.fuse_files(paths, tmp_path / "x.json", detector=True, default_std="mild")

@@ -240,6 +240,7 @@ def _options(
     time_scale: float = 1.0,
     window_ms: float = 100.0,
     align_to: Optional[int] = None,
+    detector: bool = False,
     learn_std: bool = False,
     std_flag_ratio: float = 2.0,
     std_models: Optional[Mapping[str, PathLike]] = None,
@@ -257,6 +258,7 @@ def _options(
         "time_scale": float(time_scale),
         "window_ms": float(window_ms),
         "align_to": align_to,
+        "detector": detector,
         "learn_std": learn_std,
         "std_flag_ratio": float(std_flag_ratio),
         "std_models": {k: os.fspath(v) for k, v in (std_models or {}).items()},
@@ -292,8 +294,8 @@ def fuse_files(
 
     Options (the CLI's flags): ``default_std``, ``compensate`` (False: ``--no-compensation``),
     ``speed_bound_mps``, ``accel_std``, ``time_scale``, ``window_ms``, ``align_to`` (the reference
-    agent's index, 0-based; ``--align --align-to N+1``), ``learn_std``, ``std_flag_ratio`` and
-    ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
+    agent's index, 0-based; ``--align --align-to N+1``), ``detector`` (a detector's boxes:
+    ``--detector``), ``learn_std``, ``std_flag_ratio`` and ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
     frames were grouped by capture time, registration and learned stds."""
     opts = _fuse_options(dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, False))

@@ -18,9 +18,7 @@ use v2x_eval::v2v4real_eval::{V2v4realEval, V2v4realMetrics, THRESHOLDS};
 use v2x_fuser::baselines::nms;
 use v2x_fuser::detector::DetectorParams;
 use v2x_fuser::geometry::bev_iou;
-use v2x_fuser::offline::{
-    fuse_window, read_inputs, ready, track_sequences, FilesError, OfflineOptions,
-};
+use v2x_fuser::offline::{fuse_step, read_inputs, track_sequences, FilesError, OfflineOptions};
 use v2x_fuser::tracker::TrackerParams;
 use v2x_fuser::Method;
 use v2x_protocol::kitti::{self, KittiError};
@@ -89,7 +87,7 @@ impl Source {
                     detector: Some(DetectorParams::default()),
                     ..Default::default()
                 };
-                fuse_window(m, &opts, &ready(&opts, both().into(), |k| k == 0))
+                fuse_step(m, &opts, &both())
             }
         }
     }

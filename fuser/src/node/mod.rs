@@ -598,13 +598,15 @@ pub async fn run(
         _ => (None, Vec::new()),
     };
     let fusion = worker::Fusion {
-        method: cfg.method,
-        detector: cfg.detector,
-        motion: cfg.motion,
-        align: cfg.align,
+        steps: crate::pipeline::Steps {
+            method: cfg.method,
+            detector: cfg.detector,
+            motion: cfg.motion,
+            align: cfg.align,
+            learn: cfg.learn,
+            models: std::sync::Arc::new(cfg.models.clone()),
+        },
         track: cfg.track,
-        learn: cfg.learn,
-        models: std::sync::Arc::new(cfg.models.clone()),
         region: cfg.region,
         heard,
     };

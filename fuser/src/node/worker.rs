@@ -5,10 +5,7 @@
 //! loop, which keeps the statistics.
 
 use super::{Clock, Fused};
-use crate::align::{reference_agent, AlignParams, Aligner};
-use crate::detector::DetectorParams;
-use crate::learn::{LearnParams, Learner};
-use crate::motion::{align_window, MotionParams};
+use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
 use crate::tracker::handover::{id_block, published, step_region, Handover};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
@@ -37,44 +34,33 @@ pub(super) struct Done {
 }
 
 /// Fuses one closed window into the frame the fuser publishes (not yet fitted to the wire),
-/// stamped with the window's reference time: its latest capture. With `motion`, every frame is
-/// first predicted to that time; with an `aligner`, every agent is then registered to the
-/// roadside unit (`crate::align`). With a `learner`, the boxes are first given the stds learned
-/// for their agent (`crate::learn`). With `detector`, a CSBA-3D method's groups are scored as a
-/// detector's and its tail dropped (`crate::detector::fuse_scored`).
+/// stamped with the window's reference time, its latest capture, through the `pipeline`
+/// (`crate::pipeline`); also returns each agent's boxes as the pipeline prepared them.
 pub fn fuse_window(
-    method: &Method,
-    detector: Option<&DetectorParams>,
-    motion: Option<&MotionParams>,
-    aligner: Option<&mut Aligner>,
-    learner: Option<&mut Learner>,
-    mut closed: Closed,
+    pipeline: &mut Pipeline,
+    closed: Closed,
     seq: u32,
 ) -> (Fused, Vec<Vec<Detection>>) {
-    let learned = match learner {
-        Some(l) => {
-            l.learn_window(&mut closed);
-            l.report()
-        }
-        None => Default::default(),
-    };
-    let agents: Vec<String> = closed.frames.keys().cloned().collect();
-    let (t_ref, mut lists) = align_window(&closed, motion);
-    let mut registration = std::collections::BTreeMap::new();
-    if let Some(aligner) = aligner {
-        let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
-        let names: Vec<&str> = agents.iter().map(String::as_str).collect();
-        let (aligned, regs) = aligner.align(Some(t_ref), &names, &lists, reference_agent(&kinds));
-        lists = aligned;
-        for (name, r) in agents.iter().zip(regs) {
-            registration.extend(r.map(|r| (name.clone(), r)));
-        }
-    }
-    let sourced = match (detector, method.csba_params()) {
-        (Some(p), Some(csba)) => crate::detector::fuse_scored_sourced(p, &csba, &lists),
-        _ => method.fuse_sourced(&lists),
-    };
-    let (detections, sources) = sourced.into_iter().map(|s| (s.det, s.sources)).unzip();
+    let complete = closed.complete;
+    let prepared = pipeline.prepare(closed);
+    let learned = pipeline.learned();
+    let (detections, sources) = pipeline
+        .steps()
+        .fuse(&prepared.lists)
+        .into_iter()
+        .map(|s| (s.det, s.sources))
+        .unzip();
+    let Prepared {
+        t_ref,
+        agents,
+        lists,
+        registration,
+    } = prepared;
+    let registration = agents
+        .iter()
+        .zip(registration)
+        .filter_map(|(name, r)| Some((name.clone(), r?)))
+        .collect();
     let fused = Fused {
         frame: Frame {
             agent: "fuser".into(),
@@ -86,7 +72,7 @@ pub fn fuse_window(
         },
         provenance: Provenance {
             agents,
-            complete: closed.complete,
+            complete,
             sources,
         },
         tracks: None,
@@ -111,27 +97,21 @@ fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
     }
 }
 
-/// How the worker fuses: the method and the optional steps around it.
+/// How the worker fuses: the pipeline's steps, tracking and the region.
 #[derive(Clone, Debug)]
 pub(super) struct Fusion {
-    pub method: Method,
-    pub detector: Option<DetectorParams>,
-    pub motion: Option<MotionParams>,
-    pub align: Option<AlignParams>,
+    pub steps: Steps,
     pub track: Option<TrackerParams>,
-    pub learn: Option<LearnParams>,
-    pub models: std::sync::Arc<crate::stdmodel::Models>,
     pub region: Option<crate::region::Region>,
     /// A tracking regional fuser's neighbours' tracks, as heard.
     pub heard: Option<super::handover::Heard>,
 }
 
-/// What the worker carries from window to window.
+/// What the worker carries from window to window (`None` while a job has it).
 struct Carried {
-    aligner: Option<Aligner>,
+    pipeline: Option<Pipeline>,
     tracker: Option<Tracker>,
     handover: Option<Handover>,
-    learner: Option<Learner>,
 }
 
 impl Fusion {
@@ -142,10 +122,13 @@ impl Fusion {
             None => Tracker::new(p),
         });
         Carried {
-            aligner: self.align.map(Aligner::new),
+            pipeline: Some(Pipeline::new(
+                self.steps.clone(),
+                Reference::Infrastructure,
+                None,
+            )),
             tracker,
             handover: self.track.and(self.region).map(Handover::new),
-            learner: self.learn.map(Learner::new),
         }
     }
 }
@@ -194,17 +177,11 @@ type JobOutput = (
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
 /// fusion, the region's share, the wire's domain, then the tracks (fed, in a region, every
 /// fused box of its tile and halo in the wire's domain, after its neighbours' ids).
-fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> JobOutput {
-    f.models.apply_window(&mut closed);
-    let (mut fused, lists) = fuse_window(
-        &f.method,
-        f.detector.as_ref(),
-        f.motion.as_ref(),
-        state.aligner.as_mut(),
-        state.learner.as_mut(),
-        closed,
-        seq,
-    );
+fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutput {
+    let pipeline = state
+        .pipeline
+        .get_or_insert_with(|| Pipeline::new(f.steps.clone(), Reference::Infrastructure, None));
+    let (mut fused, lists) = fuse_window(pipeline, closed, seq);
     let mut halo = None;
     if let Some(r) = &f.region {
         if state.tracker.is_some() {
@@ -224,7 +201,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, mut closed: Closed, seq: u32) -> Job
             h.adopt(t);
         }
         let input = halo.as_ref().unwrap_or(&fused.frame);
-        let frame = tracks_frame(t, input, &lists, &f.method, f.region.as_ref());
+        let frame = tracks_frame(t, input, &lists, &f.steps.method, f.region.as_ref());
         let bytes = wire::encode(&frame);
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())
@@ -281,10 +258,9 @@ pub(super) async fn run(
         let state = std::mem::replace(
             &mut carried,
             Carried {
-                aligner: None,
+                pipeline: None,
                 tracker: None,
                 handover: None,
-                learner: None,
             },
         );
         let f = fusion.clone();

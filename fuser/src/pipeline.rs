@@ -1,0 +1,184 @@
+//! One closed window through the steps every shell runs: the node's worker, offline fusion and
+//! tracking (and through them the benches and the Python package). Sans-IO:
+//!
+//! 1. **models**: each agent's calibrated error model (`crate::stdmodel`);
+//! 2. **learn**: the stds learned for each agent from its boxes so far (`crate::learn`);
+//! 3. **motion**: every frame predicted to the window's reference time, its latest capture
+//!    (`crate::motion`);
+//! 4. **detector stds**: a detector's boxes given stds from their scores, the receiver's without
+//!    the pose term (`crate::detector`), when the pipeline knows the receiver;
+//! 5. **registration**: every agent aligned to the reference agent (`crate::align`);
+//! 6. **fusion**: the method, a CSBA-3D method scoring a detector's groups by noisy-OR with its
+//!    tail dropped (`crate::detector::fuse_scored_sourced`).
+//!
+//! Steps 1-5 are [`Pipeline::prepare`] (a tracker through the tracks takes the lists from
+//! there); step 6 is [`Steps::fuse`]. A new per-window step goes here, once, for every shell.
+
+use crate::align::{reference_agent, AlignParams, Aligner, Registration};
+use crate::detector::{self, DetectorParams};
+use crate::fusion::Sourced;
+use crate::learn::{AgentReport, LearnParams, Learner};
+use crate::motion::{align_window, MotionParams};
+use crate::stdmodel::Models;
+use crate::window::Closed;
+use crate::Method;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use v2x_protocol::{AgentKind, Detection};
+
+/// What a window goes through: the method and the optional steps around it.
+#[derive(Clone, Debug)]
+pub struct Steps {
+    /// The fusion method.
+    pub method: Method,
+    /// The boxes are a detector's ([`crate::detector`]): its group scores and tail, and with a
+    /// receiver its stds.
+    pub detector: Option<DetectorParams>,
+    /// Motion compensation to the window's reference time (`None`: boxes as captured).
+    pub motion: Option<MotionParams>,
+    /// Registration to the reference agent.
+    pub align: Option<AlignParams>,
+    /// Stds learned online.
+    pub learn: Option<LearnParams>,
+    /// Calibrated error models, by agent name.
+    pub models: Arc<Models>,
+}
+
+impl Steps {
+    /// Just the method, no other step.
+    pub fn method(method: Method) -> Steps {
+        Steps {
+            method,
+            detector: None,
+            motion: None,
+            align: None,
+            learn: None,
+            models: Arc::new(Models::default()),
+        }
+    }
+
+    /// Step 6: the agents' prepared boxes fused, each fused box with its agents.
+    pub fn fuse(&self, lists: &[Vec<Detection>]) -> Vec<Sourced> {
+        match (&self.detector, self.method.csba_params()) {
+            (Some(p), Some(csba)) => detector::fuse_scored_sourced(p, &csba, lists),
+            _ => self.method.fuse_sourced(lists),
+        }
+    }
+
+    /// [`Steps::fuse`] without the agents of each box.
+    pub fn fuse_boxes(&self, lists: &[Vec<Detection>]) -> Vec<Detection> {
+        match (&self.detector, self.method.csba_params()) {
+            (Some(p), Some(csba)) => detector::fuse_scored(p, &csba, lists),
+            _ => self.method.fuse(lists),
+        }
+    }
+}
+
+/// The agent every other is registered to.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Reference {
+    /// The first infrastructure agent of the window (surveyed, so its pose is the best known),
+    /// else its first agent.
+    Infrastructure,
+    /// The agent of this name; a window without it is not registered.
+    Agent(String),
+}
+
+/// A window after steps 1-5.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The reference time: the window's latest capture (us).
+    pub t_ref: u64,
+    /// The agents of the window, in name order.
+    pub agents: Vec<String>,
+    /// Each agent's boxes, ready to fuse (`agents` order).
+    pub lists: Vec<Vec<Detection>>,
+    /// Each agent's registration (`agents` order; `None`: not registered).
+    pub registration: Vec<Option<Registration>>,
+}
+
+/// The steps with what they carry from window to window (the learner's and the registration's
+/// history).
+#[derive(Clone, Debug)]
+pub struct Pipeline {
+    steps: Steps,
+    reference: Reference,
+    receiver: Option<String>,
+    aligner: Option<Aligner>,
+    learner: Option<Learner>,
+}
+
+impl Pipeline {
+    /// A pipeline without history; `receiver`: the agent in whose frame the others' boxes
+    /// arrive, for a detector's stds (`None`: the stds are the agents' own).
+    pub fn new(steps: Steps, reference: Reference, receiver: Option<String>) -> Pipeline {
+        Pipeline {
+            aligner: steps.align.map(Aligner::new),
+            learner: steps.learn.map(Learner::new),
+            steps,
+            reference,
+            receiver,
+        }
+    }
+
+    /// The steps.
+    pub fn steps(&self) -> &Steps {
+        &self.steps
+    }
+
+    /// What was learned of each agent's stds so far (empty without learning).
+    pub fn learned(&self) -> BTreeMap<String, AgentReport> {
+        self.learner
+            .as_ref()
+            .map(Learner::report)
+            .unwrap_or_default()
+    }
+
+    /// Steps 1-5 for a closed window.
+    pub fn prepare(&mut self, mut closed: Closed) -> Prepared {
+        self.steps.models.apply_window(&mut closed);
+        if let Some(l) = &mut self.learner {
+            l.learn_window(&mut closed);
+        }
+        let (t_ref, lists) = align_window(&closed, self.steps.motion.as_ref());
+        let agents: Vec<String> = closed.frames.keys().cloned().collect();
+        let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
+        let (lists, registration) = self.register(Some(t_ref), &agents, &kinds, lists);
+        Prepared {
+            t_ref,
+            agents,
+            lists,
+            registration,
+        }
+    }
+
+    /// Steps 4-5 for the agents' boxes at time `t_us` (`None`: boxes without a time, each
+    /// registered on its own evidence).
+    pub fn register(
+        &mut self,
+        t_us: Option<u64>,
+        agents: &[String],
+        kinds: &[AgentKind],
+        mut lists: Vec<Vec<Detection>>,
+    ) -> (Vec<Vec<Detection>>, Vec<Option<Registration>>) {
+        if let (Some(p), Some(receiver)) = (&self.steps.detector, &self.receiver) {
+            for (dets, name) in lists.iter_mut().zip(agents) {
+                detector::ready(p, dets, name == receiver);
+            }
+        }
+        let Some(aligner) = &mut self.aligner else {
+            return (lists, vec![None; agents.len()]);
+        };
+        let reference = match &self.reference {
+            Reference::Infrastructure => Some(reference_agent(kinds)),
+            Reference::Agent(name) => agents.iter().position(|a| a == name),
+        };
+        match reference {
+            Some(r) => {
+                let names: Vec<&str> = agents.iter().map(String::as_str).collect();
+                aligner.align(t_us, &names, &lists, r)
+            }
+            None => (lists, vec![None; agents.len()]),
+        }
+    }
+}
