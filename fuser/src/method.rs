@@ -4,7 +4,7 @@
 
 use crate::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
 use crate::baselines;
-use crate::fusion::fuse_group;
+use crate::fusion::GroupSum;
 use std::fmt;
 use std::str::FromStr;
 use v2x_protocol::{AgentSet, Detection};
@@ -265,10 +265,12 @@ pub type Members = smallvec::SmallVec<[(usize, usize); 4]>;
 pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
     let n: usize = agents.iter().map(Vec::len).sum();
     let mut groups: Vec<Members> = Vec::with_capacity(n);
+    // Each group's WLS-3D sums once it has two members: a member joining adds its own terms.
+    let mut sums: Vec<Option<GroupSum>> = Vec::with_capacity(n);
     let member = |&(k, j): &(usize, usize)| &agents[k][j];
-    let fuse = |g: &Members| {
+    let sum_of = |g: &Members| {
         let refs: smallvec::SmallVec<[&Detection; 4]> = g.iter().map(member).collect();
-        fuse_group(&refs)
+        GroupSum::of(&refs)
     };
     // The running fused boxes. Until a second agent's boxes arrive they are the first agent's
     // list itself (`base`), copied once, with its groups already re-fused, when they do.
@@ -281,6 +283,7 @@ pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>
         let Some(current) = base.or((!fused.is_empty()).then_some(&fused[..])) else {
             base = Some(list);
             groups.extend((0..list.len()).map(|j| smallvec::smallvec![(k, j)]));
+            sums.resize(groups.len(), None);
             continue;
         };
         let pairs: Vec<(usize, usize)> = associate(p, current, list)
@@ -294,21 +297,31 @@ pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>
         }
         if let Some(first) = base.take() {
             fused.reserve(n);
-            fused.extend(first.iter().zip(&groups).map(|(d, members)| {
-                if members.len() > 1 {
-                    fuse(members)
+            for (g, d) in first.iter().enumerate() {
+                if groups[g].len() > 1 {
+                    let sum = sum_of(&groups[g]);
+                    fused.push(sum.fused());
+                    sums[g] = Some(sum);
                 } else {
-                    d.clone()
+                    fused.push(d.clone());
                 }
-            }));
+            }
         } else {
-            for &(g, _) in &pairs {
-                fused[g] = fuse(&groups[g]);
+            for &(g, j) in &pairs {
+                let sum = match &mut sums[g] {
+                    Some(sum) => {
+                        sum.add(&list[j]);
+                        sum
+                    }
+                    slot => slot.insert(sum_of(&groups[g])),
+                };
+                fused[g] = sum.fused();
             }
         }
         for (j, d) in list.iter().enumerate() {
             if !taken[j] {
                 groups.push(smallvec::smallvec![(k, j)]);
+                sums.push(None);
                 fused.push(d.clone());
             }
         }
