@@ -161,7 +161,15 @@ impl DataArgs {
             return Ok(self.load_dair()?.gt);
         }
         if self.is_v2v4real() {
-            bail!("--dataset v2v4real is read by `v2x-sim bench`; for a fusion's own output use `v2x-fuser fuse --output-format kitti` and `v2x-sim bench --dataset v2v4real`");
+            // Both cars replay their own boxes, with the stds a detector's boxes are given.
+            let mut d = self.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
+            let p = v2x_fuser::detector::DetectorParams::default();
+            for (k, car) in d.cars.iter_mut().enumerate() {
+                for dets in car.iter_mut() {
+                    v2x_fuser::detector::ready(&p, dets, k == 0);
+                }
+            }
+            return Ok(d.ground_truth());
         }
         match (&self.dataroot, &self.version) {
             (Some(root), Some(version)) => Ok(load_nuscenes(root, version)?),

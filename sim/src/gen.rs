@@ -12,7 +12,7 @@ use crate::dair::Dair;
 use crate::dataset::GroundTruth;
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use v2x_protocol::nuscenes_json::{default_meta, Results};
-use v2x_truth::v2v4real::{V2v4real, CARS};
+use v2x_truth::v2v4real::{V2v4real, AGENTS};
 
 /// When an agent captures.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -195,28 +195,13 @@ pub fn generate_dair(
         .collect()
 }
 
-/// Time between two V2V4Real sequences in the files [`generate_v2v4real`] writes (us): longer
-/// than any window and than the tracker's largest gap, short enough that a replay does not wait.
-pub const V2V4REAL_SEQUENCE_GAP_US: u64 = 3_000_000;
-
 /// V2V4Real's two cars (ego, then car 1) as results files: every frame of the split keyed by
 /// its sample token (`SSSS_FFFFFF`), each car's detections with the stds a detector's boxes are
-/// given (`docs/method.md` §11; the ego car is the receiver), every frame 100 ms after the one
-/// before and each sequence [`V2V4REAL_SEQUENCE_GAP_US`] after the last, so that `v2x-agent`
+/// given (`docs/method.md` §11; the ego car is the receiver), at the split's replay times
+/// ([`V2v4real::replay_times`]: 100 ms apart, sequences 3 s apart), so that `v2x-agent`
 /// replays the split in one go and `v2x-fuser fuse --detector` fuses it as the bench does.
 pub fn generate_v2v4real(d: &V2v4real, p: &v2x_fuser::detector::DetectorParams) -> Vec<Results> {
-    let mut times = Vec::with_capacity(d.frames.len());
-    let mut t = 1_000_000;
-    for (i, f) in d.frames.iter().enumerate() {
-        if i > 0 {
-            t += if d.frames[i - 1].seq == f.seq {
-                v2x_protocol::kitti::FRAME_US
-            } else {
-                V2V4REAL_SEQUENCE_GAP_US
-            };
-        }
-        times.push(t);
-    }
+    let times = d.replay_times();
     (0..2)
         .map(|k| {
             let mut r = Results::default();
@@ -232,11 +217,7 @@ pub fn generate_v2v4real(d: &V2v4real, p: &v2x_fuser::detector::DetectorParams) 
             let mut meta = default_meta();
             meta["v2x_timestamps"] = serde_json::Value::Object(stamps);
             meta["v2x_data_start_us"] = times.first().copied().unwrap_or(0).into();
-            meta["v2x_agent"] = if k == 0 {
-                CARS[0].into()
-            } else {
-                "car1".into()
-            };
+            meta["v2x_agent"] = AGENTS[k].into();
             r.meta = meta;
             r
         })

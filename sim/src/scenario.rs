@@ -32,6 +32,9 @@ pub struct DatasetSpec {
     pub kind: crate::cli::DatasetKind,
     /// DAIR-V2X: move the roadside by each pair's calibration offset.
     pub calibration_offset: bool,
+    /// V2V4Real: the split, `train` or `val`.
+    #[serde(deserialize_with = "split")]
+    pub split: v2x_truth::v2v4real::Split,
     /// nuScenes version folder.
     pub version: Option<String>,
     /// Synthetic town: scenes.
@@ -50,6 +53,7 @@ impl Default for DatasetSpec {
             dataroot: None,
             kind: Default::default(),
             calibration_offset: true,
+            split: Default::default(),
             version: None,
             scenes: 1,
             seconds: 20.0,
@@ -57,6 +61,12 @@ impl Default for DatasetSpec {
             town_seed: 7,
         }
     }
+}
+
+/// A split by name (`train`, or `val`/`test`).
+fn split<'de, D: serde::Deserializer<'de>>(d: D) -> Result<v2x_truth::v2v4real::Split, D::Error> {
+    let name = String::deserialize(d)?;
+    name.parse().map_err(serde::de::Error::custom)
 }
 
 impl DatasetSpec {
@@ -72,7 +82,7 @@ impl DatasetSpec {
             } else {
                 crate::cli::Switch::Off
             },
-            split: Default::default(),
+            split: self.split,
             version: self.version.clone(),
             scenes: self.scenes,
             seconds: self.seconds,
@@ -539,17 +549,28 @@ impl Scenario {
         crate::timeline::check(&self.events, &names, self.duration_s)
     }
 
-    /// A DAIR-V2X scenario: a data root, the vehicle and the roadside at their recorded times.
+    /// A recorded data set's scenario (DAIR-V2X, V2V4Real): a data root, its two agents at their
+    /// recorded times.
     fn check_dataset(&self) -> Result<(), String> {
-        if !(self.dataset.kind == crate::cli::DatasetKind::DairV2x) {
-            return Ok(());
-        }
+        let (data, root, agents) = match self.dataset.kind {
+            crate::cli::DatasetKind::DairV2x => (
+                "DAIR-V2X",
+                "\"dair-v2x\" needs a dataroot (the folder holding cooperative/, vehicle-side/ and infrastructure-side/)",
+                "the vehicle then the roadside unit",
+            ),
+            crate::cli::DatasetKind::V2v4real => (
+                "V2V4Real",
+                "\"v2v4real\" needs a dataroot (the AB3DMOT/ folder of a DMSTrack checkout)",
+                "the ego car then car 1",
+            ),
+            _ => return Ok(()),
+        };
         if self.dataset.dataroot.is_none() {
-            return Err("dataset: kind = \"dair-v2x\" needs a dataroot (the folder holding cooperative/, vehicle-side/ and infrastructure-side/)".into());
+            return Err(format!("dataset: kind = {root}"));
         }
         if self.agents.len() != 2 {
             return Err(format!(
-                "dataset: DAIR-V2X has two agents, the vehicle then the roadside unit; the scenario names {}",
+                "dataset: {data} has two agents, {agents}; the scenario names {}",
                 self.agents.len()
             ));
         }
@@ -559,7 +580,7 @@ impl Scenario {
             .find(|a| a.hz.is_some() || a.phase_ms != 0.0)
         {
             return Err(format!(
-                "agents: {}: DAIR-V2X agents capture at their recorded times; leave out hz and phase_ms",
+                "agents: {}: {data} agents capture at their recorded times; leave out hz and phase_ms",
                 a.name
             ));
         }

@@ -123,6 +123,11 @@ pub trait Recorded: std::fmt::Debug + Send + Sync {
     fn position(&self, agent: usize, frame: usize) -> [f64; 3];
     /// Agent `agent`'s own labels at frame `frame`.
     fn labels(&self, agent: usize, frame: usize) -> &[GtObject];
+    /// Agent `agent`'s own detections at frame `frame`, when the data holds a detector's boxes
+    /// (replayed as they are, no noise drawn); `None`: the agent sees its labels.
+    fn detections(&self, _agent: usize, _frame: usize) -> Option<&[v2x_protocol::Detection]> {
+        None
+    }
 }
 
 impl GroundTruth {

@@ -11,6 +11,7 @@
 //! - `scripts/KITTI/v2v4real_S_label/` and `scripts/KITTI/v2v4real_S_evaluate_tracking.seqmap.val`:
 //!   the labels and the frames of each sequence.
 
+use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion, Recorded};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -204,7 +205,102 @@ pub fn load(root: &Path, split: Split, std: Uncertainty) -> Result<V2v4real, Kit
     })
 }
 
+/// Time between two sequences when the split is replayed in one go (us): longer than any window
+/// and than a tracker's largest gap, short enough that a replay does not wait.
+pub const SEQUENCE_GAP_US: u64 = 3_000_000;
+
+/// Both cars as recorded agents: each frame's replay time and each car's boxes.
+#[derive(Debug)]
+struct Recording {
+    times: Vec<u64>,
+    cars: [Vec<Vec<Detection>>; 2],
+}
+
+/// The agents' names in a replay: the ego car, then car 1.
+pub const AGENTS: [&str; 2] = ["ego", "car1"];
+
+impl Recorded for Recording {
+    fn names(&self) -> Vec<String> {
+        AGENTS.iter().map(|s| s.to_string()).collect()
+    }
+
+    fn capture_us(&self, _agent: usize, frame: usize) -> u64 {
+        self.times[frame]
+    }
+
+    /// Both cars' boxes are in the ego car's frame, whose origin is the ego car's sensor.
+    fn position(&self, _agent: usize, _frame: usize) -> [f64; 3] {
+        [0.0; 3]
+    }
+
+    fn labels(&self, _agent: usize, _frame: usize) -> &[GtObject] {
+        &[]
+    }
+
+    fn detections(&self, agent: usize, frame: usize) -> Option<&[Detection]> {
+        Some(&self.cars[agent][frame])
+    }
+}
+
 impl V2v4real {
+    /// Each frame's time when the split is replayed: from 1 s, 100 ms apart within a sequence
+    /// and [`SEQUENCE_GAP_US`] from one sequence to the next.
+    pub fn replay_times(&self) -> Vec<u64> {
+        let mut times = Vec::with_capacity(self.frames.len());
+        let mut t = 1_000_000;
+        for (i, f) in self.frames.iter().enumerate() {
+            if i > 0 {
+                t += if self.frames[i - 1].seq == f.seq {
+                    kitti::FRAME_US
+                } else {
+                    SEQUENCE_GAP_US
+                };
+            }
+            times.push(t);
+        }
+        times
+    }
+
+    /// The split as ground truth for a run over Zenoh: a scene per sequence, each frame at its
+    /// [`V2v4real::replay_times`], the labels its objects (one id per sequence and track id),
+    /// and the two cars as recorded agents sending their own boxes as they are (give them
+    /// their stds first).
+    pub fn ground_truth(&self) -> GroundTruth {
+        let times = self.replay_times();
+        let mut gt = GroundTruth {
+            motion: Motion::Frames,
+            ..Default::default()
+        };
+        for (i, f) in self.frames.iter().enumerate() {
+            if i == 0 || self.frames[i - 1].seq != f.seq {
+                gt.scenes.push(format!("{:04}", f.seq));
+            }
+            let objects = self.gt[i]
+                .iter()
+                .map(|d| GtObject {
+                    id: gt.tokens.intern(&format!("{:04}_{}", f.seq, d.id)),
+                    class: d.class,
+                    center: d.center,
+                    size: d.size,
+                    yaw: d.yaw,
+                    velocity: None,
+                })
+                .collect();
+            gt.frames.push(GtFrame {
+                sample_token: f.token(),
+                scene: gt.scenes.len() - 1,
+                timestamp_us: times[i],
+                ego: Some([0.0; 3]),
+                objects,
+            });
+        }
+        gt.recorded = Some(std::sync::Arc::new(Recording {
+            times,
+            cars: self.cars.clone(),
+        }));
+        gt
+    }
+
     /// Adds a folder of KITTI detection rows (a fusion's output, say) as a reference named
     /// `name`; boxes of frames the split does not score are left out.
     pub fn add_reference(&mut self, name: String, dir: &Path) -> Result<(), KittiError> {

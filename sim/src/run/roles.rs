@@ -38,6 +38,10 @@ pub fn agent_view(
         else {
             return (Vec::new(), [0.0; 3]);
         };
+        if let Some(dets) = rec.detections(idx, i) {
+            // A detector's own boxes, replayed as they are.
+            return (dets.to_vec(), rec.position(idx, i));
+        }
         let view = recorded_view(gt, rec.as_ref(), idx, i, noise, scenario.seed, spec.range_m);
         return (view, rec.position(idx, i));
     }
@@ -258,6 +262,9 @@ fn node_config(
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<NodeConfig> {
     let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
+    // Real detectors' boxes: their groups scored and their tail dropped, as `--detector` does.
+    cfg.detector = (scenario.dataset.kind == crate::cli::DatasetKind::V2v4real)
+        .then(v2x_fuser::detector::DetectorParams::default);
     cfg.region = region;
     cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);
     cfg.viz = viz;

@@ -16,3 +16,4 @@ mod resilience;
 mod security;
 mod timeline;
 mod traffic;
+mod v2v4real;
