@@ -66,12 +66,13 @@ struct FilesArgs {
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<v2x_protocol::Uncertainty>,
     /// The inputs are a detector's boxes (docs/method.md §11): each box's stds from its score,
-    /// replacing any it states (the first input is the receiver, the others add a pose std);
+    /// replacing any it states (the first input is the receiver, the others add a pose std),
+    /// or from the input's --std-model when it has one (`v2x-sim calibrate` fits it);
     /// CSBA-3D groups scored by the noisy-OR of their members; `fuse` drops fused boxes below
     /// 0.4, `track` keeps them and shows a track from its first box. The default for KITTI
     /// folders given without --default-std; give it for results files, such as
     /// `v2x-sim gen --dataset v2v4real` writes.
-    #[arg(long, conflicts_with_all = ["default_std", "learn_std", "std_model"])]
+    #[arg(long, conflicts_with_all = ["default_std", "learn_std"])]
     detector: bool,
     #[command(flatten)]
     motion: MotionArgs,

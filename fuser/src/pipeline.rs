@@ -6,7 +6,8 @@
 //! 3. **motion**: every frame predicted to the window's reference time, its latest capture
 //!    (`crate::motion`);
 //! 4. **detector stds**: a detector's boxes given stds from their scores, the receiver's without
-//!    the pose term (`crate::detector`), when the pipeline knows the receiver;
+//!    the pose term (`crate::detector`), when the pipeline knows the receiver, unless step 1
+//!    gave them their agent's calibrated stds;
 //! 5. **registration**: every agent aligned to the reference agent (`crate::align`);
 //! 6. **fusion**: the method, a CSBA-3D method scoring a detector's groups by noisy-OR with its
 //!    tail dropped (`crate::detector::fuse_scored_sourced`).
@@ -162,8 +163,11 @@ impl Pipeline {
         mut lists: Vec<Vec<Detection>>,
     ) -> (Vec<Vec<Detection>>, Vec<Option<Registration>>) {
         if let (Some(p), Some(receiver)) = (&self.steps.detector, &self.receiver) {
+            // An agent with a calibrated model keeps the stds it gives.
             for (dets, name) in lists.iter_mut().zip(agents) {
-                detector::ready(p, dets, name == receiver);
+                if !self.steps.models.0.contains_key(name) {
+                    detector::ready(p, dets, name == receiver);
+                }
             }
         }
         let Some(aligner) = &mut self.aligner else {
@@ -180,5 +184,70 @@ impl Pipeline {
             }
             None => (lists, vec![None; agents.len()]),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stdmodel::{ErrorModel, ErrorSample};
+    use v2x_protocol::{Class, Uncertainty};
+
+    fn car(x: f64, score: f64) -> Detection {
+        Detection {
+            score,
+            ..Detection::car(x, 0.0, 0.5)
+        }
+    }
+
+    #[test]
+    fn a_detectors_stds_come_from_the_score_unless_a_model_gives_them() {
+        // Agent a00001's model: centre errors of exactly +-0.3 m on every axis.
+        let samples: Vec<ErrorSample> = (0..40)
+            .map(|i| ErrorSample {
+                class: Class::Car,
+                score: 0.5,
+                error: {
+                    let e = if i % 2 == 0 { 0.3 } else { -0.3 };
+                    [e, e, e, 0.0, 0.0, 0.0, 0.0]
+                },
+                velocity: None,
+            })
+            .collect();
+        let model = ErrorModel::fit(&samples, 1, "id").unwrap();
+        let p = DetectorParams::default();
+        let names = ["a00000".to_string(), "a00001".to_string()];
+        let kinds = [AgentKind::Vehicle; 2];
+        let lists = vec![vec![car(0.0, 0.9)], vec![car(0.2, 0.6)]];
+        let pipeline = |models: Models| {
+            let steps = Steps {
+                detector: Some(p),
+                models: Arc::new(models),
+                ..Steps::method("csba-wls+".parse().unwrap())
+            };
+            Pipeline::new(
+                steps,
+                Reference::Agent(names[0].clone()),
+                Some(names[0].clone()),
+            )
+        };
+        // Without a model: the receiver's stds from its score, the other's with the pose too.
+        let (ready, regs) =
+            pipeline(Models::default()).register(None, &names, &kinds, lists.clone());
+        assert_eq!(regs, vec![None, None]);
+        assert_eq!(ready[0][0].std, detector::stds(&p, &lists[0][0], true));
+        assert_eq!(ready[1][0].std, detector::stds(&p, &lists[1][0], false));
+        // With a model for a00001, applied first (step 1), its stds stay as the model set them.
+        let models = Models([(names[1].clone(), model)].into_iter().collect());
+        let mut modelled = lists.clone();
+        models.apply(&names[1], &mut modelled[1]);
+        assert_ne!(modelled[1][0].std, Uncertainty::uniform(0.5, 0.1, 0.1));
+        let (ready, _) = pipeline(models).register(None, &names, &kinds, modelled.clone());
+        assert_eq!(ready[0][0].std, detector::stds(&p, &lists[0][0], true));
+        assert_eq!(ready[1][0].std, modelled[1][0].std);
+        // Fused as a detector's: one group, scored 1 - 0.1 x 0.4 = 0.96.
+        let fused = pipeline(Models::default()).steps().fuse(&ready);
+        assert_eq!(fused.len(), 1);
+        assert!((fused[0].det.score - 0.96).abs() < 1e-12);
     }
 }

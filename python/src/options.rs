@@ -89,12 +89,12 @@ impl Options {
             p
         });
         let models = self.models(inputs)?;
-        if self.detector && (self.default_std.is_some() || self.learn_std || !models.is_empty()) {
-            return bad("detector gives every box its stds: leave out default_std, learn_std and std_models".into());
+        if self.detector && (self.default_std.is_some() || self.learn_std) {
+            return bad("detector gives every box its stds (or std_models an input's): leave out default_std and learn_std".into());
         }
         let replaced = self.learn_std || (inputs > 0 && models.len() >= inputs);
         let missing = match (&self.default_std, replaced) {
-            // Every std is replaced by the detector's.
+            // Every std is replaced by the detector's or a model's.
             _ if self.detector => MissingStd::Default(v2x_fuser::offline::kitti_default_std()),
             (Some(s), _) => missing_std(Some(s))?,
             (None, true) => MissingStd::Default(LearnParams::default().prior),
