@@ -5,8 +5,9 @@
 //!
 //! Run: `cargo run --release -p v2x-protocol --example wire_sizes`
 
+use serde::Serialize;
 use v2x_protocol::nuscenes_json::stable_id;
-use v2x_protocol::wire::{encode, encode_json, encode_plain_f32};
+use v2x_protocol::wire::{encode, encode_json};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
 
 /// A deterministic stream of uniform numbers in [0, 1) (xorshift64).
@@ -125,4 +126,48 @@ fn main() {
             (w as f64 - plain as f64) / n as f64
         );
     }
+}
+
+/// Encodes a frame as postcard of plain `f32` fields (no quantization), for size comparisons.
+pub fn encode_plain_f32(frame: &Frame) -> Vec<u8> {
+    #[derive(Serialize)]
+    struct PlainObject {
+        class: u8,
+        center: [f32; 3],
+        size: [f32; 3],
+        yaw: f32,
+        score: f32,
+        std: [f32; 7],
+        id: u32,
+    }
+    #[derive(Serialize)]
+    struct PlainFrame<'a> {
+        agent: &'a str,
+        kind: u8,
+        seq: u32,
+        capture_us: u64,
+        origin: [f32; 3],
+        objects: Vec<PlainObject>,
+    }
+    let pf = PlainFrame {
+        agent: &frame.agent,
+        kind: frame.kind as u8,
+        seq: frame.seq,
+        capture_us: frame.capture_us,
+        origin: frame.origin.map(|v| v as f32),
+        objects: frame
+            .detections
+            .iter()
+            .map(|d| PlainObject {
+                class: d.class.code(),
+                center: d.center.map(|v| v as f32),
+                size: d.size.map(|v| v as f32),
+                yaw: d.yaw as f32,
+                score: d.score as f32,
+                std: d.std.as_array().map(|v| v as f32),
+                id: d.id,
+            })
+            .collect(),
+    };
+    postcard::to_stdvec(&pf).expect("postcard serialization into a Vec cannot fail")
 }

@@ -1026,50 +1026,6 @@ pub fn fit_with(frame: &mut Frame, mut provenance: Option<&mut Provenance>) -> F
     fit
 }
 
-/// Encodes a frame as postcard of plain `f32` fields (no quantization), for size comparisons.
-pub fn encode_plain_f32(frame: &Frame) -> Vec<u8> {
-    #[derive(Serialize)]
-    struct PlainObject {
-        class: u8,
-        center: [f32; 3],
-        size: [f32; 3],
-        yaw: f32,
-        score: f32,
-        std: [f32; 7],
-        id: u32,
-    }
-    #[derive(Serialize)]
-    struct PlainFrame<'a> {
-        agent: &'a str,
-        kind: u8,
-        seq: u32,
-        capture_us: u64,
-        origin: [f32; 3],
-        objects: Vec<PlainObject>,
-    }
-    let pf = PlainFrame {
-        agent: &frame.agent,
-        kind: frame.kind as u8,
-        seq: frame.seq,
-        capture_us: frame.capture_us,
-        origin: frame.origin.map(|v| v as f32),
-        objects: frame
-            .detections
-            .iter()
-            .map(|d| PlainObject {
-                class: d.class.code(),
-                center: d.center.map(|v| v as f32),
-                size: d.size.map(|v| v as f32),
-                yaw: d.yaw as f32,
-                score: d.score as f32,
-                std: d.std.as_array().map(|v| v as f32),
-                id: d.id,
-            })
-            .collect(),
-    };
-    postcard::to_stdvec(&pf).expect("postcard serialization into a Vec cannot fail")
-}
-
 /// Encodes a frame as JSON (serde's natural form), for size comparisons.
 pub fn encode_json(frame: &Frame) -> Vec<u8> {
     serde_json::to_vec(frame).expect("a frame always serializes to JSON")

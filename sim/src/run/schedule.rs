@@ -51,11 +51,6 @@ impl Schedule {
         (self.t0_us as f64 + (wall_us as f64 - epoch_us as f64) * speed).max(0.0) as u64
     }
 
-    /// Wall-clock capture time of the k-th scheduled frame.
-    pub fn due_us(&self, epoch_us: u64, k: usize, speed: f64) -> u64 {
-        epoch_us + (k as f64 * self.period_us as f64 / speed) as u64
-    }
-
     /// An agent's capture times in data time: from t0 + phase, every 1/hz (the data's rate when
     /// `hz` is `None`), within the replayed span.
     pub fn captures(&self, hz: Option<f64>, phase_ms: f64) -> Vec<u64> {
