@@ -491,14 +491,24 @@ pub const MAX_CANDIDATES: usize = 128;
 /// cost, which bounds the time a pile of boxes can take.
 pub const MAX_EXACT_CELLS: usize = 1 << 20;
 
-static CAPPED_ROWS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-static GREEDY_COMPONENTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+thread_local! {
+    /// (detections whose candidates were capped, components matched greedily) on this thread.
+    static BOUNDS: std::cell::Cell<(u64, u64)> = const { std::cell::Cell::new((0, 0)) };
+}
 
-/// How often, in this process so far, the bounds above applied: (detections whose candidates
-/// were capped, components matched greedily).
+/// How often, on this thread so far, the bounds above applied: (detections whose candidates
+/// were capped, components matched greedily). A caller that owns the figures (a node) takes
+/// the difference around its own fusion, which runs on one thread.
 pub fn bounds_applied() -> (u64, u64) {
-    use std::sync::atomic::Ordering::Relaxed;
-    (CAPPED_ROWS.load(Relaxed), GREEDY_COMPONENTS.load(Relaxed))
+    BOUNDS.with(std::cell::Cell::get)
+}
+
+/// Counts one application of a bound on this thread.
+fn count_bound(capped: u64, greedy: u64) {
+    BOUNDS.with(|b| {
+        let (c, g) = b.get();
+        b.set((c + capped, g + greedy));
+    });
 }
 
 /// A candidate in the grid: what its pairs need and its index in the list.
@@ -712,7 +722,7 @@ fn eligible_pairs_into(p: &CsbaParams, a: &[Detection], b: &[Detection], edges: 
                 x.cost.total_cmp(&y.cost).then(x.b.cmp(&y.b))
             });
             edges.truncate(row_start + MAX_CANDIDATES);
-            CAPPED_ROWS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            count_bound(1, 0);
         }
     }
 }
@@ -792,7 +802,7 @@ fn assign_with(
     let mut pairs = Vec::new();
     let mut exact = std::borrow::Cow::Borrowed(edges);
     if any_piled {
-        GREEDY_COMPONENTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        count_bound(0, 1);
         let (piled, rest): (Vec<Edge>, Vec<Edge>) =
             edges.iter().partition(|e| components.of_edge(e).piled);
         greedy(&piled, &mut pairs);

@@ -525,3 +525,33 @@ fn edges_without_a_finite_cost_are_not_eligible() {
     assert_eq!(assign(3, 3, &edges), vec![(1, 1)]);
     assert_eq!(assign(3, 3, &[e(0, 0, f64::INFINITY)]), vec![]);
 }
+
+#[test]
+fn the_bounds_are_counted_on_the_thread_that_met_them() {
+    // One box against 200 co-located ones: its candidates are cut to the cheapest 128, once.
+    let one = vec![det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1)];
+    let pile: Vec<Detection> = (0..200)
+        .map(|i| {
+            det(
+                [0.001 * i as f64, 0.0, 0.0],
+                [4.0, 2.0, 1.5],
+                0.0,
+                0.5,
+                0.1,
+                0.1,
+            )
+        })
+        .collect();
+    let here = bounds_applied();
+    let there = std::thread::spawn(move || {
+        let before = bounds_applied();
+        let edges = eligible_pairs(&CsbaParams::default(), &one, &pile);
+        let after = bounds_applied();
+        (edges.len(), after.0 - before.0)
+    })
+    .join()
+    .unwrap();
+    assert_eq!(there, (MAX_CANDIDATES, 1));
+    // Another thread's fusion (another node's) leaves this thread's figures as they were.
+    assert_eq!(bounds_applied(), here);
+}

@@ -168,7 +168,8 @@ struct State {
     region: Option<Region>,
     parts: Parts,
     /// The association's bounds applied in this process before the node started.
-    bounds_at_start: (u64, u64),
+    /// How often the association's bounds applied in this node's windows (capped, greedy).
+    degraded: (u64, u64),
 }
 
 /// Agents' live and left lines told per log interval; beyond, they are counted.
@@ -234,7 +235,7 @@ impl State {
                 (cfg.max_wait_ms * 500.0) as u64,
                 cfg.ingest.max_agents.saturating_mul(PENDING_PER_AGENT),
             ),
-            bounds_at_start: crate::association::bounds_applied(),
+            degraded: (0, 0),
         }
     }
 
@@ -290,10 +291,9 @@ impl State {
                 crate::ingest::Area::Learned { .. }
             ),
         });
-        let (capped, greedy) = crate::association::bounds_applied();
         s.degraded = stats::Degraded {
-            candidates_capped: capped - self.bounds_at_start.0,
-            components_greedy: greedy - self.bounds_at_start.1,
+            candidates_capped: self.degraded.0,
+            components_greedy: self.degraded.1,
         };
         s.open_windows = self.windows.open_windows();
         s.fusion_queue = self.queued;
@@ -454,6 +454,8 @@ impl State {
     fn on_done(&mut self, d: worker::Done, on_fused: &mut impl FnMut(&Fused)) {
         self.queued = self.queued.saturating_sub(1);
         self.stats.fit.add(&d.fit);
+        self.degraded.0 += d.degraded.0;
+        self.degraded.1 += d.degraded.1;
         if d.tracks.is_some() {
             self.stats.tracks = d.tracks;
         }

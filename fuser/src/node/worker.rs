@@ -29,6 +29,8 @@ pub(super) struct Done {
     pub tracks: Option<TrackStats>,
     /// Why it was not published, if it was not.
     pub error: Option<String>,
+    /// How often the association's bounds applied in this window (capped, greedy).
+    pub degraded: (u64, u64),
     pub closed_at_us: u64,
     pub done_at_us: u64,
 }
@@ -172,12 +174,15 @@ type JobOutput = (
     Result<Vec<u8>, wire::EncodeError>,
     Option<(Result<Vec<u8>, wire::EncodeError>, TrackStats)>,
     Carried,
+    (u64, u64),
 );
 
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
 /// fusion, the region's share, the wire's domain, then the tracks (fed, in a region, every
 /// fused box of its tile and halo in the wire's domain, after its neighbours' ids).
 fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutput {
+    // The association's bounds counted on this thread, for this window alone.
+    let bounds_before = crate::association::bounds_applied();
     let pipeline = state
         .pipeline
         .get_or_insert_with(|| Pipeline::new(f.steps.clone(), Reference::Infrastructure, None));
@@ -206,7 +211,9 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())
     });
-    (fused, fit, bytes, tracked, state)
+    let after = crate::association::bounds_applied();
+    let degraded = (after.0 - bounds_before.0, after.1 - bounds_before.1);
+    (fused, fit, bytes, tracked, state, degraded)
 }
 
 /// The empty window reported in place of one whose fusion panicked.
@@ -266,14 +273,14 @@ pub(super) async fn run(
         let f = fusion.clone();
         let work = tokio::task::spawn_blocking(move || fuse_job(&f, state, closed, this_seq)).await;
         // A fusion that panicked took the aligner and the tracks with it: start afresh.
-        let (work, tracked) = match work {
-            Ok((fused, fit, bytes, tracked, state)) => {
+        let (work, tracked, degraded) = match work {
+            Ok((fused, fit, bytes, tracked, state, degraded)) => {
                 carried = state;
-                (Ok((fused, fit, bytes)), tracked)
+                (Ok((fused, fit, bytes)), tracked, degraded)
             }
             Err(e) => {
                 carried = fusion.fresh();
-                (Err(e), None)
+                (Err(e), None, (0, 0))
             }
         };
         let mut track_stats = None;
@@ -300,6 +307,7 @@ pub(super) async fn run(
             fit,
             tracks: track_stats,
             error,
+            degraded,
             closed_at_us,
             done_at_us: clock.now_us(),
         };
