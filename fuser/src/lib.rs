@@ -39,4 +39,4 @@ pub mod tracker;
 pub mod viz;
 pub mod window;
 
-pub use method::{Method, Sourced, METHODS};
+pub use method::{Method, Named, Sourced, METHODS};

@@ -13,8 +13,8 @@ use v2x_protocol::nuscenes_json::{
 
 fn methods_help() -> String {
     let mut s = String::from("Methods:\n");
-    for (name, about) in METHODS {
-        s.push_str(&format!("  {name:<16} {about}\n"));
+    for m in METHODS {
+        s.push_str(&format!("  {:<16} {}\n", m.name, m.about));
     }
     s
 }

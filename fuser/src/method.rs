@@ -42,82 +42,127 @@ pub enum Method {
     GtWls,
 }
 
-/// Every method name with a one-line description, as `--help` lists them.
-pub const METHODS: &[(&str, &str)] = &[
-    (
+/// A method as it is registered: its name (as the CLI spells it), a line on what it is (as
+/// `--help` lists it), and the method.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Named {
+    /// The name.
+    pub name: &'static str,
+    /// What it is, in one line.
+    pub about: &'static str,
+    /// The method.
+    pub method: Method,
+}
+
+const fn named(name: &'static str, about: &'static str, method: Method) -> Named {
+    Named {
+        name,
+        about,
+        method,
+    }
+}
+
+const PAPER: CsbaParams = CsbaParams::PAPER;
+const PLUS: CsbaParams = CsbaParams::PLUS;
+
+/// Every method, registered once: names, parsing, `--help` and [`Method::all`] come from here.
+pub const METHODS: &[Named] = &[
+    named(
         "csba-wls",
         "CSBA-3D association + WLS-3D fusion, exactly as the paper prints it",
+        Method::Csba(PAPER),
     ),
-    (
+    named(
         "csba-wls+",
         "csba-wls with a scale-consistent Mahalanobis gate and the wrapped orientation score",
+        Method::Csba(PLUS),
     ),
-    (
+    named(
         "csba-wls+chi2",
         "csba-wls+ where a member beyond the 99.9% chi-square bound of its group starts its own",
+        Method::Csba(CsbaParams {
+            consistency: Some(CHI2_3_999),
+            ..PLUS
+        }),
     ),
-    (
+    named(
         "csba-wls+gate",
         "ablation: csba-wls with only the Mahalanobis gate of csba-wls+",
+        Method::Csba(CsbaParams {
+            gate: PLUS.gate,
+            ..PAPER
+        }),
     ),
-    (
+    named(
         "csba-wls+orient",
         "ablation: csba-wls with only the wrapped orientation score of csba-wls+",
+        Method::Csba(CsbaParams {
+            orientation: PLUS.orientation,
+            ..PAPER
+        }),
     ),
-    (
+    named(
         "csba-wls+dim",
         "ablation: csba-wls with only the symmetric dimension score of csba-wls+",
+        Method::Csba(CsbaParams {
+            dimension: PLUS.dimension,
+            ..PAPER
+        }),
     ),
-    (
+    named(
         "csba-wls+loglik",
         "ablation: csba-wls with only the Gaussian centre score and log-likelihood cost",
+        Method::Csba(CsbaParams {
+            centre: PLUS.centre,
+            combine: PLUS.combine,
+            ..PAPER
+        }),
     ),
-    (
+    named(
         "nms-3d",
         "greedy NMS over all agents, rotated 3D IoU > 0.15 suppresses, keeps the top box",
+        Method::Nms3d,
     ),
-    (
+    named(
         "nms-giou-3d",
         "greedy NMS over all agents, 3D GIoU > 0.15 suppresses, keeps the top box",
+        Method::NmsGiou3d,
     ),
-    (
+    named(
         "wbf-3d",
         "weighted boxes fusion, clusters by 3D IoU > 0.55, score-weighted mean box",
+        Method::Wbf3d,
     ),
-    (
+    named(
         "psa",
         "one-hop BEV-IoU clusters within 10 m, keeps the argmax of IoU-weighted score",
+        Method::Psa,
     ),
-    (
+    named(
         "infradet3d-late",
         "Hungarian on 2D centre distance (3 m gate), mean box, first agent's yaw",
+        Method::InfraDet3dLate,
     ),
-    (
+    named(
         "dair-v2x-late",
         "Hungarian on 3D centre distance within a class (3 m gate), mean of the pair",
+        Method::DairV2xLate,
     ),
-    (
+    named(
         "gt-wls",
         "oracle: groups by ground-truth id (instance_token), WLS-3D fusion",
+        Method::GtWls,
     ),
 ];
 
 impl Method {
-    /// The method's name as the CLI spells it.
+    /// The method's name as the CLI spells it (`csba-wls(custom)` for CSBA-3D parameters no
+    /// name is registered for).
     pub fn name(&self) -> String {
-        match self {
-            Method::Csba(p) => csba_variants()
-                .into_iter()
-                .find(|(_, q)| q == p)
-                .map_or_else(|| "csba-wls(custom)".to_string(), |(n, _)| n.to_string()),
-            Method::Nms3d => "nms-3d".into(),
-            Method::NmsGiou3d => "nms-giou-3d".into(),
-            Method::Wbf3d => "wbf-3d".into(),
-            Method::Psa => "psa".into(),
-            Method::InfraDet3dLate => "infradet3d-late".into(),
-            Method::DairV2xLate => "dair-v2x-late".into(),
-            Method::GtWls => "gt-wls".into(),
-        }
+        METHODS
+            .iter()
+            .find(|n| n.method == *self)
+            .map_or_else(|| "csba-wls(custom)".to_string(), |n| n.name.to_string())
     }
 
     /// The association's parameters, for a CSBA-3D method.
@@ -130,10 +175,7 @@ impl Method {
 
     /// Every named method, in the order of [`METHODS`].
     pub fn all() -> Vec<Method> {
-        METHODS
-            .iter()
-            .map(|(n, _)| n.parse().expect("listed names parse"))
-            .collect()
+        METHODS.iter().map(|n| n.method).collect()
     }
 
     /// Fuses one time step: `agents[k]` is agent k's detections, agents in a fixed order.
@@ -171,76 +213,23 @@ impl fmt::Display for Method {
 impl FromStr for Method {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        if let Some((_, p)) = csba_variants().into_iter().find(|(n, _)| *n == s) {
-            return Ok(Method::Csba(p));
-        }
-        Ok(match s {
-            "nms-3d" => Method::Nms3d,
-            "nms-giou-3d" => Method::NmsGiou3d,
-            "wbf-3d" => Method::Wbf3d,
-            "psa" => Method::Psa,
-            "infradet3d-late" => Method::InfraDet3dLate,
-            "dair-v2x-late" => Method::DairV2xLate,
-            "gt-wls" => Method::GtWls,
-            _ => {
-                let names: Vec<_> = METHODS.iter().map(|(n, _)| *n).collect();
-                return Err(format!(
+        METHODS
+            .iter()
+            .find(|n| n.name == s)
+            .map(|n| n.method)
+            .ok_or_else(|| {
+                let names: Vec<_> = METHODS.iter().map(|n| n.name).collect();
+                format!(
                     "unknown method '{s}' (expected one of: {})",
                     names.join(", ")
-                ));
-            }
-        })
+                )
+            })
     }
 }
 
-/// The named CSBA-3D parameter sets: the paper's, ours, and the one-change ablations.
-pub fn csba_variants() -> [(&'static str, CsbaParams); 7] {
-    let paper = CsbaParams::PAPER;
-    let plus = CsbaParams::PLUS;
-    [
-        ("csba-wls", paper),
-        ("csba-wls+", plus),
-        (
-            "csba-wls+chi2",
-            CsbaParams {
-                consistency: Some(CHI2_3_999),
-                ..plus
-            },
-        ),
-        (
-            "csba-wls+gate",
-            CsbaParams {
-                gate: plus.gate,
-                ..paper
-            },
-        ),
-        (
-            "csba-wls+orient",
-            CsbaParams {
-                orientation: plus.orientation,
-                ..paper
-            },
-        ),
-        (
-            "csba-wls+dim",
-            CsbaParams {
-                dimension: plus.dimension,
-                ..paper
-            },
-        ),
-        (
-            "csba-wls+loglik",
-            CsbaParams {
-                centre: plus.centre,
-                combine: plus.combine,
-                ..paper
-            },
-        ),
-    ]
-}
-
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
-/// each next agent's list in agent order (`docs/method.md` §1); every group is re-fused from all its members.
+/// each next agent's list in agent order (`docs/method.md` §1); each group is fused from all its
+/// members, a joining member's terms added to the group's sums.
 pub fn csba_wls(p: &CsbaParams, agents: &[Vec<Detection>]) -> Vec<Sourced> {
     let (fused, sources) = csba_wls_parts(p, agents);
     Sourced::zip(fused, sources)
@@ -355,9 +344,14 @@ mod tests {
 
     #[test]
     fn names_round_trip() {
-        for (n, _) in METHODS {
-            let m: Method = n.parse().unwrap();
-            assert_eq!(m.name(), *n);
+        for n in METHODS {
+            let m: Method = n.name.parse().unwrap();
+            assert_eq!((m, m.name()), (n.method, n.name.to_string()));
+        }
+        // Every registered method is a different one.
+        let all = Method::all();
+        for (i, m) in all.iter().enumerate() {
+            assert!(!all[..i].contains(m), "{m} registered twice");
         }
         assert!("kalman"
             .parse::<Method>()

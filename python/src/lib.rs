@@ -43,7 +43,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "METHODS",
         v2x_fuser::METHODS
             .iter()
-            .map(|(n, d)| (n.to_string(), d.to_string()))
+            .map(|m| (m.name.to_string(), m.about.to_string()))
             .collect::<Vec<_>>(),
     )?;
     m.add("DecodeError", py.get_type::<DecodeError>())?;

@@ -9,8 +9,8 @@ fn help_lists_methods_and_errors_are_one_line() {
     let out = Command::new(exe).args(["fuse", "--help"]).output().unwrap();
     assert!(out.status.success());
     let help = String::from_utf8(out.stdout).unwrap();
-    for (name, _) in v2x_fuser::METHODS {
-        assert!(help.contains(name), "{name}");
+    for m in v2x_fuser::METHODS {
+        assert!(help.contains(m.name), "{}", m.name);
     }
     let out = Command::new(exe)
         .args([

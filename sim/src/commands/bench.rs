@@ -116,7 +116,7 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     }
     let d = args.data.load_dair()?;
     let methods = real_data_methods(&args.methods)?;
-    if methods.iter().any(|m| m.name() == "gt-wls") {
+    if methods.contains(&Method::GtWls) {
         bail!("gt-wls groups boxes by ground-truth id, which DAIR-V2X's own labels do not carry");
     }
     let noise = if args.noise == "all" {
@@ -152,7 +152,7 @@ fn real_data_methods(list: &str) -> anyhow::Result<Vec<Method>> {
     Ok(if list == "all" {
         Method::all()
             .into_iter()
-            .filter(|m| m.name() != "gt-wls")
+            .filter(|m| *m != Method::GtWls)
             .collect()
     } else {
         parse_list(list, vec![], |s| s.parse())?
