@@ -35,7 +35,7 @@ fn gen_fuse_eval_with_every_method() {
     assert!(ok, "{err}");
     let (ok, help, _) = run(Command::new(bin("v2x-fuser")).args(["fuse", "--help"]));
     assert!(ok);
-    for name in METHODS.iter().map(|m| m.name) {
+    for name in METHODS.iter().map(|m| &m.name) {
         assert!(help.contains(name), "--help lists {name}");
         let out = dir.join(format!("{name}.json"));
         let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
