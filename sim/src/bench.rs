@@ -425,6 +425,120 @@ pub fn tracking_table(rows: &[TrackingRow]) -> String {
     )
 }
 
+/// A tracked row over several noise seeds: its AMOTA and identity switches (per 100 objects)
+/// as mean, lowest and highest, and seed by seed against `gt-wls tracked` under the same
+/// noise: the lowest AMOTA ratio and the highest switch ratio.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SeedSummary {
+    /// The noise setting.
+    pub noise: String,
+    /// The row.
+    pub method: String,
+    /// Seeds summarised.
+    pub seeds: usize,
+    /// AMOTA: mean, lowest, highest.
+    pub amota: [f64; 3],
+    /// Identity switches per 100 objects: mean, lowest, highest.
+    pub ids_per_100: [f64; 3],
+    /// The lowest over seeds of AMOTA / `gt-wls tracked`'s AMOTA (None without that row).
+    pub worst_amota_ratio: Option<f64>,
+    /// The highest over seeds of switches / `gt-wls tracked`'s switches (None without that row;
+    /// 1 on a seed where neither switched, infinite where only this row did).
+    pub worst_ids_ratio: Option<f64>,
+}
+
+/// Mean, lowest and highest.
+fn spread(v: &[f64]) -> [f64; 3] {
+    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    [mean, lo, hi]
+}
+
+/// Every tracked row of `per_seed` (the tracking table under each seed, rows in the same
+/// order) summarised over the seeds.
+pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
+    let Some(first) = per_seed.first() else {
+        return Vec::new();
+    };
+    let oracle = |rows: &[TrackingRow], noise: &str| {
+        rows.iter()
+            .find(|r| r.noise == noise && r.method == "gt-wls tracked")
+            .and_then(|r| r.tracking.as_ref())
+            .map(|t| (t.amota, t.ids_per_100_tracks))
+    };
+    let mut out = Vec::new();
+    for (i, row) in first.iter().enumerate() {
+        if row.tracking.is_none() {
+            continue;
+        }
+        let seen: Vec<(&TrackingMetrics, Option<(f64, f64)>)> = per_seed
+            .iter()
+            .filter_map(|rows| {
+                let r = rows
+                    .get(i)
+                    .filter(|r| r.method == row.method && r.noise == row.noise)?;
+                Some((r.tracking.as_ref()?, oracle(rows, &r.noise)))
+            })
+            .collect();
+        let amota: Vec<f64> = seen.iter().map(|(t, _)| t.amota).collect();
+        let ids: Vec<f64> = seen.iter().map(|(t, _)| t.ids_per_100_tracks).collect();
+        let ratios = |f: &dyn Fn(&TrackingMetrics, (f64, f64)) -> Option<f64>| -> Option<Vec<f64>> {
+            seen.iter().map(|(t, o)| f(t, (*o)?)).collect()
+        };
+        out.push(SeedSummary {
+            noise: row.noise.clone(),
+            method: row.method.clone(),
+            seeds: seen.len(),
+            amota: spread(&amota),
+            ids_per_100: spread(&ids),
+            worst_amota_ratio: ratios(&|t, (a, _)| (a > 0.0).then(|| t.amota / a))
+                .map(|v| spread(&v)[1]),
+            worst_ids_ratio: ratios(&|t, (_, i)| {
+                Some(match (t.ids_per_100_tracks, i) {
+                    (r, o) if o > 0.0 => r / o,
+                    (r, _) if r > 0.0 => f64::INFINITY,
+                    _ => 1.0,
+                })
+            })
+            .map(|v| spread(&v)[2]),
+        });
+    }
+    out
+}
+
+/// [`seed_summary`] as a Markdown table.
+pub fn seed_summary_table(rows: &[SeedSummary]) -> String {
+    let three = |v: [f64; 3], d: usize| format!("{:.d$} ({:.d$}-{:.d$})", v[0], v[1], v[2]);
+    let ratio = |v: Option<f64>| match v {
+        None => "-".into(),
+        Some(r) if r.is_infinite() => "inf".into(),
+        Some(r) => format!("{r:.3}"),
+    };
+    markdown(
+        &[
+            ("noise", Left),
+            ("tracks", Left),
+            ("seeds", Right),
+            ("AMOTA mean (low-high)", Right),
+            ("IDS / 100 objects mean (low-high)", Right),
+            ("worst AMOTA / gt-wls tracked", Right),
+            ("worst IDS / gt-wls tracked", Right),
+        ],
+        rows.iter().map(|r| {
+            vec![
+                r.noise.clone(),
+                r.method.clone(),
+                r.seeds.to_string(),
+                three(r.amota, 4),
+                three(r.ids_per_100, 2),
+                ratio(r.worst_amota_ratio),
+                ratio(r.worst_ids_ratio),
+            ]
+        }),
+    )
+}
+
 /// Scores one frame's tracks of a scene: their boxes by id, their ids as the tracking
 /// benchmark does.
 pub(crate) fn score_tracked(
@@ -820,5 +934,66 @@ mod tests {
             by_id.tracking.as_ref().unwrap(),
         );
         assert!(tb.mota >= ta.mota, "{tb:?} {ta:?}");
+    }
+
+    #[test]
+    fn tracked_rows_are_summarised_over_seeds_and_against_the_oracle_seed_by_seed() {
+        let (gt, mut cfg) = tracking_case(&["csba-wls+", "gt-wls"], "large");
+        let per_seed: Vec<Vec<TrackingRow>> = [3, 4, 5]
+            .iter()
+            .map(|&seed| {
+                cfg.seed = seed;
+                run_tracking(&gt, &cfg, Default::default())
+            })
+            .collect();
+        let summary = seed_summary(&per_seed);
+        // Every tracked row, in table order; single-frame rows are not summarised.
+        let tracked: Vec<&str> = per_seed[0]
+            .iter()
+            .filter(|r| r.tracking.is_some())
+            .map(|r| r.method.as_str())
+            .collect();
+        let names: Vec<&str> = summary.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(names, tracked);
+        let amota = |rows: &[TrackingRow], m: &str| {
+            rows.iter()
+                .find(|r| r.method == m)
+                .unwrap()
+                .tracking
+                .as_ref()
+                .unwrap()
+                .amota
+        };
+        let row = summary
+            .iter()
+            .find(|r| r.method == "csba-wls+ tracked")
+            .unwrap();
+        let each: Vec<f64> = per_seed
+            .iter()
+            .map(|r| amota(r, "csba-wls+ tracked"))
+            .collect();
+        assert_eq!(row.seeds, 3);
+        assert!((row.amota[0] - each.iter().sum::<f64>() / 3.0).abs() < 1e-12);
+        assert_eq!(
+            row.amota[1],
+            each.iter().copied().fold(f64::INFINITY, f64::min)
+        );
+        assert_eq!(
+            row.amota[2],
+            each.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+        );
+        // The worst ratio is taken seed by seed, not from the means.
+        let worst = per_seed
+            .iter()
+            .map(|r| amota(r, "csba-wls+ tracked") / amota(r, "gt-wls tracked"))
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(row.worst_amota_ratio, Some(worst));
+        let oracle = summary
+            .iter()
+            .find(|r| r.method == "gt-wls tracked")
+            .unwrap();
+        assert_eq!(oracle.worst_amota_ratio, Some(1.0));
+        assert_eq!(oracle.worst_ids_ratio, Some(1.0));
+        assert!(seed_summary_table(&summary).contains("| large | csba-wls+ tracked | 3 |"));
     }
 }
