@@ -455,6 +455,9 @@ fn spread(v: &[f64]) -> [f64; 3] {
     [mean, lo, hi]
 }
 
+/// A row's figure against the oracle's (AMOTA, switches per 100 objects) on one seed.
+type RatioOf<'a> = &'a dyn Fn(&TrackingMetrics, (f64, f64)) -> Option<f64>;
+
 /// Every tracked row of `per_seed` (the tracking table under each seed, rows in the same
 /// order) summarised over the seeds.
 pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
@@ -483,9 +486,8 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
             .collect();
         let amota: Vec<f64> = seen.iter().map(|(t, _)| t.amota).collect();
         let ids: Vec<f64> = seen.iter().map(|(t, _)| t.ids_per_100_tracks).collect();
-        let ratios = |f: &dyn Fn(&TrackingMetrics, (f64, f64)) -> Option<f64>| -> Option<Vec<f64>> {
-            seen.iter().map(|(t, o)| f(t, (*o)?)).collect()
-        };
+        let ratios =
+            |f: RatioOf| -> Option<Vec<f64>> { seen.iter().map(|(t, o)| f(t, (*o)?)).collect() };
         out.push(SeedSummary {
             noise: row.noise.clone(),
             method: row.method.clone(),
