@@ -46,7 +46,7 @@ impl Inputs {
     /// for a detector's rows when neither learned stds nor error models replace them.
     pub fn options(&self, opts: &OfflineOptions) -> OfflineOptions {
         let mut o = opts.clone();
-        if self.from_detector && o.detector.is_none() && o.learn.is_none() && o.models.is_empty() {
+        if detector_applies(self.from_detector, &o) {
             o.detector = Some(DetectorParams::default());
         }
         o

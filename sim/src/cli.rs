@@ -163,12 +163,7 @@ impl DataArgs {
         if self.is_v2v4real() {
             // Both cars replay their own boxes, with the stds a detector's boxes are given.
             let mut d = self.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
-            let p = v2x_fuser::detector::DetectorParams::default();
-            for (k, car) in d.cars.iter_mut().enumerate() {
-                for dets in car.iter_mut() {
-                    v2x_fuser::detector::ready(&p, dets, k == 0);
-                }
-            }
+            d.cars = crate::gen::ready_cars(&d.cars, &Default::default());
             return Ok(d.ground_truth());
         }
         match (&self.dataroot, &self.version) {

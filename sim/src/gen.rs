@@ -195,6 +195,21 @@ pub fn generate_dair(
         .collect()
 }
 
+/// V2V4Real's two cars' boxes per frame with the stds a detector's boxes are given
+/// (`docs/method.md` §11): the ego car is the receiver, car 1's add its pose.
+pub fn ready_cars(
+    cars: &[Vec<Vec<v2x_protocol::Detection>>; 2],
+    p: &v2x_fuser::detector::DetectorParams,
+) -> [Vec<Vec<v2x_protocol::Detection>>; 2] {
+    let mut cars = cars.clone();
+    for (k, car) in cars.iter_mut().enumerate() {
+        for dets in car.iter_mut() {
+            v2x_fuser::detector::ready(p, dets, k == 0);
+        }
+    }
+    cars
+}
+
 /// V2V4Real's two cars (ego, then car 1) as results files: every frame of the split keyed by
 /// its sample token (`SSSS_FFFFFF`), each car's detections with the stds a detector's boxes are
 /// given (`docs/method.md` §11; the ego car is the receiver), at the split's replay times
@@ -202,17 +217,16 @@ pub fn generate_dair(
 /// replays the split in one go and `v2x-fuser fuse --detector` fuses it as the bench does.
 pub fn generate_v2v4real(d: &V2v4real, p: &v2x_fuser::detector::DetectorParams) -> Vec<Results> {
     let times = d.replay_times();
+    let cars = ready_cars(&d.cars, p);
     (0..2)
         .map(|k| {
             let mut r = Results::default();
             let mut stamps = serde_json::Map::new();
             for (i, f) in d.frames.iter().enumerate() {
                 let token = f.token();
-                let mut dets = d.cars[k][i].clone();
-                v2x_fuser::detector::ready(p, &mut dets, k == 0);
                 stamps.insert(token.clone(), times[i].into());
                 r.order.push(token.clone());
-                r.samples.insert(token, dets);
+                r.samples.insert(token, cars[k][i].clone());
             }
             let mut meta = default_meta();
             meta["v2x_timestamps"] = serde_json::Value::Object(stamps);

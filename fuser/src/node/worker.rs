@@ -117,6 +117,11 @@ struct Carried {
 }
 
 impl Fusion {
+    /// A pipeline without history: registration to the infrastructure, the agents' own stds.
+    fn pipeline(&self) -> Pipeline {
+        Pipeline::new(self.steps.clone(), Reference::Infrastructure, None)
+    }
+
     fn fresh(&self) -> Carried {
         // A region's tracks take ids of its tile's own block, so no two regions give one id.
         let tracker = self.track.map(|p| match &self.region {
@@ -124,11 +129,7 @@ impl Fusion {
             None => Tracker::new(p),
         });
         Carried {
-            pipeline: Some(Pipeline::new(
-                self.steps.clone(),
-                Reference::Infrastructure,
-                None,
-            )),
+            pipeline: Some(self.pipeline()),
             tracker,
             handover: self.track.and(self.region).map(Handover::new),
         }
@@ -183,9 +184,7 @@ type JobOutput = (
 fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutput {
     // The association's bounds counted on this thread, for this window alone.
     let bounds_before = crate::association::bounds_applied();
-    let pipeline = state
-        .pipeline
-        .get_or_insert_with(|| Pipeline::new(f.steps.clone(), Reference::Infrastructure, None));
+    let pipeline = state.pipeline.get_or_insert_with(|| f.pipeline());
     let (mut fused, lists) = fuse_window(pipeline, closed, seq);
     let mut halo = None;
     if let Some(r) = &f.region {
