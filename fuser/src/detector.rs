@@ -8,11 +8,15 @@
 //!         sigma'(s) = sqrt(sigma(s)^2 + sigma_pose^2)      (an agent other than the receiver)
 //! score:  s_G = 1 - prod_{n in G} (1 - s_n)                (noisy-OR of the group's members)
 //! keep:   s_G >= s_min
+//! split:  max_n z_n - min_n z_n > g_z  =>  each member of G stands as its own box
 //! ```
 //!
 //! The noisy-OR ranks an object that both agents saw above one that only one did; the threshold
-//! drops the tail that costs a benchmark more precision than it brings recall. The defaults are
-//! calibrated on V2V4Real's training split (`docs/results.md`). Sans-IO.
+//! drops the tail that costs a benchmark more precision than it brings recall. The split is the
+//! tracker's: two agents' boxes of one object whose heights lie metres apart (another car's
+//! pitch, or its labels') are two hypotheses of it, and their mean is a height neither
+//! supports, so the tracker is given both. The defaults are calibrated on V2V4Real's training
+//! split (`docs/results.md`). Sans-IO.
 
 use crate::association::CsbaParams;
 use crate::fusion::Sourced;
@@ -36,6 +40,10 @@ pub struct DetectorParams {
     pub yaw_std: f64,
     /// Fused boxes scoring below this are dropped: s_min.
     pub min_score: f64,
+    /// A group whose members' centre heights span more than this (m) is not fused, each member
+    /// kept as its own box: g_z. Infinite for fused boxes (a benchmark in bird's-eye view sees
+    /// the second box as a false positive); 1 m for a tracker's input.
+    pub height_gap: f64,
 }
 
 impl Default for DetectorParams {
@@ -47,16 +55,19 @@ impl Default for DetectorParams {
             size_std: 0.2,
             yaw_std: 0.15,
             min_score: 0.4,
+            height_gap: f64::INFINITY,
         }
     }
 }
 
 impl DetectorParams {
-    /// The parameters for a tracker's input: no tail dropped, since the tracker's scores rank
-    /// its tracks and a box dropped is an object the track may miss.
+    /// The parameters for a tracker's input: no tail dropped and groups split at 1 m of
+    /// height, since the tracker's scores rank its tracks and a box dropped (or fused to a
+    /// height no member has) is an object the track may miss.
     pub fn for_tracking(self) -> DetectorParams {
         DetectorParams {
             min_score: 0.0,
+            height_gap: 1.0,
             ..self
         }
     }
@@ -97,8 +108,9 @@ pub fn group_score(scores: impl IntoIterator<Item = f64>) -> f64 {
         .fold(0.0, |acc, s| acc + s * (1.0 - acc))
 }
 
-/// CSBA-3D and WLS-3D over boxes [`ready`] for it, each group scored by [`group_score`] and the
-/// tail below `p.min_score` dropped; in group order.
+/// CSBA-3D and WLS-3D over boxes [`ready`] for it, each group scored by [`group_score`] (or
+/// split when its heights span more than `p.height_gap`) and the tail below `p.min_score`
+/// dropped; in group order.
 pub fn fuse_scored(
     p: &DetectorParams,
     csba: &CsbaParams,
@@ -117,18 +129,38 @@ pub fn fuse_scored_sourced(
     agents: &[Vec<Detection>],
 ) -> Vec<Sourced> {
     let (fused, groups) = csba_groups(csba, agents);
-    fused
-        .into_iter()
-        .zip(&groups)
-        .map(|(d, g)| Sourced {
-            det: Detection {
-                score: group_score(g.iter().map(|&(k, j)| agents[k][j].score)),
-                ..d
-            },
-            sources: g.iter().map(|&(k, _)| k).collect(),
-        })
-        .filter(|s| s.det.score >= p.min_score)
-        .collect()
+    let member = |&(k, j): &(usize, usize)| &agents[k][j];
+    let mut out = Vec::with_capacity(fused.len());
+    for (d, g) in fused.into_iter().zip(&groups) {
+        if height_span(g.iter().map(member)) > p.height_gap {
+            out.extend(g.iter().map(|m| Sourced {
+                det: member(m).clone(),
+                sources: v2x_protocol::AgentSet::single(m.0),
+            }));
+        } else {
+            out.push(Sourced {
+                det: Detection {
+                    score: group_score(g.iter().map(|m| member(m).score)),
+                    ..d
+                },
+                sources: g.iter().map(|&(k, _)| k).collect(),
+            });
+        }
+    }
+    out.retain(|s| s.det.score >= p.min_score);
+    out
+}
+
+/// How far apart the boxes' centre heights lie (m): 0 for one box.
+fn height_span<'a>(boxes: impl Iterator<Item = &'a Detection>) -> f64 {
+    let (lo, hi) = boxes.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
+        (lo.min(b.center[2]), hi.max(b.center[2]))
+    });
+    if lo <= hi {
+        hi - lo
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

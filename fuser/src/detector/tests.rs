@@ -59,4 +59,53 @@ fn a_tracker_gets_the_tail_too() {
     let p = DetectorParams::default().for_tracking();
     assert_eq!(p.min_score, 0.0);
     assert_eq!(p.pose_std, DetectorParams::default().pose_std);
+    assert_eq!(p.height_gap, 1.0);
+}
+
+#[test]
+fn a_tracker_gets_both_boxes_of_a_group_whose_heights_disagree() {
+    // One car seen by both agents, the other agent's box 1.5 m higher: fused for a benchmark
+    // (one box at the weighted height), both kept for a tracker (each with its own score).
+    let mut ego = vec![car(10.0, 0.6)];
+    let mut other = vec![Detection {
+        center: [10.2, 0.0, 1.5],
+        ..car(10.2, 0.5)
+    }];
+    let p = DetectorParams::default();
+    ready(&p, &mut ego, true);
+    ready(&p, &mut other, false);
+    let lists = [ego, other];
+    let fused = fuse_scored_sourced(&p, &CsbaParams::PLUS, &lists);
+    assert_eq!(fused.len(), 1);
+    assert!(fused[0].det.center[2] > 0.0 && fused[0].det.center[2] < 1.5);
+    assert_eq!(fused[0].sources.len(), 2);
+    let split = fuse_scored_sourced(&p.for_tracking(), &CsbaParams::PLUS, &lists);
+    let mut got: Vec<(f64, f64, usize)> = split
+        .iter()
+        .map(|s| {
+            (
+                s.det.center[2],
+                s.det.score,
+                s.sources.iter().next().unwrap(),
+            )
+        })
+        .collect();
+    got.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(got, vec![(0.0, 0.6, 0), (1.5, 0.5, 1)]);
+    // 0.9 m apart: still one box.
+    lists_fused_once(&p.for_tracking(), 0.9);
+}
+
+/// Two agents' boxes of one car `dz` apart in height fuse to one box.
+fn lists_fused_once(p: &DetectorParams, dz: f64) {
+    let mut ego = vec![car(10.0, 0.6)];
+    let mut other = vec![Detection {
+        center: [10.2, 0.0, dz],
+        ..car(10.2, 0.5)
+    }];
+    ready(p, &mut ego, true);
+    ready(p, &mut other, false);
+    let fused = fuse_scored_sourced(p, &CsbaParams::PLUS, &[ego, other]);
+    assert_eq!(fused.len(), 1, "{dz} m apart");
+    assert!((fused[0].det.score - 0.8).abs() < 1e-12);
 }
