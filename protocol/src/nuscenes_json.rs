@@ -226,15 +226,15 @@ impl<'a> Ctx<'a> {
 
     fn numbers<const N: usize>(
         &self,
-        obj: &Map<String, Value>,
+        obj: &(impl BoxFields + ?Sized),
         field: &str,
     ) -> Result<Option<[f64; N]>, JsonError> {
-        let Some(v) = obj.get(field) else {
+        let Some(v) = obj.field(field) else {
             return Ok(None);
         };
-        let arr = v
-            .as_array()
-            .ok_or_else(|| self.err(Some(field), format!("expected an array of {N} numbers")))?;
+        let FieldValue::List(arr) = v else {
+            return Err(self.err(Some(field), format!("expected an array of {N} numbers")));
+        };
         if arr.len() != N {
             return Err(self.err(
                 Some(field),
@@ -243,20 +243,78 @@ impl<'a> Ctx<'a> {
         }
         let mut out = [0.0; N];
         for (k, x) in arr.iter().enumerate() {
-            out[k] = x.as_f64().filter(|f| f.is_finite()).ok_or_else(|| {
-                self.err(Some(field), format!("element {k} is not a finite number"))
-            })?;
+            if !x.is_finite() {
+                return Err(self.err(Some(field), format!("element {k} is not a finite number")));
+            }
+            out[k] = *x;
         }
         Ok(Some(out))
     }
 
     fn required<const N: usize>(
         &self,
-        obj: &Map<String, Value>,
+        obj: &(impl BoxFields + ?Sized),
         field: &str,
     ) -> Result<[f64; N], JsonError> {
         self.numbers(obj, field)?
             .ok_or_else(|| self.err(Some(field), "missing"))
+    }
+}
+
+/// One field of a box as its source holds it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FieldValue<'a> {
+    /// `null` (`None`).
+    Null,
+    /// A number, with the integer it is when it was written as one (for ids).
+    Number(f64, Option<u64>),
+    /// A string.
+    Str(std::borrow::Cow<'a, str>),
+    /// A list: each element's number, NaN where an element is not a number.
+    List(smallvec::SmallVec<[f64; 4]>),
+    /// Anything else (a boolean, an object, a type the source does not know).
+    Other,
+}
+
+impl<'a> FieldValue<'a> {
+    /// A JSON value as a field.
+    pub fn of_json(v: &'a Value) -> FieldValue<'a> {
+        match v {
+            Value::Null => FieldValue::Null,
+            Value::Number(n) => FieldValue::Number(n.as_f64().unwrap_or(f64::NAN), n.as_u64()),
+            Value::String(s) => FieldValue::Str(s.as_str().into()),
+            Value::Array(a) => {
+                FieldValue::List(a.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect())
+            }
+            Value::Bool(_) | Value::Object(_) => FieldValue::Other,
+        }
+    }
+
+    fn as_f64(&self) -> Option<f64> {
+        match self {
+            FieldValue::Number(x, _) => Some(*x),
+            _ => None,
+        }
+    }
+
+    fn as_str(&self) -> Option<&str> {
+        match self {
+            FieldValue::Str(s) => Some(s),
+            _ => None,
+        }
+    }
+}
+
+/// Where a box's fields are read from: a results file's JSON object, or (in the Python package)
+/// a dict read key by key. Every source reaches the same checks.
+pub trait BoxFields {
+    /// The field `name`, `None` when the box has no such field.
+    fn field(&self, name: &str) -> Option<FieldValue<'_>>;
+}
+
+impl BoxFields for Map<String, Value> {
+    fn field(&self, name: &str) -> Option<FieldValue<'_>> {
+        self.get(name).map(FieldValue::of_json)
     }
 }
 
@@ -365,7 +423,32 @@ fn parse_box(
     let obj = b
         .as_object()
         .ok_or_else(|| ctx.err(None, "expected a box object"))?;
-    if let (Some(st), Some(sample)) = (obj.get("sample_token"), ctx.sample) {
+    parse_fields(ctx, obj, tokens, missing)
+}
+
+/// Parses and checks box `index` of the list `source` names (in errors) from its fields, as a
+/// results file's box is: the same checks whatever holds the fields.
+pub fn parse_box_fields(
+    source: &Path,
+    index: usize,
+    fields: &(impl BoxFields + ?Sized),
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Detection, JsonError> {
+    let ctx = Ctx {
+        index: Some(index),
+        ..Ctx::file(source)
+    };
+    parse_fields(&ctx, fields, tokens, missing)
+}
+
+fn parse_fields(
+    ctx: &Ctx,
+    obj: &(impl BoxFields + ?Sized),
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> Result<Detection, JsonError> {
+    if let (Some(st), Some(sample)) = (obj.field("sample_token"), ctx.sample) {
         if st.as_str() != Some(sample) {
             return Err(ctx.err(
                 Some("sample_token"),
@@ -420,13 +503,11 @@ fn parse_box(
 }
 
 /// A box's class (`detection_name`) and score (`detection_score`).
-fn class_and_score(
-    ctx: &Ctx,
-    obj: &serde_json::Map<String, Value>,
-) -> Result<(Class, f64), JsonError> {
+fn class_and_score(ctx: &Ctx, obj: &(impl BoxFields + ?Sized)) -> Result<(Class, f64), JsonError> {
     let name = obj
-        .get("detection_name")
-        .ok_or_else(|| ctx.err(Some("detection_name"), "missing"))?
+        .field("detection_name")
+        .ok_or_else(|| ctx.err(Some("detection_name"), "missing"))?;
+    let name = name
         .as_str()
         .ok_or_else(|| ctx.err(Some("detection_name"), "expected a string"))?;
     let class = Class::from_name(name).ok_or_else(|| {
@@ -435,7 +516,7 @@ fn class_and_score(
             format!("unknown class '{name}' (expected a nuScenes detection class such as 'car')"),
         )
     })?;
-    let score = match obj.get("detection_score") {
+    let score = match obj.field("detection_score") {
         None => return Err(ctx.err(Some("detection_score"), "missing")),
         Some(v) => v
             .as_f64()
@@ -448,7 +529,7 @@ fn class_and_score(
 /// A box's stds, from its fields or, where it has none, the default `missing` gives.
 fn stds(
     ctx: &Ctx,
-    obj: &serde_json::Map<String, Value>,
+    obj: &(impl BoxFields + ?Sized),
     missing: MissingStd,
 ) -> Result<Uncertainty, JsonError> {
     let default = match missing {
@@ -469,7 +550,7 @@ fn stds(
         Some([sw, sl, sh]) => [sl, sw, sh],
         None => default.ok_or_else(|| need("size_std"))?.size,
     };
-    let yaw_std = match obj.get("yaw_std") {
+    let yaw_std = match obj.field("yaw_std") {
         Some(v) => v
             .as_f64()
             .filter(|f| f.is_finite())
@@ -503,30 +584,27 @@ fn stds(
 /// A box's object id: its `instance_token` interned, else its `instance_id`, else none.
 fn object_id(
     ctx: &Ctx,
-    obj: &serde_json::Map<String, Value>,
+    obj: &(impl BoxFields + ?Sized),
     tokens: &mut TokenTable,
 ) -> Result<u32, JsonError> {
-    Ok(match (obj.get("instance_token"), obj.get("instance_id")) {
-        (Some(v), _) if !v.is_null() => tokens.intern(
+    let present = |name| obj.field(name).filter(|v| *v != FieldValue::Null);
+    if let Some(v) = present("instance_token") {
+        return Ok(tokens.intern(
             v.as_str()
                 .ok_or_else(|| ctx.err(Some("instance_token"), "expected a string"))?,
-        ),
-        (_, Some(v)) if !v.is_null() => {
-            v.as_u64().filter(|&i| i < NO_ID as u64).ok_or_else(|| {
-                ctx.err(Some("instance_id"), "expected an integer below 4294967295")
-            })? as u32
-        }
-        _ => NO_ID,
+        ));
+    }
+    Ok(match present("instance_id") {
+        Some(FieldValue::Number(_, Some(i))) if i < NO_ID as u64 => i as u32,
+        Some(_) => return Err(ctx.err(Some("instance_id"), "expected an integer below 4294967295")),
+        None => NO_ID,
     })
 }
 
 /// A box's velocity with its stds. A velocity counts only with its precision: without
 /// `velocity_std` it is treated as absent (many detectors write [0, 0] when they do not
 /// estimate it).
-fn velocity(
-    ctx: &Ctx,
-    obj: &serde_json::Map<String, Value>,
-) -> Result<Option<Velocity>, JsonError> {
+fn velocity(ctx: &Ctx, obj: &(impl BoxFields + ?Sized)) -> Result<Option<Velocity>, JsonError> {
     Ok(match ctx.numbers::<2>(obj, "velocity_std")? {
         None => None,
         Some(sd) => {
@@ -591,36 +669,79 @@ fn covariance(ctx: &Ctx, c: [f64; 9]) -> Result<[[f64; 3]; 3], JsonError> {
     Ok(m)
 }
 
-/// One box in nuScenes results form, with the extension fields.
-pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
+/// One field of a box as it is written.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OutField<'a> {
+    /// A string.
+    Str(&'a str),
+    /// A number.
+    Number(f64),
+    /// A list of numbers.
+    Numbers(smallvec::SmallVec<[f64; 9]>),
+    /// An object id.
+    Id(u32),
+}
+
+/// Each field of one box in nuScenes results form, with the extension fields the box has,
+/// given to `put` (with `sample_token` when `sample` is given): the one writer behind
+/// [`box_json`] and the Python package's dicts.
+pub fn box_fields<'a>(
+    sample: Option<&'a str>,
+    d: &Detection,
+    tokens: &'a TokenTable,
+    mut put: impl FnMut(&'static str, OutField<'a>),
+) {
+    use OutField::{Number, Numbers, Str};
     let [l, w, h] = d.size;
     let [sl, sw, sh] = d.std.size;
-    let mut b = json!({
-        "sample_token": sample,
-        "translation": d.center,
-        "size": [w, l, h],
-        "rotation": yaw_quaternion(d.yaw),
-        "velocity": d.velocity.map_or([0.0, 0.0], |v| v.v),
-        "detection_name": d.class.name(),
-        "detection_score": d.score,
-        "attribute_name": "",
-        "translation_std": d.std.pos,
-        "size_std": [sw, sl, sh],
-        "yaw_std": d.std.yaw,
-    });
-    let m = b.as_object_mut().expect("built as an object");
+    if let Some(sample) = sample {
+        put("sample_token", Str(sample));
+    }
+    put("translation", Numbers(d.center.into_iter().collect()));
+    put("size", Numbers([w, l, h].into_iter().collect()));
+    put(
+        "rotation",
+        Numbers(yaw_quaternion(d.yaw).into_iter().collect()),
+    );
+    let v = d.velocity.map_or([0.0, 0.0], |v| v.v);
+    put("velocity", Numbers(v.into_iter().collect()));
+    put("detection_name", Str(d.class.name()));
+    put("detection_score", Number(d.score));
+    put("attribute_name", Str(""));
+    put("translation_std", Numbers(d.std.pos.into_iter().collect()));
+    put("size_std", Numbers([sw, sl, sh].into_iter().collect()));
+    put("yaw_std", Number(d.std.yaw));
     if let Some(c) = d.pos_cov.as_deref() {
-        m.insert("translation_cov".into(), json!(c.concat()));
+        put(
+            "translation_cov",
+            Numbers(c.iter().flatten().copied().collect()),
+        );
     }
     if let Some(v) = d.velocity {
-        m.insert("velocity_std".into(), json!(v.std));
+        put("velocity_std", Numbers(v.std.into_iter().collect()));
     }
     if let Some(t) = tokens.name(d.id) {
-        m.insert("instance_token".into(), json!(t));
+        put("instance_token", Str(t));
     } else if d.id != NO_ID {
-        m.insert("instance_id".into(), json!(d.id));
+        put("instance_id", OutField::Id(d.id));
     }
-    b
+}
+
+/// One box in nuScenes results form, with the extension fields.
+pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
+    let mut m = Map::new();
+    box_fields(Some(sample), d, tokens, |k, v| {
+        m.insert(
+            k.into(),
+            match v {
+                OutField::Str(s) => json!(s),
+                OutField::Number(x) => json!(x),
+                OutField::Numbers(xs) => json!(xs.as_slice()),
+                OutField::Id(i) => json!(i),
+            },
+        );
+    });
+    Value::Object(m)
 }
 
 /// The whole results document.
@@ -720,6 +841,71 @@ mod tests {
         made.order.clear();
         let order: Vec<&str> = made.in_file_order().map(|(k, _)| k.as_str()).collect();
         assert_eq!(order, ["aa", "mm", "zz"]);
+    }
+
+    /// A box held by something other than a JSON object: a list of fields.
+    struct Fields<'a>(Vec<(&'a str, FieldValue<'a>)>);
+
+    impl BoxFields for Fields<'_> {
+        fn field(&self, name: &str) -> Option<FieldValue<'_>> {
+            self.0
+                .iter()
+                .find(|(k, _)| *k == name)
+                .map(|(_, v)| v.clone())
+        }
+    }
+
+    impl<'a> Fields<'a> {
+        fn with(mut self, name: &'a str, v: FieldValue<'a>) -> Self {
+            self.0.retain(|(k, _)| *k != name);
+            self.0.push((name, v));
+            self
+        }
+    }
+
+    #[test]
+    fn any_source_of_fields_meets_the_same_checks() {
+        let doc: Value = serde_json::from_str(GOOD).unwrap();
+        let b = doc["results"]["s1"][0].as_object().unwrap();
+        let fields = || {
+            Fields(
+                b.iter()
+                    .map(|(k, v)| (k.as_str(), FieldValue::of_json(v)))
+                    .collect(),
+            )
+        };
+        let mut tokens = TokenTable::new();
+        let parse = |f: &Fields, tokens: &mut TokenTable| {
+            parse_box_fields(p(), 3, f, tokens, MissingStd::Error)
+        };
+        let whole = parse_results(p(), GOOD, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        assert_eq!(
+            parse(&fields(), &mut tokens).unwrap(),
+            whole.samples["s1"][0]
+        );
+        // An id is an integer written as one: 7 is, 7.0 is not.
+        let f = fields()
+            .with("instance_token", FieldValue::Null)
+            .with("instance_id", FieldValue::Number(7.0, Some(7)));
+        assert_eq!(parse(&f, &mut tokens).unwrap().id, 7);
+        let f = f.with("instance_id", FieldValue::Number(7.0, None));
+        assert_eq!(
+            parse(&f, &mut tokens).unwrap_err().to_string(),
+            "agent1.json, box 3, field 'instance_id': expected an integer below 4294967295"
+        );
+        let f = fields().with(
+            "translation",
+            FieldValue::List([1.0, f64::NAN, 2.0].into_iter().collect()),
+        );
+        assert_eq!(
+            parse(&f, &mut tokens).unwrap_err().to_string(),
+            "agent1.json, box 3, field 'translation': element 1 is not a finite number"
+        );
+        let f = fields().with("detection_score", FieldValue::Other);
+        assert_eq!(
+            parse(&f, &mut tokens).unwrap_err().to_string(),
+            "agent1.json, box 3, field 'detection_score': expected a number in [0, 1]"
+        );
     }
 
     #[test]

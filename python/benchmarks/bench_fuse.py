@@ -17,6 +17,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import math
 import pathlib
+import re
 import subprocess
 import timeit
 
@@ -177,7 +178,7 @@ def criterion_us(method, noise):
     """Runs the Rust criterion bench of this step and reads its median (us)."""
     name = f"methods/2x80/{method}/{noise}"
     subprocess.run(
-        ["cargo", "bench", "-q", "-p", "v2x-fuser", "--bench", "fusion", "--", f"^{name}$"],
+        ["cargo", "bench", "-q", "-p", "v2x-fuser", "--bench", "fusion", "--", f"^{re.escape(name)}$"],
         cwd=REPO, check=True, capture_output=True,
     )
     path = REPO / "target" / "criterion" / "methods_2x80" / method / noise / "new" / "estimates.json"

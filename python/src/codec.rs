@@ -1,14 +1,12 @@
 //! Frames to and from wire bytes (`docs/wire-format.md`), as the JSON of a frame dict: the
 //! fields `examples/python/v2x_frame.py` decodes, so the two decoders can be compared.
 
-use crate::pyjson::to_value;
 use crate::{DecodeError, EncodeError};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use serde_json::{json, Map, Value};
-use std::path::Path;
-use v2x_protocol::nuscenes_json::{parse_boxes, TokenTable};
+use v2x_protocol::nuscenes_json::TokenTable;
 use v2x_protocol::{wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty};
 use v2x_protocol::{Velocity, NO_ID};
 
@@ -47,9 +45,7 @@ pub fn encode_boxes<'py>(
 ) -> PyResult<Bound<'py, PyBytes>> {
     let kind: AgentKind = kind.parse().map_err(PyValueError::new_err)?;
     let missing = crate::options::missing_std(default_std)?;
-    let boxes = to_value(boxes, &|| "boxes".into())?;
-    let detections = parse_boxes(Path::new("boxes"), &boxes, &mut TokenTable::new(), missing)
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let detections = crate::boxdict::read_boxes("boxes", boxes, &mut TokenTable::new(), missing)?;
     let frame = Frame {
         agent: agent.to_owned(),
         kind,

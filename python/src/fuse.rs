@@ -1,14 +1,15 @@
 //! Fusion of boxes in results-file form: one time step (`fuse`), whole results documents
 //! (`fuse_results`) and files (`fuse_files`, `track_files`, as `v2x-fuser fuse` and `track`).
 
+use crate::boxdict::{box_dict, read_agents, set};
 use crate::options::{method, missing_std, Options};
-use crate::pyjson::{agents_values, parse_agents, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyList;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use v2x_fuser::offline::{self, FuseReport, OutputFormat};
-use v2x_protocol::nuscenes_json::{box_json, parse_results, results_json, JsonError, TokenTable};
+use v2x_protocol::nuscenes_json::{parse_results, results_json, JsonError, TokenTable};
 
 fn value_error(e: JsonError) -> PyErr {
     PyValueError::new_err(e.to_string())
@@ -27,27 +28,16 @@ pub fn fuse_step<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let method = method(method_name)?;
     let missing = missing_std(default_std)?;
-    let values = agents_values(&agents)?;
-    let fused = py.detach(|| {
-        let mut tokens = TokenTable::new();
-        let per_agent = parse_agents(&values, &mut tokens, missing)?;
-        let fused: Vec<Value> = method
-            .fuse_sourced(&per_agent)
-            .iter()
-            .map(|s| {
-                let mut b = box_json("", &s.det, &tokens);
-                let m = b.as_object_mut().expect("built as an object");
-                m.remove("sample_token");
-                m.insert(
-                    "v2x_sources".into(),
-                    json!(s.sources.iter().collect::<Vec<_>>()),
-                );
-                b
-            })
-            .collect();
-        Ok::<_, PyErr>(Value::Array(fused))
-    })?;
-    to_py(py, &fused)
+    let mut tokens = TokenTable::new();
+    let per_agent = read_agents(&agents, &mut tokens, missing)?;
+    let fused = py.detach(|| method.fuse_sourced(&per_agent));
+    let out = PyList::empty(py);
+    for s in &fused {
+        let b = box_dict(py, &s.det, &tokens)?;
+        set(&b, "v2x_sources", s.sources.iter().collect::<Vec<_>>())?;
+        out.append(b)?;
+    }
+    Ok(out.into_any())
 }
 
 /// Fuses whole results documents (the JSON of each agent's), as `v2x-fuser fuse` fuses files.

@@ -10,6 +10,7 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod boxdict;
 mod codec;
 mod evaluate;
 mod fuse;

@@ -1,38 +1,10 @@
-//! Python values to and from JSON values, with no text in between: boxes cross the boundary as
-//! dicts and reach the same validating parser as a results file's.
+//! Python values as JSON values, with no text in between: for what is not a box dict (options,
+//! numpy values inside a box, documents), boxes themselves being read key by key (`boxdict`).
 
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::{Map, Number, Value};
-use std::path::Path;
-use v2x_protocol::nuscenes_json::{parse_boxes, MissingStd, TokenTable};
-use v2x_protocol::Detection;
-
-/// Each agent's boxes (`agents[k]`, a list of results-file dicts) as JSON values, read with the
-/// GIL held.
-pub fn agents_values(agents: &[Bound<'_, PyAny>]) -> PyResult<Vec<Value>> {
-    agents
-        .iter()
-        .enumerate()
-        .map(|(k, a)| to_value(a, &|| format!("agents[{k}]")))
-        .collect()
-}
-
-/// Each agent's boxes parsed and checked as a results file's (errors name `agents[k]`, the box
-/// and the field).
-pub fn parse_agents(
-    values: &[Value],
-    tokens: &mut TokenTable,
-    missing: MissingStd,
-) -> PyResult<Vec<Vec<Detection>>> {
-    values
-        .iter()
-        .enumerate()
-        .map(|(k, v)| parse_boxes(Path::new(&format!("agents[{k}]")), v, tokens, missing))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| PyValueError::new_err(e.to_string()))
-}
 
 /// A Python value (dicts, lists, tuples, strings, numbers, booleans, None, and numpy arrays and
 /// scalars through `tolist`) as a JSON value; `at` names it in errors.
@@ -102,32 +74,4 @@ fn sequence<'py>(
         out.push(to_value(&v, &|| format!("{}[{i}]", at()))?);
     }
     Ok(Value::Array(out))
-}
-
-/// A JSON value as a Python value.
-pub fn to_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
-    Ok(match v {
-        Value::Null => py.None().into_bound(py),
-        Value::Bool(b) => PyBool::new(py, *b).to_owned().into_any(),
-        Value::Number(n) => match (n.as_i64(), n.as_u64()) {
-            (Some(i), _) => i.into_pyobject(py)?.into_any(),
-            (None, Some(u)) => u.into_pyobject(py)?.into_any(),
-            _ => PyFloat::new(py, n.as_f64().unwrap_or(f64::NAN)).into_any(),
-        },
-        Value::String(s) => PyString::new(py, s).into_any(),
-        Value::Array(a) => {
-            let items = a
-                .iter()
-                .map(|x| to_py(py, x))
-                .collect::<PyResult<Vec<_>>>()?;
-            PyList::new(py, items)?.into_any()
-        }
-        Value::Object(m) => {
-            let d = PyDict::new(py);
-            for (k, x) in m {
-                d.set_item(k, to_py(py, x)?)?;
-            }
-            d.into_any()
-        }
-    })
 }

@@ -1,11 +1,11 @@
 //! The tracker as a Python object, stepped window by window (`v2x_fuser::tracker`).
 
+use crate::boxdict::{box_dict, read_agents, read_boxes, set};
 use crate::options::{missing_std, tracker_params};
-use crate::pyjson::{agents_values, parse_agents, to_py, to_value};
 use pyo3::prelude::*;
-use serde_json::{json, Value};
+use pyo3::types::PyList;
 use v2x_fuser::tracker::Tracked;
-use v2x_protocol::nuscenes_json::{box_json, TokenTable};
+use v2x_protocol::nuscenes_json::TokenTable;
 use v2x_protocol::Detection;
 
 /// Follows fused boxes over time: one `step` per window, in time order.
@@ -45,8 +45,13 @@ impl Tracker {
         t_us: u64,
         boxes: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let values = [to_value(boxes, &|| "boxes".into())?];
-        self.stepped(py, &values, |tracker, lists| tracker.step(t_us, &lists[0]))
+        let lists = [read_boxes(
+            "agents[0]",
+            boxes,
+            &mut self.tokens,
+            self.missing,
+        )?];
+        self.stepped(py, &lists, |tracker, lists| tracker.step(t_us, &lists[0]))
     }
 
     /// Steps the tracks with each agent's boxes (`agents[k]`, lists of results-file dicts)
@@ -60,8 +65,8 @@ impl Tracker {
         method_name: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
         let method = crate::options::method(method_name)?;
-        let values = agents_values(&agents)?;
-        self.stepped(py, &values, |tracker, lists| {
+        let lists = read_agents(&agents, &mut self.tokens, self.missing)?;
+        self.stepped(py, &lists, |tracker, lists| {
             tracker.step_agents(t_us, lists, &method)
         })
     }
@@ -79,39 +84,33 @@ impl Tracker {
 }
 
 impl Tracker {
-    /// Parses the boxes (one list per agent; `step`'s errors name them `agents[k]`), steps the
-    /// tracker with them without the GIL, and returns the tracked boxes as dicts.
+    /// Steps the tracker with the boxes (one list per agent) without the GIL, and returns the
+    /// tracked boxes as dicts.
     fn stepped<'py>(
         &mut self,
         py: Python<'py>,
-        values: &[Value],
+        lists: &[Vec<Detection>],
         step: impl FnOnce(&mut v2x_fuser::tracker::Tracker, &[Vec<Detection>]) -> Vec<Tracked> + Send,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let Tracker {
-            inner,
-            tokens,
-            missing,
-        } = self;
-        let out = py.detach(|| {
-            let lists = parse_agents(values, tokens, *missing)?;
-            Ok::<_, PyErr>(Value::Array(tracked_json(&step(inner, &lists), tokens)))
-        })?;
-        to_py(py, &out)
+        let inner = &mut self.inner;
+        let tracked = py.detach(|| step(inner, lists));
+        tracked_dicts(py, &tracked, &self.tokens)
     }
 }
 
 /// Tracked boxes as results-file dicts with `tracking_id`, `tracking_name` and `tracking_score`.
-fn tracked_json(tracked: &[Tracked], tokens: &TokenTable) -> Vec<Value> {
-    tracked
-        .iter()
-        .map(|t| {
-            let mut b = box_json("", &t.det, tokens);
-            let m = b.as_object_mut().expect("built as an object");
-            m.remove("sample_token");
-            m.insert("tracking_id".into(), json!(t.tracking_id.to_string()));
-            m.insert("tracking_name".into(), json!(t.det.class.name()));
-            m.insert("tracking_score".into(), json!(t.det.score));
-            b
-        })
-        .collect()
+fn tracked_dicts<'py>(
+    py: Python<'py>,
+    tracked: &[Tracked],
+    tokens: &TokenTable,
+) -> PyResult<Bound<'py, PyAny>> {
+    let out = PyList::empty(py);
+    for t in tracked {
+        let b = box_dict(py, &t.det, tokens)?;
+        set(&b, "tracking_id", t.tracking_id.to_string())?;
+        set(&b, "tracking_name", t.det.class.name())?;
+        set(&b, "tracking_score", t.det.score)?;
+        out.append(b)?;
+    }
+    Ok(out.into_any())
 }

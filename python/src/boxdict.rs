@@ -1,0 +1,289 @@
+//! Results-file box dicts read and written key by key, with no JSON value in between: a dict's
+//! fields reach the same checks as a results file's box (`nuscenes_json::parse_box_fields`) and
+//! the boxes come back through the same writer (`nuscenes_json::box_fields`).
+
+use crate::pyjson::to_value;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::{intern, Borrowed};
+use serde_json::Value;
+use std::borrow::Cow;
+use std::path::Path;
+use v2x_protocol::nuscenes_json::{
+    box_fields, parse_box_fields, BoxFields, FieldValue, JsonError, MissingStd, OutField,
+    TokenTable,
+};
+use v2x_protocol::Detection;
+
+/// The key `name` as a Python string, interned for the fields the format knows.
+fn key<'py>(py: Python<'py>, name: &str) -> Bound<'py, PyString> {
+    macro_rules! known {
+        ($($k:literal),*) => {
+            match name {
+                $($k => intern!(py, $k).clone(),)*
+                other => PyString::new(py, other),
+            }
+        };
+    }
+    known!(
+        "sample_token",
+        "translation",
+        "size",
+        "rotation",
+        "velocity",
+        "detection_name",
+        "detection_score",
+        "attribute_name",
+        "translation_std",
+        "size_std",
+        "yaw_std",
+        "translation_cov",
+        "velocity_std",
+        "instance_token",
+        "instance_id",
+        "v2x_sources",
+        "tracking_id",
+        "tracking_name",
+        "tracking_score"
+    )
+}
+
+/// A string the writer gives, interned when it is a class name or empty.
+fn text<'py>(py: Python<'py>, s: &str) -> Bound<'py, PyString> {
+    match v2x_protocol::Class::from_name(s) {
+        Some(c) => class_name(py, c),
+        None if s.is_empty() => intern!(py, "").clone(),
+        None => PyString::new(py, s),
+    }
+}
+
+/// A class's name, made once per interpreter.
+fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
+    static NAMES: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
+    NAMES.get_or_init(py, || {
+        v2x_protocol::Class::ALL
+            .iter()
+            .map(|c| PyString::intern(py, c.name()).unbind())
+            .collect()
+    })[v2x_protocol::Class::ALL
+        .iter()
+        .position(|&k| k == c)
+        .expect("every class is in ALL")]
+    .bind(py)
+    .clone()
+}
+
+/// The fields a box is read from.
+const READ: [&str; 14] = [
+    "sample_token",
+    "translation",
+    "size",
+    "rotation",
+    "velocity",
+    "detection_name",
+    "detection_score",
+    "translation_std",
+    "size_std",
+    "yaw_std",
+    "translation_cov",
+    "velocity_std",
+    "instance_token",
+    "instance_id",
+];
+
+/// A dict's values of the fields a box is read from, found in one pass over its items.
+struct DictFields<'py>([Option<Bound<'py, PyAny>>; READ.len()]);
+
+impl<'py> DictFields<'py> {
+    fn of(d: &Bound<'py, PyDict>) -> DictFields<'py> {
+        static KEYS: PyOnceLock<[Py<PyString>; READ.len()]> = PyOnceLock::new();
+        let py = d.py();
+        let keys = KEYS.get_or_init(py, || std::array::from_fn(|i| key(py, READ[i]).unbind()));
+        let mut fields: [Option<Bound<'py, PyAny>>; READ.len()] = Default::default();
+        for (k, v) in d.iter() {
+            // Keys written in Python source are interned: the pointer finds them.
+            let i = keys
+                .iter()
+                .position(|x| x.as_ptr() == k.as_ptr())
+                .or_else(|| {
+                    let k = k.cast::<PyString>().ok()?.to_cow().ok()?;
+                    READ.iter().position(|&name| name == k)
+                });
+            if let Some(i) = i {
+                fields[i] = Some(v);
+            }
+        }
+        DictFields(fields)
+    }
+}
+
+impl BoxFields for DictFields<'_> {
+    fn field(&self, name: &str) -> Option<FieldValue<'_>> {
+        let i = READ.iter().position(|&k| k == name)?;
+        self.0[i].as_ref().map(field_value)
+    }
+}
+
+/// A Python value as a box field: floats, ints, strings, lists and tuples directly, anything else
+/// (numpy arrays and scalars) through its JSON value.
+fn field_value(v: &Bound<'_, PyAny>) -> FieldValue<'static> {
+    if v.is_none() {
+        return FieldValue::Null;
+    }
+    if let Ok(f) = v.cast::<PyFloat>() {
+        return FieldValue::Number(f.value(), None);
+    }
+    if is_int(v) {
+        return v.extract::<f64>().map_or(FieldValue::Other, |x| {
+            FieldValue::Number(x, v.extract::<u64>().ok())
+        });
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        return s
+            .to_cow()
+            .map_or(FieldValue::Other, |s| FieldValue::Str(Cow::Owned(s.into())));
+    }
+    if let Ok(l) = v.cast::<PyList>() {
+        return FieldValue::List(l.iter().map(|x| element(&x)).collect());
+    }
+    if let Ok(t) = v.cast::<PyTuple>() {
+        return FieldValue::List(t.iter().map(|x| element(&x)).collect());
+    }
+    match to_value(v, &String::new) {
+        Ok(value) => owned(&value),
+        Err(_) => FieldValue::Other,
+    }
+}
+
+/// An int that is not a bool.
+fn is_int(v: &Bound<'_, PyAny>) -> bool {
+    v.is_instance_of::<PyInt>() && !v.is_instance_of::<PyBool>()
+}
+
+/// A float's or an int's value (not a bool's).
+fn number(v: &Bound<'_, PyAny>) -> Option<f64> {
+    if let Ok(f) = v.cast::<PyFloat>() {
+        return Some(f.value());
+    }
+    if is_int(v) {
+        return v.extract::<f64>().ok();
+    }
+    None
+}
+
+/// A list element's number (NaN for what is not one), numpy scalars through their JSON value.
+fn element(v: &Bound<'_, PyAny>) -> f64 {
+    number(v)
+        .or_else(|| to_value(v, &String::new).ok()?.as_f64())
+        .unwrap_or(f64::NAN)
+}
+
+/// A JSON value as a field that owns its text.
+fn owned(v: &Value) -> FieldValue<'static> {
+    match FieldValue::of_json(v) {
+        FieldValue::Str(s) => FieldValue::Str(Cow::Owned(s.into_owned())),
+        FieldValue::Null => FieldValue::Null,
+        FieldValue::Number(x, i) => FieldValue::Number(x, i),
+        FieldValue::List(l) => FieldValue::List(l),
+        FieldValue::Other => FieldValue::Other,
+    }
+}
+
+/// Each agent's boxes (`agents[k]`, a list of results-file dicts) parsed and checked as a
+/// results file's; errors name `agents[k]`, the box and the field.
+pub fn read_agents(
+    agents: &[Bound<'_, PyAny>],
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> PyResult<Vec<Vec<Detection>>> {
+    agents
+        .iter()
+        .enumerate()
+        .map(|(k, a)| read_boxes(&format!("agents[{k}]"), a, tokens, missing))
+        .collect()
+}
+
+/// One list of box dicts; `name` names it in errors.
+pub fn read_boxes(
+    name: &str,
+    list: &Bound<'_, PyAny>,
+    tokens: &mut TokenTable,
+    missing: MissingStd,
+) -> PyResult<Vec<Detection>> {
+    let source = Path::new(name);
+    let fail = |e: JsonError| PyValueError::new_err(e.to_string());
+    let one = |i: usize, b: Borrowed<'_, '_, PyAny>, tokens: &mut TokenTable| {
+        if let Ok(d) = b.cast::<PyDict>() {
+            return parse_box_fields(source, i, &DictFields::of(&d), tokens, missing).map_err(fail);
+        }
+        match to_value(&b, &|| format!("{name}[{i}]"))? {
+            Value::Object(m) => parse_box_fields(source, i, &m, tokens, missing).map_err(fail),
+            _ => Err(fail(JsonError {
+                file: source.into(),
+                sample: None,
+                index: Some(i),
+                field: None,
+                message: "expected a box object".into(),
+            })),
+        }
+    };
+    if let Ok(l) = list.cast::<PyList>() {
+        let mut out = Vec::with_capacity(l.len());
+        for i in 0..l.len() {
+            out.push(one(i, l.get_item(i)?.as_borrowed(), tokens)?);
+        }
+        return Ok(out);
+    }
+    let not_a_list = || {
+        fail(JsonError {
+            file: source.into(),
+            sample: None,
+            index: None,
+            field: None,
+            message: "expected a list of boxes".into(),
+        })
+    };
+    if list.is_instance_of::<PyDict>() || list.is_instance_of::<PyString>() {
+        return Err(not_a_list());
+    }
+    let items = list.try_iter().map_err(|_| not_a_list())?;
+    let mut out = Vec::new();
+    for (i, b) in items.enumerate() {
+        out.push(one(i, b?.as_borrowed(), tokens)?);
+    }
+    Ok(out)
+}
+
+/// A box as a results-file dict (no `sample_token`).
+pub fn box_dict<'py>(
+    py: Python<'py>,
+    d: &Detection,
+    tokens: &TokenTable,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    let mut result = Ok(());
+    box_fields(None, d, tokens, |k, v| {
+        if result.is_err() {
+            return;
+        }
+        let k = key(py, k);
+        result = match v {
+            OutField::Str(s) => dict.set_item(k, text(py, s)),
+            OutField::Number(x) => dict.set_item(k, x),
+            OutField::Numbers(xs) => PyList::new(py, xs.iter()).and_then(|l| dict.set_item(k, l)),
+            OutField::Id(i) => dict.set_item(k, i),
+        };
+    });
+    result.map(|()| dict)
+}
+
+/// Sets `name` on a dict by its interned key.
+pub fn set<'py>(
+    dict: &Bound<'py, PyDict>,
+    name: &str,
+    value: impl IntoPyObject<'py>,
+) -> PyResult<()> {
+    dict.set_item(key(dict.py(), name), value)
+}
