@@ -244,11 +244,14 @@ impl Reader<'_> {
 
 impl Object {
     fn write(&self, w: &mut Writer) {
-        w.put(&self.tag);
-        w.put(&self.pos_cm);
-        w.put(&self.size_delta_cm);
-        w.put(&self.yaw);
-        w.put(&self.score);
+        // A tuple encodes as its fields one after another: one call for the fixed part.
+        w.put(&(
+            self.tag,
+            self.pos_cm,
+            self.size_delta_cm,
+            self.yaw,
+            self.score,
+        ));
         if let Some(id) = &self.id {
             w.put(id);
         }
