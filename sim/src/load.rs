@@ -397,11 +397,16 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         let truths: Vec<_> = (0..sites)
             .map(|b| scene(args.objects, t_scene, 11 + b as u64))
             .collect();
+        // The detectors' output is drawn before its capture time, so that end-to-end latency is
+        // the system's alone, not the drawing's (about 6 ms at 64 agents of 200 boxes).
+        let drawn: Vec<_> = (0..agents.len())
+            .map(|i| {
+                let (site, truth) = (layout.sites[i % sites], &truths[i % sites]);
+                noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64))
+            })
+            .collect();
         let capture = now_us();
-        for (i, agent) in agents.iter_mut().enumerate() {
-            let site = layout.sites[i % sites];
-            let truth = &truths[i % sites];
-            let detections = noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64));
+        for (agent, detections) in agents.iter_mut().zip(drawn) {
             agent.send(Frame {
                 agent: String::new(),
                 kind: AgentKind::Vehicle,
