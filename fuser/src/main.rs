@@ -119,16 +119,17 @@ impl FilesArgs {
         if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
             anyhow::bail!("--window-ms must be > 0");
         }
-        let opts = v2x_fuser::offline::OfflineOptions {
+        let mut opts = v2x_fuser::offline::OfflineOptions {
             motion: self.motion.params()?,
             window_ms: self.window_ms,
             align: None,
-            learn: self.stds.params(self.motion.time_scale)?,
+            learn: self.stds.params()?,
             models: self.stds.models_by_input(inputs)?,
             detector: self
                 .detector
                 .then(v2x_fuser::detector::DetectorParams::default),
         };
+        opts.set_time_scale(self.motion.time_scale);
         let missing = match self.detector {
             // Every std is replaced by the detector's.
             true => MissingStd::Default(v2x_fuser::offline::kitti_default_std()),
@@ -310,7 +311,7 @@ impl MotionArgs {
             (!self.no_compensation).then_some(v2x_fuser::motion::MotionParams {
                 accel_std: self.accel_std,
                 speed_bound: self.speed_bound_mps,
-                time_scale: self.time_scale,
+                ..Default::default()
             }),
         )
     }
@@ -388,15 +389,14 @@ impl StdArgs {
             .collect()
     }
 
-    fn params(&self, time_scale: f64) -> anyhow::Result<Option<v2x_fuser::learn::LearnParams>> {
+    fn params(&self) -> anyhow::Result<Option<v2x_fuser::learn::LearnParams>> {
         if !(self.std_flag_ratio > 1.0 && self.std_flag_ratio.is_finite()) {
             anyhow::bail!("--std-flag-ratio must be > 1");
         }
-        let mut p = v2x_fuser::learn::LearnParams {
+        let p = v2x_fuser::learn::LearnParams {
             flag_ratio: self.std_flag_ratio,
             ..Default::default()
         };
-        p.tracker.time_scale = time_scale;
         Ok(self.learn_std.then_some(p))
     }
 
@@ -753,14 +753,14 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         cfg.motion = motion.params()?;
         cfg.region = region.region()?;
         cfg.align = align.params()?;
-        cfg.learn = stds.params(motion.time_scale)?;
+        cfg.learn = stds.params()?;
         cfg.models = stds.models()?;
         cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
-            time_scale: motion.time_scale,
             all_classes: track_all_classes,
             guided: track_guided,
             ..Default::default()
         });
+        cfg.set_time_scale(motion.time_scale);
         cfg.handover = !no_track_handover;
         cfg.viz = viz.open().await?;
         let shown = cfg.viz.clone();

@@ -202,6 +202,14 @@ impl Default for OfflineOptions {
     }
 }
 
+impl OfflineOptions {
+    /// Sets the replay speed of motion compensation and the learner at once
+    /// ([`crate::pipeline::set_time_scale`]); a tracker's is its own parameter.
+    pub fn set_time_scale(&mut self, s: f64) {
+        crate::pipeline::set_time_scale(s, self.motion.as_mut(), self.learn.as_mut(), None);
+    }
+}
+
 /// The capture time of each sample of a file, when its meta gives one for every sample.
 pub fn capture_times(r: &Results) -> Option<HashMap<String, u64>> {
     let map = r.meta.get("v2x_timestamps")?.as_object()?;

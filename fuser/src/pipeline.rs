@@ -45,6 +45,26 @@ pub struct Steps {
     pub models: Arc<Models>,
 }
 
+/// Sets the replay speed (seconds of motion per second of capture time) of every step that
+/// predicts over time: motion compensation, the learner's tracker and a tracker. Settings are
+/// built with 1 and scaled here, once.
+pub fn set_time_scale(
+    s: f64,
+    motion: Option<&mut MotionParams>,
+    learn: Option<&mut LearnParams>,
+    track: Option<&mut crate::tracker::TrackerParams>,
+) {
+    if let Some(m) = motion {
+        m.time_scale = s;
+    }
+    if let Some(l) = learn {
+        l.tracker.time_scale = s;
+    }
+    if let Some(t) = track {
+        t.time_scale = s;
+    }
+}
+
 impl Steps {
     /// Just the method, no other step.
     pub fn method(method: Method) -> Steps {
@@ -198,6 +218,28 @@ mod tests {
             score,
             ..Detection::car(x, 0.0, 0.5)
         }
+    }
+
+    #[test]
+    fn the_replay_speed_reaches_every_step_that_predicts() {
+        let (mut m, mut l, mut t) = (
+            MotionParams::default(),
+            LearnParams::default(),
+            crate::tracker::TrackerParams::default(),
+        );
+        set_time_scale(4.0, Some(&mut m), Some(&mut l), Some(&mut t));
+        assert_eq!(
+            (m.time_scale, l.tracker.time_scale, t.time_scale),
+            (4.0, 4.0, 4.0)
+        );
+        let mut o = crate::offline::OfflineOptions {
+            motion: Some(MotionParams::default()),
+            learn: Some(LearnParams::default()),
+            ..Default::default()
+        };
+        o.set_time_scale(0.5);
+        assert_eq!(o.motion.unwrap().time_scale, 0.5);
+        assert_eq!(o.learn.unwrap().tracker.time_scale, 0.5);
     }
 
     #[test]

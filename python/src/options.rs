@@ -80,13 +80,9 @@ impl Options {
                 ))
             }
         };
-        let learn = self.learn_std.then(|| {
-            let mut p = LearnParams {
-                flag_ratio: self.std_flag_ratio,
-                ..Default::default()
-            };
-            p.tracker.time_scale = self.time_scale;
-            p
+        let learn = self.learn_std.then(|| LearnParams {
+            flag_ratio: self.std_flag_ratio,
+            ..Default::default()
         });
         let models = self.models(inputs)?;
         if self.detector && (self.default_std.is_some() || self.learn_std) {
@@ -100,11 +96,11 @@ impl Options {
             (None, true) => MissingStd::Default(LearnParams::default().prior),
             (None, false) => MissingStd::Error,
         };
-        let opts = OfflineOptions {
+        let mut opts = OfflineOptions {
             motion: self.compensate.then_some(MotionParams {
                 accel_std: self.accel_std,
                 speed_bound: self.speed_bound_mps,
-                time_scale: self.time_scale,
+                ..Default::default()
             }),
             window_ms: self.window_ms,
             align,
@@ -114,6 +110,7 @@ impl Options {
                 .detector
                 .then(v2x_fuser::detector::DetectorParams::default),
         };
+        opts.set_time_scale(self.time_scale);
         Ok((method(&self.method)?, missing, opts))
     }
 

@@ -105,6 +105,17 @@ impl NodeConfig {
             handover: true,
         }
     }
+
+    /// Sets the replay speed of motion compensation, tracking and the learner at once
+    /// ([`crate::pipeline::set_time_scale`]): call it after setting them.
+    pub fn set_time_scale(&mut self, s: f64) {
+        crate::pipeline::set_time_scale(
+            s,
+            self.motion.as_mut(),
+            self.learn.as_mut(),
+            self.track.as_mut(),
+        );
+    }
 }
 
 /// A fused window as published.

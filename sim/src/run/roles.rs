@@ -268,10 +268,7 @@ fn node_config(
     cfg.region = region;
     cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);
     cfg.viz = viz;
-    cfg.motion = scenario.fuser.compensation.then(|| MotionParams {
-        time_scale: scenario.speed,
-        ..Default::default()
-    });
+    cfg.motion = scenario.fuser.compensation.then(MotionParams::default);
     cfg.align = scenario
         .fuser
         .align
@@ -280,15 +277,14 @@ fn node_config(
         .fuser
         .track
         .then(|| v2x_fuser::tracker::TrackerParams {
-            time_scale: scenario.speed,
             guided: scenario.fuser.track_guided,
             ..Default::default()
         });
-    cfg.learn = scenario.fuser.learn_std.then(|| {
-        let mut p = v2x_fuser::learn::LearnParams::default();
-        p.tracker.time_scale = scenario.speed;
-        p
-    });
+    cfg.learn = scenario
+        .fuser
+        .learn_std
+        .then(v2x_fuser::learn::LearnParams::default);
+    cfg.set_time_scale(scenario.speed);
     cfg.models = scenario.fuser.models().map_err(anyhow::Error::msg)?;
     cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
