@@ -290,6 +290,17 @@ impl<'a> FieldValue<'a> {
         }
     }
 
+    /// The same field, owning its text.
+    pub fn into_owned(self) -> FieldValue<'static> {
+        match self {
+            FieldValue::Null => FieldValue::Null,
+            FieldValue::Number(x, i) => FieldValue::Number(x, i),
+            FieldValue::Str(s) => FieldValue::Str(std::borrow::Cow::Owned(s.into_owned())),
+            FieldValue::List(l) => FieldValue::List(l),
+            FieldValue::Other => FieldValue::Other,
+        }
+    }
+
     fn as_f64(&self) -> Option<f64> {
         match self {
             FieldValue::Number(x, _) => Some(*x),
@@ -304,6 +315,24 @@ impl<'a> FieldValue<'a> {
         }
     }
 }
+
+/// The fields a box is read from (what [`BoxFields::field`] is asked for).
+pub const READ_FIELDS: [&str; 14] = [
+    "sample_token",
+    "translation",
+    "size",
+    "rotation",
+    "velocity",
+    "detection_name",
+    "detection_score",
+    "translation_std",
+    "size_std",
+    "yaw_std",
+    "translation_cov",
+    "velocity_std",
+    "instance_token",
+    "instance_id",
+];
 
 /// Where a box's fields are read from: a results file's JSON object, or (in the Python package)
 /// a dict read key by key. Every source reaches the same checks.
@@ -860,6 +889,50 @@ mod tests {
             self.0.retain(|(k, _)| *k != name);
             self.0.push((name, v));
             self
+        }
+    }
+
+    /// A source that records what it is asked for.
+    struct Asked(std::cell::RefCell<Vec<String>>);
+
+    impl BoxFields for Asked {
+        fn field(&self, name: &str) -> Option<FieldValue<'_>> {
+            self.0.borrow_mut().push(name.to_string());
+            None
+        }
+    }
+
+    #[test]
+    fn the_parser_asks_only_for_the_listed_fields() {
+        let asked = Asked(Default::default());
+        let ctx = Ctx {
+            sample: Some("s1"),
+            ..Ctx::file(p())
+        };
+        let missing = MissingStd::Default(Uncertainty::uniform(0.5, 0.1, 0.1));
+        let _ = parse_fields(&ctx, &asked, &mut TokenTable::new(), missing);
+        // With every field absent the parser stops at the first required one; ask for each.
+        for name in asked.0.borrow().iter() {
+            assert!(READ_FIELDS.contains(&name.as_str()), "{name}");
+        }
+        let doc: Value = serde_json::from_str(GOOD).unwrap();
+        let mut b = doc["results"]["s1"][0].as_object().unwrap().clone();
+        b.insert("velocity_std".into(), json!([0.1, 0.1]));
+        b.insert(
+            "translation_cov".into(),
+            json!([0.25, 0, 0, 0, 0.36, 0, 0, 0, 0.49]),
+        );
+        struct Logged<'a>(&'a Map<String, Value>, std::cell::RefCell<Vec<String>>);
+        impl BoxFields for Logged<'_> {
+            fn field(&self, name: &str) -> Option<FieldValue<'_>> {
+                self.1.borrow_mut().push(name.to_string());
+                self.0.field(name)
+            }
+        }
+        let logged = Logged(&b, Default::default());
+        parse_fields(&ctx, &logged, &mut TokenTable::new(), MissingStd::Error).unwrap();
+        for name in logged.1.borrow().iter() {
+            assert!(READ_FIELDS.contains(&name.as_str()), "{name}");
         }
     }
 

@@ -13,41 +13,38 @@ use std::borrow::Cow;
 use std::path::Path;
 use v2x_protocol::nuscenes_json::{
     box_fields, parse_box_fields, BoxFields, FieldValue, JsonError, MissingStd, OutField,
-    TokenTable,
+    TokenTable, READ_FIELDS,
 };
 use v2x_protocol::Detection;
 
-/// The key `name` as a Python string, interned for the fields the format knows.
+/// The key `name` as a Python string, made once for the fields the format knows (those a box
+/// is read from, `attribute_name`, and what the package adds to the dicts it returns).
 fn key<'py>(py: Python<'py>, name: &str) -> Bound<'py, PyString> {
-    macro_rules! known {
-        ($($k:literal),*) => {
-            match name {
-                $($k => intern!(py, $k).clone(),)*
-                other => PyString::new(py, other),
-            }
-        };
+    match READ_FIELDS.iter().chain(&MORE).position(|&k| k == name) {
+        Some(i) => key_table(py)[i].bind(py).clone(),
+        None => PyString::new(py, name),
     }
-    known!(
-        "sample_token",
-        "translation",
-        "size",
-        "rotation",
-        "velocity",
-        "detection_name",
-        "detection_score",
-        "attribute_name",
-        "translation_std",
-        "size_std",
-        "yaw_std",
-        "translation_cov",
-        "velocity_std",
-        "instance_token",
-        "instance_id",
-        "v2x_sources",
-        "tracking_id",
-        "tracking_name",
-        "tracking_score"
-    )
+}
+
+/// The keys written besides [`READ_FIELDS`].
+const MORE: [&str; 5] = [
+    "attribute_name",
+    "v2x_sources",
+    "tracking_id",
+    "tracking_name",
+    "tracking_score",
+];
+
+/// The interned keys: [`READ_FIELDS`] first, then [`MORE`], made on the first call.
+fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
+    static KEYS: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
+    KEYS.get_or_init(py, || {
+        READ_FIELDS
+            .iter()
+            .chain(&MORE)
+            .map(|k| PyString::intern(py, k).unbind())
+            .collect()
+    })
 }
 
 /// A string the writer gives, interned when it is a class name or empty.
@@ -75,33 +72,14 @@ fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
     .clone()
 }
 
-/// The fields a box is read from.
-const READ: [&str; 14] = [
-    "sample_token",
-    "translation",
-    "size",
-    "rotation",
-    "velocity",
-    "detection_name",
-    "detection_score",
-    "translation_std",
-    "size_std",
-    "yaw_std",
-    "translation_cov",
-    "velocity_std",
-    "instance_token",
-    "instance_id",
-];
-
 /// A dict's values of the fields a box is read from, found in one pass over its items.
-struct DictFields<'py>([Option<Bound<'py, PyAny>>; READ.len()]);
+struct DictFields<'py>([Option<Bound<'py, PyAny>>; READ_FIELDS.len()]);
 
 impl<'py> DictFields<'py> {
     fn of(d: &Bound<'py, PyDict>) -> DictFields<'py> {
-        static KEYS: PyOnceLock<[Py<PyString>; READ.len()]> = PyOnceLock::new();
         let py = d.py();
-        let keys = KEYS.get_or_init(py, || std::array::from_fn(|i| key(py, READ[i]).unbind()));
-        let mut fields: [Option<Bound<'py, PyAny>>; READ.len()] = Default::default();
+        let keys = &key_table(py)[..READ_FIELDS.len()];
+        let mut fields: [Option<Bound<'py, PyAny>>; READ_FIELDS.len()] = Default::default();
         for (k, v) in d.iter() {
             // Keys written in Python source are interned: the pointer finds them.
             let i = keys
@@ -109,7 +87,7 @@ impl<'py> DictFields<'py> {
                 .position(|x| x.as_ptr() == k.as_ptr())
                 .or_else(|| {
                     let k = k.cast::<PyString>().ok()?.to_cow().ok()?;
-                    READ.iter().position(|&name| name == k)
+                    READ_FIELDS.iter().position(|&name| name == k)
                 });
             if let Some(i) = i {
                 fields[i] = Some(v);
@@ -121,7 +99,7 @@ impl<'py> DictFields<'py> {
 
 impl BoxFields for DictFields<'_> {
     fn field(&self, name: &str) -> Option<FieldValue<'_>> {
-        let i = READ.iter().position(|&k| k == name)?;
+        let i = READ_FIELDS.iter().position(|&k| k == name)?;
         self.0[i].as_ref().map(field_value)
     }
 }
@@ -152,7 +130,7 @@ fn field_value(v: &Bound<'_, PyAny>) -> FieldValue<'static> {
         return FieldValue::List(t.iter().map(|x| element(&x)).collect());
     }
     match to_value(v, &String::new) {
-        Ok(value) => owned(&value),
+        Ok(value) => FieldValue::of_json(&value).into_owned(),
         Err(_) => FieldValue::Other,
     }
 }
@@ -178,17 +156,6 @@ fn element(v: &Bound<'_, PyAny>) -> f64 {
     number(v)
         .or_else(|| to_value(v, &String::new).ok()?.as_f64())
         .unwrap_or(f64::NAN)
-}
-
-/// A JSON value as a field that owns its text.
-fn owned(v: &Value) -> FieldValue<'static> {
-    match FieldValue::of_json(v) {
-        FieldValue::Str(s) => FieldValue::Str(Cow::Owned(s.into_owned())),
-        FieldValue::Null => FieldValue::Null,
-        FieldValue::Number(x, i) => FieldValue::Number(x, i),
-        FieldValue::List(l) => FieldValue::List(l),
-        FieldValue::Other => FieldValue::Other,
-    }
 }
 
 /// Each agent's boxes (`agents[k]`, a list of results-file dicts) parsed and checked as a
