@@ -703,6 +703,8 @@ fn covariance(ctx: &Ctx, c: [f64; 9]) -> Result<[[f64; 3]; 3], JsonError> {
 pub enum OutField<'a> {
     /// A string.
     Str(&'a str),
+    /// A class, written as its name.
+    Class(Class),
     /// A number.
     Number(f64),
     /// A list of numbers.
@@ -734,7 +736,7 @@ pub fn box_fields<'a>(
     );
     let v = d.velocity.map_or([0.0, 0.0], |v| v.v);
     put("velocity", Numbers(v.into_iter().collect()));
-    put("detection_name", Str(d.class.name()));
+    put("detection_name", OutField::Class(d.class));
     put("detection_score", Number(d.score));
     put("attribute_name", Str(""));
     put("translation_std", Numbers(d.std.pos.into_iter().collect()));
@@ -764,6 +766,7 @@ pub fn box_json(sample: &str, d: &Detection, tokens: &TokenTable) -> Value {
             k.into(),
             match v {
                 OutField::Str(s) => json!(s),
+                OutField::Class(c) => json!(c.name()),
                 OutField::Number(x) => json!(x),
                 OutField::Numbers(xs) => json!(xs.as_slice()),
                 OutField::Id(i) => json!(i),

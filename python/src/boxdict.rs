@@ -47,15 +47,6 @@ fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
     })
 }
 
-/// A string the writer gives, interned when it is a class name or empty.
-fn text<'py>(py: Python<'py>, s: &str) -> Bound<'py, PyString> {
-    match v2x_protocol::Class::from_name(s) {
-        Some(c) => class_name(py, c),
-        None if s.is_empty() => intern!(py, "").clone(),
-        None => PyString::new(py, s),
-    }
-}
-
 /// A class's name, made once per interpreter.
 fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
     static NAMES: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
@@ -237,7 +228,9 @@ pub fn box_dict<'py>(
         }
         let k = key(py, k);
         result = match v {
-            OutField::Str(s) => dict.set_item(k, text(py, s)),
+            OutField::Str("") => dict.set_item(k, intern!(py, "")),
+            OutField::Str(s) => dict.set_item(k, s),
+            OutField::Class(c) => dict.set_item(k, class_name(py, c)),
             OutField::Number(x) => dict.set_item(k, x),
             OutField::Numbers(xs) => PyList::new(py, xs.iter()).and_then(|l| dict.set_item(k, l)),
             OutField::Id(i) => dict.set_item(k, i),
