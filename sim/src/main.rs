@@ -45,6 +45,10 @@ enum Command {
     /// Convert a results file into an MCAP for Foxglove: its boxes on `/boxes` and the ground
     /// truth on `/ground_truth`, each sample at its time (as `eval` finds it).
     Mcap(commands::mcap::McapArgs),
+    /// Write a results file's frames as ETSI Collective Perception Messages (UPER) or as the
+    /// project's own frames, one file per agent and sample, and print the bytes per frame of
+    /// both; or read CPM files back as boxes (--read).
+    Wire(commands::wire::WireArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -59,6 +63,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(args) => commands::calibrate::run(args)?,
         Command::Bench(args) => commands::bench::run(args)?,
         Command::Mcap(args) => commands::mcap::run(args)?,
+        Command::Wire(args) => commands::wire::run(args)?,
         Command::Load(args) => commands::load::run(args)?,
         Command::Run(cmd) => {
             let rt = v2x_protocol::net::runtime()?;

@@ -15,6 +15,7 @@ pub mod gen;
 pub mod load;
 pub mod mcap;
 pub mod plot;
+pub mod wire;
 
 /// How a table is printed.
 #[derive(Copy, Clone, Debug, ValueEnum, PartialEq)]
