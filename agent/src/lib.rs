@@ -33,6 +33,9 @@ pub struct AgentCounters {
     pub payload_bytes: AtomicU64,
     /// Objects published.
     pub objects: AtomicU64,
+    /// Bytes the published messages' boxes take as ETSI CPMs, when counted
+    /// ([`Agent::counting_cpm`]).
+    pub cpm_bytes: AtomicU64,
 }
 
 /// A snapshot of [`AgentCounters`].
@@ -50,6 +53,8 @@ pub struct AgentTotals {
     pub payload_bytes: u64,
     /// Objects published.
     pub objects: u64,
+    /// Bytes the published messages' boxes take as ETSI CPMs, when counted (else 0).
+    pub cpm_bytes: u64,
 }
 
 impl AgentCounters {
@@ -62,6 +67,7 @@ impl AgentCounters {
             parts: self.parts.load(Ordering::Relaxed),
             payload_bytes: self.payload_bytes.load(Ordering::Relaxed),
             objects: self.objects.load(Ordering::Relaxed),
+            cpm_bytes: self.cpm_bytes.load(Ordering::Relaxed),
         }
     }
 }
@@ -76,6 +82,8 @@ pub struct Agent {
     /// Messages handed to the link, to keep parts in order.
     order: u64,
     tiling: Option<Tiling>,
+    /// Counts what each message would take as an ETSI CPM.
+    count_cpm: bool,
     session: zenoh::Session,
     ns: String,
     publisher: Arc<zenoh::pubsub::Publisher<'static>>,
@@ -127,6 +135,7 @@ impl Agent {
             seq: 0,
             order: 0,
             tiling: None,
+            count_cpm: false,
             session: session.clone(),
             ns: ns.to_string(),
             publisher,
@@ -141,6 +150,13 @@ impl Agent {
     /// lie in (a capture without boxes as one empty part in the tile of its origin).
     pub fn with_tiling(mut self, tiling: Tiling) -> Self {
         self.tiling = Some(tiling);
+        self
+    }
+
+    /// Counts, beside each message's payload, the bytes its boxes would take as ETSI CPMs
+    /// ([`AgentCounters::cpm_bytes`]), so a run reports both encodings of the same traffic.
+    pub fn counting_cpm(mut self) -> Self {
+        self.count_cpm = true;
         self
     }
 
@@ -231,34 +247,40 @@ impl Agent {
             };
         let due = tokio::time::Instant::now() + Duration::from_secs_f64(delay_ms / 1000.0);
         let (count, mut len) = (parts.len(), 0);
-        for (i, (payload, objects, tile)) in parts.into_iter().enumerate() {
-            len += payload.len();
+        for (i, part) in parts.into_iter().enumerate() {
+            len += part.payload.len();
             self.order += 1;
             let _ = self.outbox.send(link::InFlight {
                 due,
                 order: self.order,
-                objects,
-                payload,
-                tile,
+                objects: part.objects,
+                payload: part.payload,
+                cpm_bytes: part.cpm_bytes,
+                tile: part.tile,
                 last_part: i + 1 == count,
             });
         }
         Ok(Some(len))
     }
 
-    /// The encoded messages of one capture: the whole frame, or with regions one part per tile,
-    /// each with its object count and its tile and attachment.
-    #[allow(clippy::type_complexity)]
-    fn parts(
-        &self,
-        frame: &Frame,
-    ) -> anyhow::Result<Vec<(Vec<u8>, u64, Option<(Tile, Arc<Vec<u8>>)>)>> {
-        let encode = |f: &Frame| {
-            wire::encode(f)
-                .with_context(|| format!("agent {}: frame {} does not encode", self.name, f.seq))
+    /// The encoded messages of one capture: the whole frame, or with regions one part per tile.
+    fn parts(&self, frame: &Frame) -> anyhow::Result<Vec<Part>> {
+        let encode = |f: &Frame, tile| {
+            Ok(Part {
+                payload: wire::encode(f).with_context(|| {
+                    format!("agent {}: frame {} does not encode", self.name, f.seq)
+                })?,
+                objects: f.detections.len() as u64,
+                cpm_bytes: if self.count_cpm {
+                    v2x_cpm::message_bytes(f) as u64
+                } else {
+                    0
+                },
+                tile,
+            })
         };
         let Some(tiling) = self.tiling else {
-            return Ok(vec![(encode(frame)?, frame.detections.len() as u64, None)]);
+            return Ok(vec![encode(frame, None)?]);
         };
         let mut by_tile: std::collections::BTreeMap<Tile, Vec<_>> = Default::default();
         for d in &frame.detections {
@@ -286,11 +308,19 @@ impl Agent {
                     ..frame.clone()
                 }
                 .with_centroid_origin();
-                let n = part.detections.len() as u64;
-                Ok((encode(&part)?, n, Some((tile, attachment.clone()))))
+                encode(&part, Some((tile, attachment.clone())))
             })
             .collect()
     }
+}
+
+/// One message of a capture: its payload, object count and CPM bytes, and with regions its
+/// tile and attachment.
+struct Part {
+    payload: Vec<u8>,
+    objects: u64,
+    cpm_bytes: u64,
+    tile: Option<(Tile, Arc<Vec<u8>>)>,
 }
 
 /// Waits until a subscriber matches `publisher` (on `key`, of agent `name`), or the timeout.

@@ -121,6 +121,8 @@ pub(crate) struct InFlight {
     pub objects: u64,
     /// The encoded frame.
     pub payload: Vec<u8>,
+    /// Its boxes as ETSI CPMs (bytes), when the agent counts them.
+    pub cpm_bytes: u64,
     /// With regions: the tile of this part and the attachment listing the capture's tiles
     /// (`None`: the agent's own key, no attachment).
     pub tile: Option<(Tile, Arc<Vec<u8>>)>,
@@ -169,7 +171,7 @@ pub(crate) fn spawn(
                 },
                 _ = tokio::time::sleep_until(next.unwrap_or_else(tokio::time::Instant::now)), if next.is_some() => {
                     let Some(f) = heap.pop() else { continue };
-                    let (len, objects, last) = (f.payload.len() as u64, f.objects, f.last_part);
+                    let (len, objects, cpm, last) = (f.payload.len() as u64, f.objects, f.cpm_bytes, f.last_part);
                     match outlet.put(f).await {
                         Ok(()) => {
                             if last {
@@ -178,6 +180,7 @@ pub(crate) fn spawn(
                             counters.parts.fetch_add(1, Ordering::Relaxed);
                             counters.payload_bytes.fetch_add(len, Ordering::Relaxed);
                             counters.objects.fetch_add(objects, Ordering::Relaxed);
+                            counters.cpm_bytes.fetch_add(cpm, Ordering::Relaxed);
                         }
                         Err(e) => tracing::warn!("agent {name}: publish failed: {e}"),
                     }

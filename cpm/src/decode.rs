@@ -3,7 +3,7 @@
 
 use crate::asn::*;
 use crate::units::{std_of, value, Geo, ITS_EPOCH_UNIX_MS};
-use crate::{classes, MESSAGE_ID, PROTOCOL_VERSION};
+use crate::{classes, MAX_OBJECTS, MESSAGE_ID, PROTOCOL_VERSION};
 use v2x_protocol::{wrap_angle, AgentKind, Detection, Frame, Uncertainty, Velocity, NO_ID};
 
 /// A CPM read back: its sender's station id and kind, and the boxes it carries.
@@ -136,14 +136,16 @@ pub fn decode(bytes: &[u8], geo: &Geo) -> Result<Cpm, DecodeError> {
         field: "cpmContainers",
         message: "has no originating vehicle or RSU container",
     })?;
+    let objects = objects.map(|c| c.perceived_objects.0).unwrap_or_default();
+    if objects.len() > MAX_OBJECTS {
+        return Err(DecodeError::Field {
+            field: "perceivedObjects",
+            message: "holds more than 255 objects (its extension)",
+        });
+    }
     let mut detections = Vec::new();
     let mut skipped = Vec::new();
-    for (index, o) in objects
-        .map(|c| c.perceived_objects.0)
-        .unwrap_or_default()
-        .iter()
-        .enumerate()
-    {
+    for (index, o) in objects.iter().enumerate() {
         match detection(index, o, origin)? {
             Ok(d) => detections.push(d),
             Err(reason) => skipped.push(Skipped { index, reason }),

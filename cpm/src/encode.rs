@@ -262,3 +262,30 @@ fn perceived_object(i: usize, d: &Detection, at: [f64; 3]) -> Result<PerceivedOb
         map_position: None,
     })
 }
+
+/// Bytes of the CPMs that carry a frame's boxes: one message per [`MAX_OBJECTS`] boxes (one for
+/// a frame without boxes); 0 when a box cannot be stated. A CPM's fields have fixed widths, so
+/// its size does not depend on the time: a clock before the ITS epoch is counted as if at it.
+pub fn message_bytes(frame: &Frame) -> usize {
+    let at = Frame {
+        capture_us: frame.capture_us.max(ITS_EPOCH_UNIX_MS * 1000),
+        detections: Vec::new(),
+        ..frame.clone()
+    };
+    let mut parts: Vec<&[Detection]> = frame.detections.chunks(MAX_OBJECTS).collect();
+    if parts.is_empty() {
+        parts.push(&[]);
+    }
+    let mut total = 0;
+    for part in parts {
+        let message = Frame {
+            detections: part.to_vec(),
+            ..at.clone()
+        };
+        match encode(&message, &Geo::default()) {
+            Ok(b) => total += b.len(),
+            Err(_) => return 0,
+        }
+    }
+    total
+}

@@ -19,6 +19,8 @@ mod decode;
 mod encode;
 mod units;
 
+pub mod fuzzing;
+
 /// The CPM's types, as compiled from the ETSI modules.
 pub mod asn {
     pub use crate::generated::cpm_originating_station_containers::*;
@@ -28,7 +30,7 @@ pub mod asn {
 }
 
 pub use decode::{decode, Cpm, DecodeError, Skipped};
-pub use encode::{encode, EncodeError};
+pub use encode::{encode, message_bytes, EncodeError};
 pub use units::{station_id, Geo};
 pub use v2x_protocol::Frame;
 

@@ -349,6 +349,32 @@ fn truncated_messages_are_errors() {
     }
 }
 
+#[test]
+fn a_large_frame_is_several_messages_and_the_clock_does_not_count() {
+    let b = |n: usize, t: u64| {
+        let mut f = frame(
+            (0..n)
+                .map(|i| Detection::car(i as f64 * 3.0, (i % 7) as f64, 0.3))
+                .collect(),
+        );
+        f.capture_us = t;
+        message_bytes(&f)
+    };
+    // 300 boxes: a message of 255 and one of 45, each with its own header.
+    assert!(b(255, T_US) > 0 && b(45, T_US) > 0);
+    assert_eq!(b(300, T_US), b(255, T_US) + b(45, T_US));
+    // A CPM's fields are of fixed width: a synthetic clock from 0 costs the same.
+    assert_eq!(b(24, 0), b(24, T_US));
+    assert_eq!(
+        b(0, T_US),
+        encode(&frame(vec![]), &Geo::default()).unwrap().len()
+    );
+    // A box that no CPM can state: nothing to count.
+    let mut f = frame(vec![one_box()]);
+    f.detections[0].size[0] = 30.0;
+    assert_eq!(message_bytes(&f), 0);
+}
+
 fn arb_box() -> impl Strategy<Value = Detection> {
     let class = prop::sample::select(Class::ALL.to_vec());
     (
@@ -439,9 +465,20 @@ proptest! {
         }
     }
 
-    /// Whatever the bytes, decoding answers without panicking.
+    /// Whatever the bytes, decoding answers without panicking, and what decodes encodes again.
     #[test]
     fn any_bytes_decode_or_fail_cleanly(bytes in prop::collection::vec(any::<u8>(), 0..400)) {
-        let _ = decode(&bytes, &Geo::default());
+        crate::fuzzing::decode_round_trip(&bytes);
+    }
+
+    /// A real message with bytes changed decodes to boxes that encode again, or fails cleanly.
+    #[test]
+    fn changed_messages_round_trip_or_fail(flips in prop::collection::vec((0usize..1000, any::<u8>()), 1..6)) {
+        let mut bytes = encode(&frame(vec![one_box(); 4]), &Geo { lat_deg: 48.0, lon_deg: 11.0 }).unwrap();
+        for (at, x) in flips {
+            let n = bytes.len();
+            bytes[at % n] ^= x;
+        }
+        crate::fuzzing::decode_round_trip(&bytes);
     }
 }

@@ -12,11 +12,12 @@ use crate::table::{
     markdown,
     Align::{Left, Right},
 };
+use crate::wire_bytes::{frame_bytes, Bytes};
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::Method;
 use v2x_protocol::nuscenes_json::Results;
-use v2x_protocol::{wire, AgentKind, Detection, Frame};
+use v2x_protocol::{AgentKind, Detection};
 
 /// One row of the DAIR-V2X table.
 #[derive(Clone, Debug, Serialize)]
@@ -30,13 +31,15 @@ pub struct DairRow {
     /// Mean bytes per frame on the wire: what the row's agents send (both for a fusion); none
     /// for a results file scored on its own.
     pub bytes_per_frame: Option<f64>,
+    /// The same boxes as ETSI CPMs: mean bytes per frame.
+    pub cpm_bytes_per_frame: Option<f64>,
     /// Mean bytes per frame as the official late-fusion evaluation counts the roadside's
     /// boxes in range (72 per box; 0 for the vehicle alone).
     pub official_ab: Option<f64>,
 }
 
-/// What one agent's frame costs on the wire (bytes).
-pub fn wire_bytes(agent: usize, capture_us: u64, dets: &[Detection]) -> usize {
+/// What one agent's frame costs on the air, as frames and as CPMs.
+pub fn wire_bytes(agent: usize, capture_us: u64, dets: &[Detection]) -> Bytes {
     let kind = if agent == 0 {
         AgentKind::Vehicle
     } else {
@@ -45,26 +48,11 @@ pub fn wire_bytes(agent: usize, capture_us: u64, dets: &[Detection]) -> usize {
     frame_bytes(AGENTS[agent], kind, capture_us, dets)
 }
 
-/// What a frame of `dets` from `agent` costs on the wire (bytes), encoded as agents send it.
-pub fn frame_bytes(agent: &str, kind: AgentKind, capture_us: u64, dets: &[Detection]) -> usize {
-    let frame = Frame {
-        agent: agent.to_string(),
-        kind,
-        seq: 0,
-        capture_us,
-        origin: [0.0; 3],
-        detections: dets.to_vec(),
-    }
-    .with_centroid_origin();
-    wire::encode(&frame).map_or(0, |b| b.len())
-}
-
-/// Per-slot accumulators: the two agents, then the methods.
 #[derive(Clone, Default)]
 struct Slots {
     det: Vec<DetectionEval>,
     dair: Vec<DairEval>,
-    bytes: [usize; 2],
+    bytes: [Bytes; 2],
     official: usize,
     frames: usize,
 }
@@ -139,6 +127,7 @@ pub fn run(
     )
     .unwrap_or_else(|| Slots::new(n));
     let per_frame = |b: usize| b as f64 / slots.frames.max(1) as f64;
+    let both = |b: Bytes| (per_frame(b.frame), per_frame(b.cpm));
     let names = AGENTS
         .iter()
         .map(|a| a.to_string())
@@ -147,19 +136,19 @@ pub fn run(
         .enumerate()
         .map(|(k, method)| {
             let classes = slots.det[k].ground_truth_classes();
-            let (bytes, official) = match k {
-                0 => (per_frame(slots.bytes[0]), 0.0),
-                1 => (per_frame(slots.bytes[1]), per_frame(slots.official)),
-                _ => (
-                    per_frame(slots.bytes[0] + slots.bytes[1]),
-                    per_frame(slots.official),
-                ),
+            let mut pair = slots.bytes[0];
+            pair += slots.bytes[1];
+            let ((bytes, cpm), official) = match k {
+                0 => (both(slots.bytes[0]), 0.0),
+                1 => (both(slots.bytes[1]), per_frame(slots.official)),
+                _ => (both(pair), per_frame(slots.official)),
             };
             DairRow {
                 method,
                 detection: slots.det[k].summary_over(&classes),
                 dair: slots.dair[k].summary(),
                 bytes_per_frame: Some(bytes),
+                cpm_bytes_per_frame: Some(cpm),
                 official_ab: Some(official),
             }
         })
@@ -224,7 +213,11 @@ pub fn table(rows: &[DairRow]) -> String {
         ("mATE (m)", Right),
     ];
     columns.extend(aps.iter().map(|h| (h.as_str(), Right)));
-    columns.extend([("bytes/frame", Right), ("AB (official)", Right)]);
+    columns.extend([
+        ("bytes/frame", Right),
+        ("CPM bytes/frame", Right),
+        ("AB (official)", Right),
+    ]);
     let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
     markdown(
         &columns,
@@ -237,7 +230,11 @@ pub fn table(rows: &[DairRow]) -> String {
                 format!("{:.3}", r.detection.m_ate),
             ];
             cells.extend(keys.iter().map(|k| ap_cell(&r.dair, k)));
-            cells.extend([bytes(r.bytes_per_frame), bytes(r.official_ab)]);
+            cells.extend([
+                bytes(r.bytes_per_frame),
+                bytes(r.cpm_bytes_per_frame),
+                bytes(r.official_ab),
+            ]);
             cells
         }),
     )
@@ -250,7 +247,7 @@ pub fn csv(rows: &[DairRow]) -> String {
     for (three_d, k) in &keys {
         s.push_str(&format!(",AP_{}_{k}", if *three_d { "3d" } else { "bev" }));
     }
-    s.push_str(",bytes_per_frame,official_ab\n");
+    s.push_str(",bytes_per_frame,cpm_bytes_per_frame,official_ab\n");
     for r in rows {
         s.push_str(&format!(
             "{},{},{},{},{}",
@@ -275,8 +272,9 @@ pub fn csv(rows: &[DairRow]) -> String {
         }
         let bytes = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
         s.push_str(&format!(
-            ",{},{}\n",
+            ",{},{},{}\n",
             bytes(r.bytes_per_frame),
+            bytes(r.cpm_bytes_per_frame),
             bytes(r.official_ab)
         ));
     }
@@ -339,5 +337,7 @@ mod tests {
         assert_eq!(rows[1].official_ab, Some(216.0));
         assert_eq!(rows[0].official_ab, Some(0.0));
         assert!(rows[2].bytes_per_frame > rows[1].bytes_per_frame);
+        let cpm = |k: usize| rows[k].cpm_bytes_per_frame.unwrap();
+        assert!((cpm(2) - cpm(0) - cpm(1)).abs() < 1e-9 && cpm(1) > 0.0);
     }
 }

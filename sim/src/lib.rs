@@ -27,6 +27,7 @@ pub mod scenario;
 pub mod table;
 pub mod timeline;
 pub mod v2v4real_bench;
+pub mod wire_bytes;
 
 pub use v2x_eval::{dair_eval, detection_eval, metrics, tracking_eval, v2v4real_eval};
 pub use v2x_truth::{dair, dataset, faults, noise, seed, town, v2v4real};

@@ -86,6 +86,8 @@ pub struct LoadReport {
     pub rss_start_mib: f64,
     /// Resident memory at the end (MiB).
     pub rss_end_mib: f64,
+    /// Bytes per agent frame, in the project's encoding and as CPMs.
+    pub bytes: FrameBytes,
 }
 
 fn cpu_seconds() -> f64 {
@@ -156,6 +158,18 @@ struct Driven {
     cpu_percent: f64,
     rss_start_mib: f64,
     rss_end_mib: f64,
+    bytes: FrameBytes,
+}
+
+/// What an agent's frame costs: its payload over the run, and the same boxes as ETSI CPMs in
+/// the first frames (every frame of the load has the same fields, so the same size; counting
+/// every frame would put the CPM encoder's time into the measured run).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct FrameBytes {
+    /// Mean payload bytes per frame published.
+    pub payload_bytes_per_frame: f64,
+    /// Mean bytes of the first frames' boxes as ETSI CPMs (docs/cpm.md).
+    pub cpm_bytes_per_frame: f64,
 }
 
 /// Runs the load test.
@@ -192,6 +206,7 @@ pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
         cpu_percent: d.cpu_percent,
         rss_start_mib: d.rss_start_mib,
         rss_end_mib: d.rss_end_mib,
+        bytes: d.bytes,
     })
 }
 
@@ -386,6 +401,7 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
     let cpu0 = cpu_seconds();
     let wall0 = Instant::now();
     let start = tokio::time::Instant::now();
+    let mut cpm_first = 0.0;
     for k in 0..frames {
         tokio::time::sleep_until(start + period * k as u32).await;
         let t = k as f64 / args.hz;
@@ -405,6 +421,25 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
                 noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64))
             })
             .collect();
+        if k == 0 {
+            cpm_first = drawn
+                .iter()
+                .map(|detections| {
+                    v2x_cpm::message_bytes(
+                        &Frame {
+                            agent: String::new(),
+                            kind: AgentKind::Vehicle,
+                            seq: 0,
+                            capture_us: now_us(),
+                            origin: [0.0; 3],
+                            detections: detections.clone(),
+                        }
+                        .with_centroid_origin(),
+                    ) as f64
+                })
+                .sum::<f64>()
+                / drawn.len().max(1) as f64;
+        }
         let capture = now_us();
         for (agent, detections) in agents.iter_mut().zip(drawn) {
             agent.send(Frame {
@@ -429,6 +464,10 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         stats.push(task.await??);
     }
     let rss_end = rss_mib();
+    let (payload, published) = agents.iter().fold((0, 0), |(b, n), a| {
+        let t = a.counters().totals();
+        (b + t.payload_bytes, n + t.published)
+    });
     drop(agents);
     for s in sessions {
         let _ = s.close().await;
@@ -443,6 +482,10 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
         cpu_percent: 100.0 * cpu / wall,
         rss_start_mib: rss_start,
         rss_end_mib: rss_end,
+        bytes: FrameBytes {
+            payload_bytes_per_frame: payload as f64 / published.max(1) as f64,
+            cpm_bytes_per_frame: cpm_first,
+        },
     })
 }
 

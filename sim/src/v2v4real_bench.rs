@@ -3,11 +3,11 @@
 //! cars, each scored by V2V4Real's detection protocol, with the bytes a frame costs.
 
 use crate::bench::{in_order, FRAMES_PER_TASK};
-use crate::dair_bench::frame_bytes;
 use crate::table::{
     markdown,
     Align::{Left, Right},
 };
+use crate::wire_bytes::{frame_bytes, Bytes};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -37,6 +37,8 @@ pub struct V2v4realRow {
     /// Mean bytes per frame on the wire that the row needs (both cars' frames for a fusion);
     /// none for a reference, whose traffic is not the project's.
     pub bytes_per_frame: Option<f64>,
+    /// The same boxes as ETSI CPMs: mean bytes per frame.
+    pub cpm_bytes_per_frame: Option<f64>,
 }
 
 /// What a row fuses or shows.
@@ -113,8 +115,8 @@ pub fn sources(d: &V2v4real, methods: &[Method]) -> Vec<Source> {
     s
 }
 
-/// What one car's frame costs on the wire (bytes).
-pub fn car_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> usize {
+/// What one car's frame costs on the air, as frames and as CPMs.
+pub fn car_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> Bytes {
     frame_bytes(CARS[car], AgentKind::Vehicle, capture_us, dets)
 }
 
@@ -302,14 +304,14 @@ pub fn tracked_table(rows: &[TrackedRow]) -> String {
 #[derive(Clone)]
 struct Slots {
     eval: Vec<V2v4realEval>,
-    bytes: [usize; 2],
+    bytes: [Bytes; 2],
 }
 
 impl Slots {
     fn new(n: usize) -> Self {
         Slots {
             eval: vec![V2v4realEval::new(); n],
-            bytes: [0; 2],
+            bytes: [Bytes::default(); 2],
         }
     }
 
@@ -350,12 +352,16 @@ pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
         .zip(slots.eval)
         .map(|(src, eval)| {
             let senders = src.senders();
+            let mut sent = Bytes::default();
+            for &c in senders {
+                sent += slots.bytes[c];
+            }
+            let per_frame = |b: usize| (!senders.is_empty()).then(|| b as f64 / frames);
             V2v4realRow {
                 method: src.name(d),
                 ap: eval.summary(),
-                bytes_per_frame: (!senders.is_empty()).then(|| {
-                    senders.iter().map(|&c| slots.bytes[c]).sum::<usize>() as f64 / frames
-                }),
+                bytes_per_frame: per_frame(sent.frame),
+                cpm_bytes_per_frame: per_frame(sent.cpm),
             }
         })
         .collect()
@@ -389,7 +395,11 @@ pub fn table(rows: &[V2v4realRow]) -> String {
     let heads = ap_headers();
     let mut columns = vec![("boxes / method", Left)];
     columns.extend(heads.iter().map(|h| (h.as_str(), Right)));
-    columns.extend([("boxes/frame", Right), ("bytes/frame", Right)]);
+    columns.extend([
+        ("boxes/frame", Right),
+        ("bytes/frame", Right),
+        ("CPM bytes/frame", Right),
+    ]);
     markdown(
         &columns,
         rows.iter().map(|r| {
@@ -399,10 +409,9 @@ pub fn table(rows: &[V2v4realRow]) -> String {
                 "{:.1}",
                 r.ap.predictions as f64 / r.ap.frames.max(1) as f64
             ));
-            cells.push(
-                r.bytes_per_frame
-                    .map_or_else(|| "-".into(), |b| format!("{b:.0}")),
-            );
+            for b in [r.bytes_per_frame, r.cpm_bytes_per_frame] {
+                cells.push(b.map_or_else(|| "-".into(), |b| format!("{b:.0}")));
+            }
             cells
         }),
     )

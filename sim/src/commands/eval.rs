@@ -172,6 +172,7 @@ fn dair_eval(
         detection,
         dair,
         bytes_per_frame: None,
+        cpm_bytes_per_frame: None,
         official_ab: None,
     }];
     match format {

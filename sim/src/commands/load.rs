@@ -140,6 +140,10 @@ fn single(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()> {
                 latencies.map(|(what, x)| vec![what.to_string(), l(x)]),
             )
         );
+        println!(
+            "bytes per agent frame: {:.0} as frames, {:.0} as ETSI CPMs",
+            r.bytes.payload_bytes_per_frame, r.bytes.cpm_bytes_per_frame
+        );
         println!("CPU {:.0}% of one core (whole process: agents, Zenoh and fuser); RSS {:.1} MiB at start, {:.1} MiB at the end", r.cpu_percent, r.rss_start_mib, r.rss_end_mib);
     }
     Ok(())

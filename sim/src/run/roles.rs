@@ -111,7 +111,8 @@ pub async fn agent_role(
         spec.link.clone(),
         scenario.seed.wrapping_add(idx as u64 * 7919),
     )
-    .await?;
+    .await?
+    .counting_cpm();
     match &scenario.regions {
         None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
         Some(r) => {

@@ -32,6 +32,9 @@ pub struct Bandwidth {
     pub payload_bytes_per_frame: f64,
     /// Mean payload bytes per object.
     pub payload_bytes_per_object: f64,
+    /// The same boxes as ETSI CPMs: mean bytes per frame (docs/cpm.md), when the agent ran in
+    /// this process.
+    pub cpm_bytes_per_frame: Option<f64>,
     /// Frames Zenoh put on the wire for the agent (frames published while no fuser subscribed
     /// never leave the host); when the agent ran here.
     pub zenoh_frames: Option<u64>,
@@ -152,6 +155,7 @@ pub fn agent_bandwidth(
         objects_per_frame: per(objects, frames),
         payload_bytes_per_frame: per(payload, frames),
         payload_bytes_per_object: per(payload, objects),
+        cpm_bytes_per_frame: (t.cpm_bytes > 0).then(|| per(t.cpm_bytes, t.published)),
         zenoh_frames: sent.map(|(_, k)| (k.put_msgs as f64 / puts_per_frame).round() as u64),
         wire_bytes_per_frame: sent.map(|(all, k)| per(all.bytes, k.put_msgs) * puts_per_frame),
         zenoh_payload_bytes_per_frame: sent
@@ -510,6 +514,7 @@ pub fn print_agent_table(r: &AgentReport) {
                 ("agent", Left),
                 ("frames", Right),
                 ("payload B/frame", Right),
+                ("CPM B/frame", Right),
                 ("wire B/frame", Right),
                 ("Zenoh overhead B/msg", Right),
                 ("kbit/s", Right),
@@ -520,6 +525,7 @@ pub fn print_agent_table(r: &AgentReport) {
                     n.clone(),
                     b.frames.to_string(),
                     format!("{:.0}", b.payload_bytes_per_frame),
+                    cell(b.cpm_bytes_per_frame, 0),
                     cell(b.wire_bytes_per_frame, 0),
                     cell(b.overhead_bytes_per_message, 1),
                     format!("{:.1}", b.kbit_s),
@@ -645,6 +651,7 @@ pub fn print_table(s: &Summary) {
                 ("objects/frame", Right),
                 ("payload B/frame", Right),
                 ("payload B/object", Right),
+                ("CPM B/frame", Right),
                 ("wire B/frame sent", Right),
                 ("Zenoh overhead B/msg", Right),
                 ("wire B/frame received", Right),
@@ -662,6 +669,7 @@ pub fn print_table(s: &Summary) {
                     format!("{:.1}", b.objects_per_frame),
                     format!("{:.0}", b.payload_bytes_per_frame),
                     format!("{:.1}", b.payload_bytes_per_object),
+                    cell(b.cpm_bytes_per_frame, 0),
                     cell(b.wire_bytes_per_frame, 0),
                     cell(b.overhead_bytes_per_message, 1),
                     cell(b.received_wire_bytes_per_frame, 0),

@@ -47,6 +47,9 @@ fn each_row_scores_as_worked_by_hand() {
     assert!(b(0).unwrap() > 0.0 && b(1).unwrap() > 0.0);
     assert!((b(5).unwrap() - b(0).unwrap() - b(1).unwrap()).abs() < 1e-9);
     assert_eq!(b(2), None);
+    let cpm = |k: usize| rows[k].cpm_bytes_per_frame;
+    assert!((cpm(5).unwrap() - cpm(0).unwrap() - cpm(1).unwrap()).abs() < 1e-9);
+    assert!(cpm(0).unwrap() > 0.0 && cpm(2).is_none());
     assert!(table(&rows).contains("| late fusion rule (BEV NMS 0.15) |"));
 }
 
