@@ -84,6 +84,8 @@ pub struct Agent {
     tiling: Option<Tiling>,
     /// Counts what each message would take as an ETSI CPM.
     count_cpm: bool,
+    /// Sends ETSI CPMs instead of frames, the map placed on the earth by this origin.
+    cpm: Option<v2x_cpm::Geo>,
     session: zenoh::Session,
     ns: String,
     publisher: Arc<zenoh::pubsub::Publisher<'static>>,
@@ -136,6 +138,7 @@ impl Agent {
             order: 0,
             tiling: None,
             count_cpm: false,
+            cpm: None,
             session: session.clone(),
             ns: ns.to_string(),
             publisher,
@@ -157,6 +160,13 @@ impl Agent {
     /// ([`AgentCounters::cpm_bytes`]), so a run reports both encodings of the same traffic.
     pub fn counting_cpm(mut self) -> Self {
         self.count_cpm = true;
+        self
+    }
+
+    /// Sends each message as an ETSI CPM (UPER, docs/cpm.md) instead of a frame, its positions
+    /// placed on the earth by `map_origin` (the fuser must give the same).
+    pub fn sending_cpm(mut self, map_origin: v2x_cpm::Geo) -> Self {
+        self.cpm = Some(map_origin);
         self
     }
 
@@ -255,6 +265,7 @@ impl Agent {
                 order: self.order,
                 objects: part.objects,
                 payload: part.payload,
+                cpm: part.cpm,
                 cpm_bytes: part.cpm_bytes,
                 tile: part.tile,
                 last_part: i + 1 == count,
@@ -266,10 +277,15 @@ impl Agent {
     /// The encoded messages of one capture: the whole frame, or with regions one part per tile.
     fn parts(&self, frame: &Frame) -> anyhow::Result<Vec<Part>> {
         let encode = |f: &Frame, tile| {
+            let payload = match &self.cpm {
+                None => wire::encode(f).map_err(anyhow::Error::from),
+                Some(geo) => v2x_cpm::encode(f, geo).map_err(anyhow::Error::from),
+            };
             Ok(Part {
-                payload: wire::encode(f).with_context(|| {
+                payload: payload.with_context(|| {
                     format!("agent {}: frame {} does not encode", self.name, f.seq)
                 })?,
+                cpm: self.cpm.is_some(),
                 objects: f.detections.len() as u64,
                 cpm_bytes: if self.count_cpm {
                     v2x_cpm::message_bytes(f) as u64
@@ -318,6 +334,7 @@ impl Agent {
 /// tile and attachment.
 struct Part {
     payload: Vec<u8>,
+    cpm: bool,
     objects: u64,
     cpm_bytes: u64,
     tile: Option<(Tile, Arc<Vec<u8>>)>,

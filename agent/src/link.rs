@@ -44,8 +44,13 @@ impl Outlet {
 
     /// Publishes one frame or part.
     async fn put(&mut self, f: InFlight) -> zenoh::Result<()> {
+        let encoding = if f.cpm {
+            v2x_protocol::net::cpm_encoding()
+        } else {
+            v2x_protocol::net::frame_encoding()
+        };
         let Some((tile, attachment)) = f.tile else {
-            return self.publisher.put(f.payload).await;
+            return self.publisher.put(f.payload).encoding(encoding).await;
         };
         let i = match self.tiles.iter().position(|(t, _)| *t == tile) {
             Some(i) => i,
@@ -68,6 +73,7 @@ impl Outlet {
         let put = entry
             .1
             .put(f.payload)
+            .encoding(encoding)
             .attachment(attachment.as_slice().to_vec())
             .await;
         self.tiles.push(entry);
@@ -123,6 +129,8 @@ pub(crate) struct InFlight {
     pub payload: Vec<u8>,
     /// Its boxes as ETSI CPMs (bytes), when the agent counts them.
     pub cpm_bytes: u64,
+    /// The payload is an ETSI CPM, not a frame.
+    pub cpm: bool,
     /// With regions: the tile of this part and the attachment listing the capture's tiles
     /// (`None`: the agent's own key, no attachment).
     pub tile: Option<(Tile, Arc<Vec<u8>>)>,

@@ -74,8 +74,25 @@ struct Cli {
     /// v2x/NS/det/AGENT for a single fuser.
     #[arg(long)]
     tile_size: Option<f64>,
+    /// What goes on the air: the project's frames, or ETSI Collective Perception Messages
+    /// (UPER, docs/cpm.md), which the fuser reads as frames.
+    #[arg(long, value_enum, default_value = "frame")]
+    wire: Wire,
+    /// With --wire cpm: WGS84 latitude and longitude (degrees) of the map frame's origin (x East,
+    /// y North); the fuser must give the same (`v2x-fuser node --map-origin`).
+    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
+    map_origin: v2x_cpm::Geo,
     #[command(flatten)]
     zenoh: ZenohArgs,
+}
+
+/// What an agent sends.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Wire {
+    /// The project's frames (docs/wire-format.md).
+    Frame,
+    /// ETSI Collective Perception Messages, UPER (docs/cpm.md).
+    Cpm,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -147,6 +164,9 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     };
     let session = open_session(&cli.zenoh).await?;
     let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    if cli.wire == Wire::Cpm {
+        agent = agent.sending_cpm(cli.map_origin);
+    }
     let wait = Duration::from_secs_f64(cli.wait_s);
     match cli.tile_size {
         None => agent.wait_for_subscriber(wait).await?,

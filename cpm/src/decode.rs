@@ -33,12 +33,14 @@ pub struct Skipped {
 }
 
 impl Cpm {
-    /// The frame of agent `agent` this message carries, numbered `seq`.
-    pub fn into_frame(self, agent: String, seq: u32) -> Frame {
+    /// The frame of agent `agent` this message carries. A CPM has no sequence number: the
+    /// frame's is its time in ms (the low 32 bits), so a message heard twice is a duplicate and
+    /// the parts of one capture (one per tile) agree.
+    pub fn into_frame(self, agent: String) -> Frame {
         Frame {
             agent,
             kind: self.kind,
-            seq,
+            seq: (self.capture_us / 1000) as u32,
             capture_us: self.capture_us,
             origin: self.origin,
             detections: self.detections,

@@ -14,7 +14,7 @@ pub fn decode_round_trip(data: &[u8]) {
     let Ok(cpm) = decode(data, &geo) else {
         return;
     };
-    let frame = cpm.clone().into_frame("fuzz".into(), 0);
+    let frame = cpm.clone().into_frame("fuzz".into());
     let again = encode(&frame, &geo).expect("a decoded CPM encodes");
     let back = decode(&again, &geo).expect("a re-encoded CPM decodes");
     assert_eq!(back.detections.len(), cpm.detections.len());

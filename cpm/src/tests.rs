@@ -146,8 +146,11 @@ fn a_box_comes_back_at_the_middle_of_its_steps() {
     let v = d.velocity.unwrap();
     assert!(near(v.v[0], 2.995) && near(v.v[1], -1.255));
     assert_eq!((d.class, d.score, d.id), (Class::Car, 0.8, 42));
-    let f = cpm.into_frame("car1".into(), 3);
-    assert_eq!((f.agent.as_str(), f.seq), ("car1", 3));
+    let f = cpm.into_frame("car1".into());
+    assert_eq!(
+        (f.agent.as_str(), f.seq),
+        ("car1", 1_533_151_603_547_u64 as u32)
+    );
 }
 
 #[test]
@@ -231,6 +234,15 @@ fn the_map_lies_on_the_tangent_plane_of_its_origin() {
     let (lat, lon) = boston.to_wgs84(1234.5, -678.9);
     let (x, y) = boston.to_map(lat, lon);
     assert!((x - 1234.5).abs() < 1e-6 && (y + 678.9).abs() < 1e-6);
+}
+
+#[test]
+fn a_map_origin_is_read_as_lat_lon() {
+    let g: Geo = "42.336,-71.057".parse().unwrap();
+    assert_eq!((g.lat_deg, g.lon_deg), (42.336, -71.057));
+    assert!("91,0".parse::<Geo>().unwrap_err().contains("latitude"));
+    assert!("0,x".parse::<Geo>().unwrap_err().contains("longitude 'x'"));
+    assert!("1".parse::<Geo>().unwrap_err().contains("LAT,LON"));
 }
 
 #[test]

@@ -44,6 +44,29 @@ impl Geo {
     }
 }
 
+impl std::str::FromStr for Geo {
+    type Err = String;
+
+    /// `LAT,LON` in degrees.
+    fn from_str(s: &str) -> Result<Geo, String> {
+        let parts: Vec<&str> = s.split(',').collect();
+        let [lat, lon] = parts.as_slice() else {
+            return Err(format!("expected LAT,LON in degrees, got '{s}'"));
+        };
+        let num = |t: &str, what, max: f64| {
+            t.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.abs() <= max)
+                .ok_or_else(|| format!("{what} '{t}' is not a number of degrees within +-{max}"))
+        };
+        Ok(Geo {
+            lat_deg: num(lat, "latitude", 90.0)?,
+            lon_deg: num(lon, "longitude", 180.0)?,
+        })
+    }
+}
+
 /// The CPM station id of an agent: its name's stable id, a 32-bit FNV-1a hash (a CPM has no
 /// names; the receiver knows the sender's name from its key expression).
 pub fn station_id(agent: &str) -> u32 {

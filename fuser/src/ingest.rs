@@ -217,6 +217,8 @@ pub enum Rejection {
     AgentCap,
     /// The payload does not decode or validate.
     Invalid(wire::DecodeError),
+    /// The payload, sent as an ETSI CPM, does not decode or validate.
+    InvalidCpm(String),
     /// The frame names another agent than its key.
     WrongAgent(String),
     /// Stamped this many us ahead of the fuser's clock, beyond the tolerance.
@@ -236,7 +238,7 @@ impl Rejection {
             Rejection::BadKey => "bad_key",
             Rejection::ReservedName => "reserved_name",
             Rejection::AgentCap => "agent_cap",
-            Rejection::Invalid(_) => "invalid",
+            Rejection::Invalid(_) | Rejection::InvalidCpm(_) => "invalid",
             Rejection::WrongAgent(_) => "wrong_agent",
             Rejection::Future(_) => "future",
             Rejection::Stale(_) => "stale",
@@ -259,6 +261,7 @@ impl std::fmt::Display for Rejection {
             }
             Rejection::AgentCap => write!(f, "too many agents tracked"),
             Rejection::Invalid(e) => write!(f, "invalid frame: {e}"),
+            Rejection::InvalidCpm(e) => write!(f, "invalid CPM: {e}"),
             Rejection::WrongAgent(a) => write!(f, "the frame claims to be from '{a}'"),
             Rejection::Future(us) => write!(
                 f,
@@ -457,6 +460,21 @@ impl Ingest {
 
     /// Admits or rejects a payload received on `agent`'s detections key at `now_us`.
     pub fn offer(&mut self, agent: &str, payload: &[u8], now_us: u64) -> Result<Frame, Rejection> {
+        self.offer_decoded(agent, payload.len(), now_us, || {
+            wire::decode(payload).map_err(Rejection::Invalid)
+        })
+    }
+
+    /// Admits or rejects a payload of `len` bytes received on `agent`'s detections key at
+    /// `now_us`, decoded by `decode` (a frame, or another encoding of one, such as a CPM) once
+    /// the key has passed: the same checks whatever the encoding.
+    pub fn offer_decoded(
+        &mut self,
+        agent: &str,
+        len: usize,
+        now_us: u64,
+        decode: impl FnOnce() -> Result<Frame, Rejection>,
+    ) -> Result<Frame, Rejection> {
         if wire::check_agent_name(agent).is_err() {
             return Err(self.reject(Rejection::BadKey));
         }
@@ -471,11 +489,14 @@ impl Ingest {
         };
         st.last_heard_us = now_us;
         st.stats.frames_in += 1;
-        st.stats.payload_bytes += payload.len() as u64;
-        let result = match wire::decode(payload) {
-            Err(e) => {
-                st.stats.invalid += 1;
-                Err(Rejection::Invalid(e))
+        st.stats.payload_bytes += len as u64;
+        let result = match decode() {
+            Err(r) => {
+                match r {
+                    Rejection::WrongAgent(_) => st.stats.wrong_agent += 1,
+                    _ => st.stats.invalid += 1,
+                }
+                Err(r)
             }
             Ok(f) if f.agent != agent => {
                 st.stats.wrong_agent += 1;

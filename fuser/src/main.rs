@@ -240,6 +240,10 @@ struct NodeArgs {
     /// its neighbour gave it; docs/method.md §9.1).
     #[arg(long, requires_all = ["track", "tile"])]
     no_track_handover: bool,
+    /// WGS84 latitude and longitude (degrees) of the map frame's origin (x East, y North), to
+    /// read agents that send ETSI CPMs (`v2x-agent --wire cpm`, docs/cpm.md); give their value.
+    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
+    map_origin: v2x_cpm::Geo,
     /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
     /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
     /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -733,6 +737,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         track_all_classes,
         track_guided,
         no_track_handover,
+        map_origin,
         record,
         viz,
         duration_s,
@@ -762,6 +767,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         });
         cfg.set_time_scale(motion.time_scale);
         cfg.handover = !no_track_handover;
+        cfg.map_origin = map_origin;
         cfg.viz = viz.open().await?;
         let shown = cfg.viz.clone();
         let session = v2x_protocol::net::open_session(&zenoh).await?;

@@ -78,6 +78,22 @@ pub fn frame_encoding() -> zenoh::bytes::Encoding {
         .with_schema(format!("v2x-frame/{}", crate::wire::VERSION))
 }
 
+/// The Zenoh encoding of an ETSI CPM payload (UPER), which agents may send on their
+/// detections key instead of a frame: bytes, schema `etsi-cpm-uper/2`.
+#[cfg(feature = "session")]
+pub fn cpm_encoding() -> zenoh::bytes::Encoding {
+    zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM.with_schema(CPM_SCHEMA)
+}
+
+/// The schema of [`cpm_encoding`].
+pub const CPM_SCHEMA: &str = "etsi-cpm-uper/2";
+
+/// Whether a sample's encoding says it carries a CPM (else it is a frame).
+#[cfg(feature = "session")]
+pub fn is_cpm(encoding: &zenoh::bytes::Encoding) -> bool {
+    *encoding == cpm_encoding()
+}
+
 /// The Zenoh configuration these options describe (the config file first, then the flags).
 #[cfg(feature = "session")]
 pub fn config(args: &ZenohArgs) -> Result<zenoh::Config, SessionError> {
@@ -204,6 +220,25 @@ mod tests {
         assert!(p.contains(&("listen/endpoints", "[\"tcp/127.0.0.1:7001\"]".into())));
         assert!(p.contains(&("scouting/multicast/enabled", "false".into())));
         assert!(ZenohArgs::default().json5_pairs().is_empty());
+    }
+
+    #[cfg(feature = "session")]
+    #[test]
+    fn a_cpm_is_told_from_a_frame_by_its_encoding_as_documented() {
+        assert!(is_cpm(&cpm_encoding()));
+        assert!(!is_cpm(&frame_encoding()));
+        assert!(!is_cpm(&zenoh::bytes::Encoding::APPLICATION_OCTET_STREAM));
+        assert_eq!(
+            cpm_encoding().to_string(),
+            "application/octet-stream;etsi-cpm-uper/2"
+        );
+        assert_eq!(
+            frame_encoding().to_string(),
+            format!(
+                "application/octet-stream;v2x-frame/{}",
+                crate::wire::VERSION
+            )
+        );
     }
 
     #[cfg(feature = "session")]

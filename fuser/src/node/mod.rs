@@ -13,6 +13,7 @@
 //! ([`Parts`]), keeps the boxes within its tile and halo, and publishes only the fused boxes
 //! whose centre lies in its own tile, on its region's keys ([`keys::FuserKeys`]).
 
+mod cpm;
 mod handover;
 mod stats;
 mod worker;
@@ -80,6 +81,9 @@ pub struct NodeConfig {
     /// With a region and tracking: hear the neighbours' tracks and keep an object's tracking id
     /// across tile borders (`crate::tracker::handover`); off, each region's ids are its own.
     pub handover: bool,
+    /// Where the map frame lies on the earth, to read agents' ETSI CPMs (docs/cpm.md); the
+    /// agents must give the same.
+    pub map_origin: v2x_cpm::Geo,
 }
 
 impl NodeConfig {
@@ -103,6 +107,7 @@ impl NodeConfig {
             viz: None,
             region: None,
             handover: true,
+            map_origin: Default::default(),
         }
     }
 
@@ -177,6 +182,8 @@ struct State {
     last_prune_us: u64,
     viz: Option<Arc<crate::viz::Viz>>,
     region: Option<Region>,
+    /// Where the map lies, to read CPMs.
+    map_origin: v2x_cpm::Geo,
     parts: Parts,
     /// The association's bounds applied in this process before the node started.
     /// How often the association's bounds applied in this node's windows (capped, greedy).
@@ -239,6 +246,7 @@ impl State {
             queued: 0,
             last_prune_us: now,
             region: cfg.region,
+            map_origin: cfg.map_origin,
             // A capture's parts leave its agent together: waiting half the window's wait for
             // a missing one leaves the other half for the capture to make its window.
             parts: Parts::new(
@@ -331,10 +339,15 @@ impl State {
     fn on_sample(&mut self, s: &zenoh::sample::Sample) {
         let key = s.key_expr().as_str();
         let payload = s.payload().to_bytes();
+        let cpm = v2x_protocol::net::is_cpm(s.encoding());
+        let geo = self.map_origin;
+        let len = payload.len();
         if self.region.is_none() {
             if let Some(agent) = keys::agent_of_detections(&self.ns, key) {
                 let now = self.clock.now_us();
-                let result = self.ingest.offer(&agent, &payload, now);
+                let result = self.ingest.offer_decoded(&agent, len, now, || {
+                    cpm::decode(cpm, &agent, &payload, &geo)
+                });
                 self.drop_evicted();
                 self.log_notes();
                 match result {
@@ -359,7 +372,9 @@ impl State {
             }
         };
         let now = self.clock.now_us();
-        let result = self.ingest.offer(&agent, &payload, now);
+        let result = self.ingest.offer_decoded(&agent, len, now, || {
+            cpm::decode(cpm, &agent, &payload, &geo)
+        });
         self.drop_evicted();
         self.log_notes();
         let frame = match result {

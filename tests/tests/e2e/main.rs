@@ -4,6 +4,7 @@
 
 mod city;
 mod cli;
+mod cpm;
 mod dair;
 mod docs;
 mod ingest;
