@@ -35,7 +35,7 @@ pub struct WireArgs {
     pub out: Option<PathBuf>,
     /// WGS84 latitude and longitude (degrees) of the map frame's origin; the map's x axis
     /// points East, y North. A CPM's positions are geographic: the receiver must use the same.
-    #[arg(long, value_name = "LAT,LON", default_value = "0,0", value_parser = parse_geo)]
+    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
     pub map_origin: Geo,
     /// An agent that is a roadside unit (its CPMs carry the RSU container); repeatable.
     #[arg(long = "rsu", value_name = "AGENT")]
@@ -47,25 +47,6 @@ pub struct WireArgs {
     /// Read the inputs as CPM files and print each one's boxes as JSON (one document per line).
     #[arg(long)]
     pub read: bool,
-}
-
-/// `LAT,LON` in degrees.
-fn parse_geo(s: &str) -> Result<Geo, String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    let [lat, lon] = parts.as_slice() else {
-        return Err(format!("expected LAT,LON in degrees, got '{s}'"));
-    };
-    let num = |t: &str, what, max: f64| {
-        t.trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.abs() <= max)
-            .ok_or_else(|| format!("{what} '{t}' is not a number of degrees within +-{max}"))
-    };
-    Ok(Geo {
-        lat_deg: num(lat, "latitude", 90.0)?,
-        lon_deg: num(lon, "longitude", 180.0)?,
-    })
 }
 
 /// Runs `v2x-sim wire`.
