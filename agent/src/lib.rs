@@ -5,6 +5,8 @@
 //! (an offset added to capture times). [`replay`] sends a sequence of frames at the data's own
 //! clock, sped up or slowed down by a factor.
 
+pub mod ros_in;
+
 use anyhow::{anyhow, Context};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

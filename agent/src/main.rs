@@ -15,11 +15,13 @@ use v2x_protocol::{AgentKind, Frame, Uncertainty};
 #[command(
     name = "v2x-agent",
     version,
-    about = "Replay a nuScenes results file as one V2X agent over Zenoh"
+    about = "Replay a nuScenes results file, or forward a ROS 2 detector's topic, as one V2X agent over Zenoh"
 )]
 struct Cli {
-    /// The results file to replay (one agent's detections per sample token).
-    results: PathBuf,
+    /// The results file to replay (one agent's detections per sample token); not with
+    /// --ros-topic.
+    #[arg(required_unless_present = "ros_topic", conflicts_with = "ros_topic")]
+    results: Option<PathBuf>,
     /// The agent's name (last segment of v2x/NS/det/AGENT).
     #[arg(long)]
     name: String,
@@ -82,6 +84,29 @@ struct Cli {
     /// y North); the fuser must give the same (`v2x-fuser node --map-origin`).
     #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
     map_origin: v2x_cpm::Geo,
+    /// Instead of a results file, send what a ROS 2 detector publishes on this topic (heard
+    /// over Zenoh), until Ctrl-C or SIGTERM.
+    #[arg(long, value_name = "TOPIC")]
+    ros_topic: Option<String>,
+    /// The topic's message type.
+    #[arg(long, value_enum, default_value = "vision", requires = "ros_topic")]
+    ros_type: v2x_agent::ros_in::RosType,
+    /// How the topic maps onto Zenoh: rmw-zenoh (ROS 2 on Zenoh) or bridge
+    /// (zenoh-bridge-ros2dds).
+    #[arg(long, value_enum, default_value = "rmw-zenoh", requires = "ros_topic")]
+    ros_layout: v2x_ros::keys::Layout,
+    /// The ROS domain id (rmw-zenoh).
+    #[arg(long, default_value_t = 0, requires = "ros_topic")]
+    ros_domain: u32,
+    /// The pose of the messages' frame in the map, as a static transform: X,Y,Z in metres and
+    /// the yaw in degrees.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,YAW_DEG",
+        default_value = "0,0,0,0",
+        requires = "ros_topic"
+    )]
+    tf: v2x_ros::convert::Transform,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -138,11 +163,18 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     if !(cli.wait_s >= 0.0 && cli.wait_s.is_finite()) {
         bail!("--wait-s must be >= 0");
     }
+    if let Some(topic) = &cli.ros_topic {
+        return run_ros(&cli, topic).await;
+    }
     let clock = replay_clock(&cli)?;
     let missing = cli
         .default_std
         .map_or(MissingStd::Error, MissingStd::Default);
-    let results = read_results(&cli.results, &mut TokenTable::new(), missing)?;
+    let path = cli
+        .results
+        .clone()
+        .expect("clap requires a results file without --ros-topic");
+    let results = read_results(&path, &mut TokenTable::new(), missing)?;
     // Files of agents with their own phases (`v2x-sim gen --phase-ms`) name the data time their
     // replay starts from, so that every agent keeps its offset.
     let clock = match clock {
@@ -207,6 +239,55 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Sends what a ROS 2 detector publishes on `topic` until Ctrl-C or SIGTERM.
+async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
+    let input = v2x_agent::ros_in::RosInput {
+        topic: topic.to_string(),
+        kind: cli.ros_type,
+        layout: cli.ros_layout,
+        domain: cli.ros_domain,
+        transform: cli.tf,
+        // A detector's message without a covariance: its boxes take --default-std, else mild.
+        default_std: cli
+            .default_std
+            .unwrap_or(Uncertainty::uniform(0.2, 0.1, 2f64.to_radians())),
+    };
+    let key = input.key()?;
+    let link = Link {
+        latency_ms: cli.latency_ms,
+        jitter_ms: cli.jitter_ms,
+        drop_rate: cli.drop_rate,
+        clock_offset_ms: cli.clock_offset_ms,
+    };
+    let session = open_session(&cli.zenoh).await?;
+    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    if cli.wire == Wire::Cpm {
+        agent = agent.sending_cpm(cli.map_origin);
+    }
+    agent
+        .wait_for_subscriber(Duration::from_secs_f64(cli.wait_s))
+        .await?;
+    tracing::info!("{}: forwarding {key}", cli.name);
+    let r = v2x_agent::ros_in::forward(
+        &mut agent,
+        &session,
+        &input,
+        v2x_protocol::net::shutdown_signal(),
+    )
+    .await?;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    eprintln!(
+        "{}: {} messages heard on {key}, {} not the type expected; {} frames sent; {} boxes left out",
+        cli.name, r.messages, r.undecodable, r.sent, r.skipped
+    );
+    drop(agent);
+    session
+        .close()
+        .await
+        .map_err(|e| anyhow!("closing the session: {e}"))?;
+    Ok(())
+}
+
 /// The clock a replay runs on, from --clock and --start-at.
 fn replay_clock(cli: &Cli) -> anyhow::Result<ReplayClock> {
     Ok(match (cli.clock, cli.start_at) {
@@ -257,7 +338,10 @@ fn frames_of(cli: &Cli, results: Results) -> anyhow::Result<Vec<Frame>> {
         let t = *times.get(&token).ok_or_else(|| {
             anyhow!(
                 "{}: sample '{token}' has no timestamp in the sample table",
-                cli.results.display()
+                cli.results
+                    .as_deref()
+                    .unwrap_or(std::path::Path::new(""))
+                    .display()
             )
         })?;
         frames.push(

@@ -15,6 +15,9 @@ fn help_and_clear_errors() {
         "--clock-offset-ms",
         "--connect",
         "--no-multicast-scouting",
+        "--wire",
+        "--ros-topic",
+        "--tf",
     ] {
         assert!(help.contains(flag), "{flag}");
     }
@@ -28,4 +31,24 @@ fn help_and_clear_errors() {
         err.starts_with("error: /nonexistent/a.json: cannot read"),
         "{err}"
     );
+    // A ROS topic that is not one, a transform that is not four numbers, a file and a topic.
+    let run = |args: &[&str]| {
+        let out = Command::new(exe).args(args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let err = run(&[
+        "--ros-topic",
+        "/a//b",
+        "--name",
+        "veh",
+        "--no-multicast-scouting",
+    ]);
+    assert!(err.contains("'/a//b' is not a ROS 2 topic name"), "{err}");
+    let err = run(&["--ros-topic", "/a", "--tf", "1,2,3", "--name", "veh"]);
+    assert!(err.contains("X,Y,Z,YAW_DEG"), "{err}");
+    let err = run(&["a.json", "--ros-topic", "/a", "--name", "veh"]);
+    assert!(err.contains("cannot be used with"), "{err}");
+    let err = run(&["--name", "veh", "--map-origin", "95,0"]);
+    assert!(err.contains("latitude '95'"), "{err}");
 }

@@ -43,7 +43,7 @@ enum Command {
     Track(TrackArgs),
     /// Run the fuser on the network: subscribe to every agent, fuse each time window, publish.
     #[command(after_help = methods_help())]
-    Node(NodeArgs),
+    Node(Box<NodeArgs>),
     /// Run a Zenoh router: the access-control point of a secure deployment (mutual TLS and the
     /// ACL come from its --zenoh-config, as `v2x-sim certs` writes it), until Ctrl-C or SIGTERM.
     /// Agents, fuser and observers connect to it as clients. Access control holds only through
@@ -244,6 +244,8 @@ struct NodeArgs {
     /// read agents that send ETSI CPMs (`v2x-agent --wire cpm`, docs/cpm.md); give their value.
     #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
     map_origin: v2x_cpm::Geo,
+    #[command(flatten)]
+    ros: node::ros_out::RosOutArgs,
     /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
     /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
     /// completeness, every box's source agents) goes in meta.v2x_provenance.
@@ -599,7 +601,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Fuse(args) => fuse(args),
         Command::Track(args) => track(args),
-        Command::Node(args) => run_node(args),
+        Command::Node(args) => run_node(*args),
         Command::Router(args) => router(args),
         Command::Stats(args) => stats(args),
     }
@@ -738,6 +740,7 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
         track_guided,
         no_track_handover,
         map_origin,
+        ros,
         record,
         viz,
         duration_s,
@@ -782,10 +785,14 @@ fn run_node(args: NodeArgs) -> anyhow::Result<()> {
                 None => node::shutdown_signal().await,
             }
         };
+        let mut ros_out = ros.open(&session).await?;
         let stats = node::run(
             &session,
             cfg,
             |f| {
+                if let Some(r) = ros_out.as_mut() {
+                    r.publish(f);
+                }
                 if record.is_some() {
                     let sample = format!("t{}", f.frame.capture_us);
                     provenance.insert(sample.clone(), provenance_json(&f.provenance));

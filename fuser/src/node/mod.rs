@@ -15,6 +15,7 @@
 
 mod cpm;
 mod handover;
+pub mod ros_out;
 mod stats;
 mod worker;
 
