@@ -23,6 +23,7 @@ port=$("$VENV/bin/python" -c 'import socket; s=socket.socket(); s.bind(("127.0.0
 ep="tcp/127.0.0.1:$port"
 z=(--no-multicast-scouting)
 "$BIN/v2x-fuser" node --ns rosdemo "${z[@]}" -l "$ep" --duration-s 30 --ros-out /v2x/objects \
+    --track --ros-out-tracks /v2x/tracks \
     > "$tmp/stats.json" 2> "$tmp/fuser.log" &
 pids+=($!)
 "$BIN/v2x-agent" --ros-topic /veh/detections --ros-type vision --tf 100,50,0,90 \

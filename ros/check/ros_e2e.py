@@ -7,8 +7,9 @@ the ROS side (rosbags for the messages and their type hashes, eclipse-zenoh for 
 `run` publishes vision_msgs/Detection3DArray on /veh/detections (rmw_zenoh's key, with its
 attachment) and autoware_perception_msgs/DetectedObjects on /rsu/objects (the bridge's key),
 three cars seen by both, the vehicle's in its own sensor frame; it subscribes to the fused
-DetectedObjects on /v2x/objects under the rmw_zenoh key rosbags' type hash names, and checks
-each fused message: three cars where they are in the map, in frame "map".
+DetectedObjects on /v2x/objects and the TrackedObjects on /v2x/tracks under the rmw_zenoh keys
+rosbags' type hashes name, and checks each fused message (three cars where they are in the
+map, in frame "map") and the tracks (three, each keeping its id).
 """
 
 import glob
@@ -136,14 +137,17 @@ def run(endpoint):
     veh_key = f"0/veh/detections/{dds(det_name)}/{ts.hash_rihs01(det_name)}"
     rsu_key = "rsu/objects"
     out_key = f"0/v2x/objects/{dds(objs_name)}/{ts.hash_rihs01(objs_name)}"
+    tracks_name = "autoware_perception_msgs/msg/TrackedObjects"
+    tracks_key = f"0/v2x/tracks/{dds(tracks_name)}/{ts.hash_rihs01(tracks_name)}"
 
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("connect/endpoints", f'["{endpoint}"]')
     conf.insert_json5("scouting/multicast/enabled", "false")
-    got = []
+    got, tracked = [], []
     with zenoh.open(conf) as s:
         sub = s.declare_subscriber(out_key, lambda sample: got.append(bytes(sample.payload.to_bytes())))
+        tsub = s.declare_subscriber(tracks_key, lambda sample: tracked.append(bytes(sample.payload.to_bytes())))
         veh = s.declare_publisher(veh_key)
         rsu = s.declare_publisher(rsu_key)
         deadline = time.time() + 20
@@ -163,6 +167,7 @@ def run(endpoint):
         while len(got) < sent // 2 and time.time() < deadline:
             time.sleep(0.05)
         sub.undeclare()
+        tsub.undeclare()
     if len(got) < sent // 2:
         fail(f"{len(got)} fused DetectedObjects on {out_key} for {sent} messages sent")
     fused_both = 0
@@ -182,7 +187,17 @@ def run(endpoint):
                 fail("a fused car is not a car with its covariance")
     if fused_both < sent // 2:
         fail(f"{fused_both} of {len(got)} fused messages hold the three cars")
-    print(f"{len(got)} fused DetectedObjects for {sent} sent by each detector: {fused_both} with the three cars where they are")
+    ids = {}
+    for raw in tracked:
+        m = ts.deserialize_cdr(raw, tracks_name)
+        for o in m.objects:
+            p = o.kinematics.pose_with_covariance.pose.position
+            car = min(range(3), key=lambda i: math.hypot(p.x - cars[i][0], p.y - cars[i][1]))
+            ids.setdefault(car, set()).add(bytes(o.object_id.uuid))
+    if sorted(ids) != [0, 1, 2] or any(len(v) != 1 for v in ids.values()) or len(set().union(*ids.values())) != 3:
+        fail(f"tracks: {len(tracked)} messages, ids by car {ids}")
+    print(f"{len(got)} fused DetectedObjects for {sent} sent by each detector: {fused_both} with the three cars where they are; "
+          f"{len(tracked)} TrackedObjects, each car one track id throughout")
 
 
 if __name__ == "__main__":

@@ -238,6 +238,40 @@ pub fn from_detected_objects(m: &DetectedObjects, tf: &Transform, default: &Unce
     read
 }
 
+/// Tracks as a `TrackedObjects` in frame `frame_id`, stamped `capture_us`: each box's id (its
+/// tracking id) as the first four bytes (little-endian) of its UUID, the rest zero; pose,
+/// twist, class and shape as [`to_detected_objects`] gives them.
+pub fn to_tracked_objects(tracks: &[Detection], capture_us: u64, frame_id: &str) -> TrackedObjects {
+    let detected = to_detected_objects(tracks, capture_us, frame_id);
+    let objects = detected
+        .objects
+        .into_iter()
+        .zip(tracks)
+        .map(|(o, d)| {
+            let mut uuid = [0u8; 16];
+            uuid[..4].copy_from_slice(&d.id.to_le_bytes());
+            let k = o.kinematics;
+            TrackedObject {
+                object_id: Uuid { uuid },
+                existence_probability: o.existence_probability,
+                classification: o.classification,
+                kinematics: TrackedObjectKinematics {
+                    pose_with_covariance: k.pose_with_covariance,
+                    twist_with_covariance: k.twist_with_covariance,
+                    acceleration_with_covariance: AccelWithCovariance::default(),
+                    orientation_availability: k.orientation_availability,
+                    is_stationary: d.velocity.is_some_and(|v| v.v[0].hypot(v.v[1]) < 0.1),
+                },
+                shape: o.shape,
+            }
+        })
+        .collect();
+    TrackedObjects {
+        header: detected.header,
+        objects,
+    }
+}
+
 /// Fused boxes as a `DetectedObjects` in frame `frame_id` (the map's), stamped `capture_us`:
 /// each a bounding box with its pose covariance from its stds and, when it has a velocity, its
 /// twist in its own frame. Cones and barriers, which Autoware has no label for, are UNKNOWN.
@@ -438,6 +472,23 @@ mod tests {
                 other => panic!("{other:?}"),
             }
         }
+    }
+
+    #[test]
+    fn tracks_keep_their_ids_in_their_uuids() {
+        let mut a = Detection::car(1.0, 2.0, 0.3);
+        a.id = 0x0102_0304;
+        let mut b = a.clone();
+        b.id = 7;
+        let m = to_tracked_objects(&[a, b], 5_000_000, "map");
+        let back: TrackedObjects = from_bytes(&to_bytes(&m)).unwrap();
+        assert_eq!(back, m);
+        assert_eq!(m.objects[0].object_id.uuid[..5], [4, 3, 2, 1, 0]);
+        assert_eq!(m.objects[1].object_id.uuid[0], 7);
+        assert_eq!(
+            m.objects[0].kinematics.pose_with_covariance.pose.position.x,
+            1.0
+        );
     }
 
     #[test]

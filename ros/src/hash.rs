@@ -6,7 +6,7 @@ use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 
 /// Every message type the project knows, by its full name, with its fields as in its `.msg`.
-const DEFINITIONS: [(&str, &str); 21] = [
+const DEFINITIONS: [(&str, &str); 27] = [
     (
         "autoware_perception_msgs/msg/DetectedObject",
         include_str!("../msg/autoware_perception_msgs.DetectedObject.msg"),
@@ -28,8 +28,28 @@ const DEFINITIONS: [(&str, &str); 21] = [
         include_str!("../msg/autoware_perception_msgs.Shape.msg"),
     ),
     (
+        "autoware_perception_msgs/msg/TrackedObject",
+        include_str!("../msg/autoware_perception_msgs.TrackedObject.msg"),
+    ),
+    (
+        "autoware_perception_msgs/msg/TrackedObjectKinematics",
+        include_str!("../msg/autoware_perception_msgs.TrackedObjectKinematics.msg"),
+    ),
+    (
+        "autoware_perception_msgs/msg/TrackedObjects",
+        include_str!("../msg/autoware_perception_msgs.TrackedObjects.msg"),
+    ),
+    (
         "builtin_interfaces/msg/Time",
         include_str!("../msg/builtin_interfaces.Time.msg"),
+    ),
+    (
+        "geometry_msgs/msg/Accel",
+        include_str!("../msg/geometry_msgs.Accel.msg"),
+    ),
+    (
+        "geometry_msgs/msg/AccelWithCovariance",
+        include_str!("../msg/geometry_msgs.AccelWithCovariance.msg"),
     ),
     (
         "geometry_msgs/msg/Point",
@@ -70,6 +90,10 @@ const DEFINITIONS: [(&str, &str); 21] = [
     (
         "std_msgs/msg/Header",
         include_str!("../msg/std_msgs.Header.msg"),
+    ),
+    (
+        "unique_identifier_msgs/msg/UUID",
+        include_str!("../msg/unique_identifier_msgs.UUID.msg"),
     ),
     (
         "vision_msgs/msg/BoundingBox3D",

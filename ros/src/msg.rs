@@ -263,6 +263,70 @@ pub struct DetectedObjects {
     pub objects: Vec<DetectedObject>,
 }
 
+/// `unique_identifier_msgs/msg/UUID`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Uuid {
+    /// The 16 bytes.
+    pub uuid: [u8; 16],
+}
+
+/// `geometry_msgs/msg/Accel`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Accel {
+    /// Linear acceleration.
+    pub linear: Vector3,
+    /// Angular acceleration.
+    pub angular: Vector3,
+}
+
+/// `geometry_msgs/msg/AccelWithCovariance`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AccelWithCovariance {
+    /// The acceleration.
+    pub accel: Accel,
+    /// Its covariance.
+    pub covariance: Covariance,
+}
+
+/// `autoware_perception_msgs/msg/TrackedObjectKinematics`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedObjectKinematics {
+    /// The pose with its covariance.
+    pub pose_with_covariance: PoseWithCovariance,
+    /// Velocity in the object's frame, with its covariance.
+    pub twist_with_covariance: TwistWithCovariance,
+    /// Acceleration, with its covariance.
+    pub acceleration_with_covariance: AccelWithCovariance,
+    /// UNAVAILABLE 0, SIGN_UNKNOWN 1, AVAILABLE 2.
+    pub orientation_availability: u8,
+    /// Whether the object stands still.
+    pub is_stationary: bool,
+}
+
+/// `autoware_perception_msgs/msg/TrackedObject`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedObject {
+    /// The track's id.
+    pub object_id: Uuid,
+    /// How likely the object exists.
+    pub existence_probability: f32,
+    /// Class probabilities.
+    pub classification: Vec<ObjectClassification>,
+    /// Pose, velocity and acceleration.
+    pub kinematics: TrackedObjectKinematics,
+    /// Its shape.
+    pub shape: Shape,
+}
+
+/// `autoware_perception_msgs/msg/TrackedObjects`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedObjects {
+    /// Stamp and frame of every object.
+    pub header: Header,
+    /// The tracks.
+    pub objects: Vec<TrackedObject>,
+}
+
 /// A message type the project reads or writes.
 pub trait Message: Serialize + for<'de> Deserialize<'de> {
     /// Its full name, `pkg/msg/Name`.
@@ -275,4 +339,8 @@ impl Message for Detection3DArray {
 
 impl Message for DetectedObjects {
     const NAME: &'static str = "autoware_perception_msgs/msg/DetectedObjects";
+}
+
+impl Message for TrackedObjects {
+    const NAME: &'static str = "autoware_perception_msgs/msg/TrackedObjects";
 }
