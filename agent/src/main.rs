@@ -107,6 +107,15 @@ struct Cli {
         requires = "ros_topic"
     )]
     tf: v2x_ros::convert::Transform,
+    /// The same transform from a JSON file, as a static transform states it:
+    /// {"translation": [x, y, z], "rotation": [x, y, z, w]} (only the rotation about z is used).
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "ros_topic",
+        conflicts_with = "tf"
+    )]
+    tf_file: Option<PathBuf>,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -246,7 +255,10 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
         kind: cli.ros_type,
         layout: cli.ros_layout,
         domain: cli.ros_domain,
-        transform: cli.tf,
+        transform: match &cli.tf_file {
+            Some(p) => transform_file(p)?,
+            None => cli.tf,
+        },
         // A detector's message without a covariance: its boxes take --default-std, else mild.
         default_std: cli
             .default_std
@@ -286,6 +298,28 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
         .await
         .map_err(|e| anyhow!("closing the session: {e}"))?;
     Ok(())
+}
+
+/// A static transform from a JSON file: `translation` [x, y, z] and `rotation` [x, y, z, w].
+fn transform_file(path: &std::path::Path) -> anyhow::Result<v2x_ros::convert::Transform> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let numbers = |field: &str, n: usize| -> anyhow::Result<Vec<f64>> {
+        let list = v[field].as_array().filter(|a| a.len() == n).and_then(|a| {
+            a.iter()
+                .map(|x| x.as_f64().filter(|x| x.is_finite()))
+                .collect::<Option<Vec<_>>>()
+        });
+        list.ok_or_else(|| anyhow!("{}: `{field}` must be {n} numbers", path.display()))
+    };
+    let t = numbers("translation", 3)?;
+    let q = numbers("rotation", 4)?;
+    Ok(v2x_ros::convert::Transform {
+        translation: [t[0], t[1], t[2]],
+        yaw: v2x_protocol::nuscenes_json::quaternion_yaw([q[3], q[0], q[1], q[2]]),
+    })
 }
 
 /// The clock a replay runs on, from --clock and --start-at.

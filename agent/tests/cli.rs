@@ -49,6 +49,19 @@ fn help_and_clear_errors() {
     assert!(err.contains("X,Y,Z,YAW_DEG"), "{err}");
     let err = run(&["a.json", "--ros-topic", "/a", "--name", "veh"]);
     assert!(err.contains("cannot be used with"), "{err}");
+    let dir = std::env::temp_dir().join(format!("v2x-agent-tf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tf = dir.join("tf.json");
+    std::fs::write(&tf, r#"{"translation": [1, 2], "rotation": [0, 0, 0, 1]}"#).unwrap();
+    let err = run(&[
+        "--ros-topic",
+        "/a",
+        "--tf-file",
+        tf.to_str().unwrap(),
+        "--name",
+        "veh",
+    ]);
+    assert!(err.contains("`translation` must be 3 numbers"), "{err}");
     let err = run(&["--name", "veh", "--map-origin", "95,0"]);
     assert!(err.contains("latitude '95'"), "{err}");
 }
