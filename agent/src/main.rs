@@ -197,17 +197,7 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         c => c,
     };
     let frames = frames_of(&cli, results)?;
-    let link = Link {
-        latency_ms: cli.latency_ms,
-        jitter_ms: cli.jitter_ms,
-        drop_rate: cli.drop_rate,
-        clock_offset_ms: cli.clock_offset_ms,
-    };
-    let session = open_session(&cli.zenoh).await?;
-    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
-    if cli.wire == Wire::Cpm {
-        agent = agent.sending_cpm(cli.map_origin);
-    }
+    let (session, mut agent) = start(&cli).await?;
     let wait = Duration::from_secs_f64(cli.wait_s);
     match cli.tile_size {
         None => agent.wait_for_subscriber(wait).await?,
@@ -240,12 +230,32 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         "{}: sent {} of {n} frames ({} skipped: their time had passed; {} dropped by the link), {} payload bytes",
         cli.name, report.sent, report.skipped, t.dropped, t.payload_bytes
     );
+    close(session, agent).await
+}
+
+/// Withdraws the agent, then closes its session.
+async fn close(session: zenoh::Session, agent: Agent) -> anyhow::Result<()> {
     drop(agent);
     session
         .close()
         .await
-        .map_err(|e| anyhow!("closing the session: {e}"))?;
-    Ok(())
+        .map_err(|e| anyhow!("closing the session: {e}"))
+}
+
+/// The agent's session and the agent on it, with its simulated link and its wire.
+async fn start(cli: &Cli) -> anyhow::Result<(zenoh::Session, Agent)> {
+    let link = Link {
+        latency_ms: cli.latency_ms,
+        jitter_ms: cli.jitter_ms,
+        drop_rate: cli.drop_rate,
+        clock_offset_ms: cli.clock_offset_ms,
+    };
+    let session = open_session(&cli.zenoh).await?;
+    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    if cli.wire == Wire::Cpm {
+        agent = agent.sending_cpm(cli.map_origin);
+    }
+    Ok((session, agent))
 }
 
 /// Sends what a ROS 2 detector publishes on `topic` until Ctrl-C or SIGTERM.
@@ -265,17 +275,7 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
             .unwrap_or(Uncertainty::uniform(0.2, 0.1, 2f64.to_radians())),
     };
     let key = input.key()?;
-    let link = Link {
-        latency_ms: cli.latency_ms,
-        jitter_ms: cli.jitter_ms,
-        drop_rate: cli.drop_rate,
-        clock_offset_ms: cli.clock_offset_ms,
-    };
-    let session = open_session(&cli.zenoh).await?;
-    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
-    if cli.wire == Wire::Cpm {
-        agent = agent.sending_cpm(cli.map_origin);
-    }
+    let (session, mut agent) = start(cli).await?;
     agent
         .wait_for_subscriber(Duration::from_secs_f64(cli.wait_s))
         .await?;
@@ -292,12 +292,7 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
         "{}: {} messages heard on {key}, {} not the type expected; {} frames sent; {} boxes left out",
         cli.name, r.messages, r.undecodable, r.sent, r.skipped
     );
-    drop(agent);
-    session
-        .close()
-        .await
-        .map_err(|e| anyhow!("closing the session: {e}"))?;
-    Ok(())
+    close(session, agent).await
 }
 
 /// A static transform from a JSON file: `translation` [x, y, z] and `rotation` [x, y, z, w].

@@ -206,6 +206,27 @@ pub mod fuser {
         .await
     }
 
+    /// Waits (10 s at most) until a subscriber (the fuser) matches `publisher`.
+    pub async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
+        within(10, "a subscriber", async {
+            while !publisher.matching_status().await.unwrap().matching() {
+                tokio::time::sleep(Duration::from_millis(10)).await;
+            }
+        })
+        .await
+    }
+
+    /// The fuser's statistics as `v2x-fuser stats` prints them (10 s at most).
+    pub async fn stats(session: &zenoh::Session, ns: &str) -> serde_json::Value {
+        within(
+            10,
+            "stats",
+            node::query_stats(session, ns, Duration::from_secs(5)),
+        )
+        .await
+        .expect("the fuser answers")
+    }
+
     /// The next fused window (10 s at most).
     pub async fn next_fused(rx: &mut mpsc::UnboundedReceiver<Fused>) -> Fused {
         within(10, "a fused window", rx.recv())

@@ -1,15 +1,15 @@
 //! Agents that send ETSI CPMs (docs/cpm.md) beside agents that send frames, over loopback
 //! Zenoh: the fuser reads both through the same checks.
 
-use std::time::Duration;
 use v2x_agent::now_us;
 use v2x_cpm::Geo;
-use v2x_fuser::node::{self, NodeConfig};
+use v2x_fuser::node::NodeConfig;
 use v2x_protocol::net::cpm_encoding;
 use v2x_protocol::{keys, AgentKind};
 use v2x_sim::run::free_port;
 use v2x_tests::fuser::{
-    connect, frame, joined, listen, next_fused, next_t, spawn_fuser_with, wait_live,
+    connect, frame, joined, listen, next_fused, next_t, spawn_fuser_with, stats, wait_live,
+    wait_matching,
 };
 use v2x_tests::within;
 
@@ -71,12 +71,7 @@ async fn a_cpm_is_checked_as_a_frame_is() {
         .encoding(cpm_encoding())
         .await
         .unwrap();
-    within(10, "a subscriber", async {
-        while !publisher.matching_status().await.unwrap().matching() {
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
-    })
-    .await;
+    wait_matching(&publisher).await;
     let cpm = |agent: &str, t: u64| {
         let mut f = frame(t);
         f.agent = agent.into();
@@ -90,13 +85,7 @@ async fn a_cpm_is_checked_as_a_frame_is() {
     let f = next_fused(&mut fused).await;
     assert_eq!(f.provenance.agents, vec!["x"]);
     assert_eq!(f.frame.detections.len(), 2);
-    let v = within(
-        10,
-        "stats",
-        node::query_stats(&s, ns, Duration::from_secs(5)),
-    )
-    .await
-    .unwrap();
+    let v = stats(&s, ns).await;
     let x = &v["agents"]["x"];
     assert_eq!(
         (

@@ -7,7 +7,7 @@ use v2x_fuser::node::{self, NodeConfig};
 use v2x_protocol::{keys, limits, wire, AgentKind, Detection, Frame, Uncertainty};
 use v2x_sim::run::free_port;
 use v2x_tests::fuser::{
-    connect, det, frame, joined, listen, next_fused, next_t, spawn_fuser_with, wait_live,
+    connect, det, frame, joined, listen, next_fused, next_t, spawn_fuser_with, stats, wait_live,
 };
 use v2x_tests::within;
 use zenoh::qos::CongestionControl;
@@ -45,16 +45,6 @@ fn cfg(ns: &str, max_wait_ms: f64) -> NodeConfig {
     let mut c = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
     c.max_wait_ms = max_wait_ms;
     c
-}
-
-async fn stats(s: &zenoh::Session, ns: &str) -> serde_json::Value {
-    within(
-        10,
-        "stats",
-        node::query_stats(s, ns, Duration::from_secs(5)),
-    )
-    .await
-    .unwrap()
 }
 
 /// Polls the stats until `cond` holds (10 s at most).

@@ -3,12 +3,12 @@
 
 use std::time::Duration;
 use v2x_agent::{now_us, Agent, Link};
-use v2x_fuser::node;
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::{keys, wire, AgentKind};
 use v2x_sim::run::free_port;
 use v2x_tests::fuser::{
-    connect, endpoint, frame, joined, listen, next_fused, next_t, spawn_fuser, wait_live,
+    connect, endpoint, frame, joined, listen, next_fused, next_t, spawn_fuser, stats, wait_live,
+    wait_matching,
 };
 use v2x_tests::within;
 
@@ -159,12 +159,7 @@ async fn late_duplicate_out_of_order_and_malformed_frames() {
         .declare_publisher(keys::detections(ns, "x"))
         .await
         .unwrap();
-    within(10, "a subscriber", async {
-        while !publisher.matching_status().await.unwrap().matching() {
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
-    })
-    .await;
+    wait_matching(&publisher).await;
     let base = now_us();
     let enc = |seq: u32, t_ms: u64, agent: &str| {
         let mut f = frame(base + t_ms * 1000);
@@ -196,13 +191,7 @@ async fn late_duplicate_out_of_order_and_malformed_frames() {
         base + 300_000
     );
 
-    let v = within(
-        10,
-        "stats",
-        node::query_stats(&s, ns, Duration::from_secs(5)),
-    )
-    .await
-    .unwrap();
+    let v = stats(&s, ns).await;
     let x = &v["agents"]["x"];
     assert_eq!(x["frames_in"], 8);
     assert_eq!(x["invalid"], 2);
