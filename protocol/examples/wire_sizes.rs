@@ -7,7 +7,7 @@
 
 use serde::Serialize;
 use v2x_protocol::nuscenes_json::stable_id;
-use v2x_protocol::wire::{encode, encode_json};
+use v2x_protocol::wire::encode;
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, Uncertainty, Velocity};
 
 /// A deterministic stream of uniform numbers in [0, 1) (xorshift64).
@@ -170,4 +170,9 @@ pub fn encode_plain_f32(frame: &Frame) -> Vec<u8> {
             .collect(),
     };
     postcard::to_stdvec(&pf).expect("postcard serialization into a Vec cannot fail")
+}
+
+/// A frame as JSON (serde's natural form).
+pub fn encode_json(frame: &Frame) -> Vec<u8> {
+    serde_json::to_vec(frame).expect("a frame always serializes to JSON")
 }

@@ -1029,10 +1029,5 @@ pub fn fit_with(frame: &mut Frame, mut provenance: Option<&mut Provenance>) -> F
     fit
 }
 
-/// Encodes a frame as JSON (serde's natural form), for size comparisons.
-pub fn encode_json(frame: &Frame) -> Vec<u8> {
-    serde_json::to_vec(frame).expect("a frame always serializes to JSON")
-}
-
 #[cfg(test)]
 mod tests;

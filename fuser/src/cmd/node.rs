@@ -1,0 +1,183 @@
+//! `v2x-fuser node`: the fuser on the network, its options and its run.
+
+use std::path::PathBuf;
+use v2x_fuser::{node, Method};
+use v2x_protocol::nuscenes_json::{
+    default_meta, provenance_json, write_results, Results, TokenTable,
+};
+
+use super::settings::*;
+
+/// The options of `v2x-fuser node`.
+#[derive(clap::Args)]
+pub(crate) struct NodeArgs {
+    /// Scenario namespace (keys v2x/NS/...).
+    #[arg(long, default_value = "default")]
+    pub(crate) ns: String,
+    /// Fusion method.
+    #[arg(long, short, default_value = "csba-wls+")]
+    pub(crate) method: Method,
+    /// Window width delta t (ms).
+    #[arg(long, default_value_t = 100.0)]
+    pub(crate) window_ms: f64,
+    /// Longest wait for missing live agents after a window's first frame (ms).
+    #[arg(long, default_value_t = 150.0)]
+    pub(crate) max_wait_ms: f64,
+    /// The agents send a detector's boxes with the stds it is given (as `v2x-agent` replays
+    /// `v2x-sim gen --dataset v2v4real`'s files): CSBA-3D groups are scored by the noisy-OR of
+    /// their members and fused boxes below 0.4 dropped, as `v2x-fuser fuse --detector` does.
+    #[arg(long)]
+    pub(crate) detector: bool,
+    #[command(flatten)]
+    pub(crate) limits: Box<IngestArgs>,
+    #[command(flatten)]
+    pub(crate) motion: MotionArgs,
+    #[command(flatten)]
+    pub(crate) stds: StdArgs,
+    #[command(flatten)]
+    pub(crate) region: RegionArgs,
+    #[command(flatten)]
+    pub(crate) align: AlignArgs,
+    /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
+    /// tracks each window updated on v2x/NS/tracks, each box's id its track's (the seven
+    /// classes of the nuScenes tracking benchmark, as `v2x-fuser track` writes them).
+    #[arg(long)]
+    pub(crate) track: bool,
+    /// With --track: also track barriers, traffic cones and construction vehicles.
+    #[arg(long, requires = "track")]
+    pub(crate) track_all_classes: bool,
+    /// With --track: associate each agent's boxes with the tracks first and fuse between agents
+    /// only the rest (`v2x-fuser track --guided`); the fused frames stay as they are.
+    #[arg(long, requires = "track")]
+    pub(crate) track_guided: bool,
+    /// With --track and --tile: do not hear the neighbouring regions' tracks, so that an object
+    /// crossing into this tile starts a track of this region's own (by default it keeps the id
+    /// its neighbour gave it; docs/method.md §9.1).
+    #[arg(long, requires_all = ["track", "tile"])]
+    pub(crate) no_track_handover: bool,
+    /// WGS84 latitude and longitude (degrees) of the map frame's origin (x East, y North), to
+    /// read agents that send ETSI CPMs (`v2x-agent --wire cpm`, docs/cpm.md); give their value.
+    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
+    pub(crate) map_origin: v2x_cpm::Geo,
+    #[command(flatten)]
+    pub(crate) ros: node::ros_out::RosOutArgs,
+    /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
+    /// `v2x-sim eval` against the same ground truth; each frame's provenance (window agents,
+    /// completeness, every box's source agents) goes in meta.v2x_provenance.
+    #[arg(long)]
+    pub(crate) record: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) viz: v2x_fuser::viz::VizArgs,
+    /// Stop after this many seconds (default: run until Ctrl-C or SIGTERM, which both write
+    /// the recording and print the final statistics).
+    #[arg(long)]
+    pub(crate) duration_s: Option<f64>,
+    #[command(flatten)]
+    pub(crate) zenoh: v2x_protocol::net::ZenohArgs,
+}
+
+/// `v2x-fuser node`.
+pub(crate) fn run_node(args: NodeArgs) -> anyhow::Result<()> {
+    let NodeArgs {
+        ns,
+        method,
+        window_ms,
+        max_wait_ms,
+        detector,
+        limits,
+        motion,
+        stds,
+        region,
+        align,
+        track,
+        track_all_classes,
+        track_guided,
+        no_track_handover,
+        map_origin,
+        ros,
+        record,
+        viz,
+        duration_s,
+        zenoh,
+    } = args;
+    let rt = v2x_protocol::net::runtime()?;
+    rt.block_on(async move {
+        if let Some(s) = duration_s {
+            if !(s > 0.0 && s.is_finite()) {
+                anyhow::bail!("--duration-s must be > 0");
+            }
+        }
+        let mut cfg = node::NodeConfig::new(&ns, method);
+        cfg.window_ms = window_ms;
+        cfg.max_wait_ms = max_wait_ms;
+        cfg.detector = detector.then(v2x_fuser::detector::DetectorParams::default);
+        limits.apply(&mut cfg)?;
+        cfg.motion = motion.params()?;
+        cfg.region = region.region()?;
+        cfg.align = align.params()?;
+        cfg.learn = stds.params()?;
+        cfg.models = stds.models()?;
+        cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
+            all_classes: track_all_classes,
+            guided: track_guided,
+            ..Default::default()
+        });
+        cfg.set_time_scale(motion.time_scale);
+        cfg.handover = !no_track_handover;
+        cfg.map_origin = map_origin;
+        cfg.viz = viz.open().await?;
+        let shown = cfg.viz.clone();
+        let session = v2x_protocol::net::open_session(&zenoh).await?;
+        let mut recorded = Results::default();
+        let mut provenance = serde_json::Map::new();
+        let stop = async move {
+            match duration_s {
+                Some(s) => tokio::select! {
+                    _ = tokio::time::sleep(std::time::Duration::from_secs_f64(s)) => {}
+                    _ = node::shutdown_signal() => {}
+                },
+                None => node::shutdown_signal().await,
+            }
+        };
+        let mut ros_out = ros.open(&session).await?;
+        let stats = node::run(
+            &session,
+            cfg,
+            |f| {
+                if let Some(r) = ros_out.as_mut() {
+                    r.publish(f);
+                }
+                if record.is_some() {
+                    let sample = format!("t{}", f.frame.capture_us);
+                    provenance.insert(sample.clone(), provenance_json(&f.provenance));
+                    recorded.samples.insert(sample, f.frame.detections.clone());
+                }
+            },
+            stop,
+        )
+        .await?;
+        if let Some(v) = shown {
+            v.close()?;
+        }
+        if let Some(path) = &record {
+            let mut meta = default_meta();
+            meta["v2x_provenance"] = serde_json::Value::Object(provenance);
+            if !stats.learned_std.is_empty() {
+                meta["v2x_learned_std"] = serde_json::to_value(&stats.learned_std)?;
+            }
+            recorded.meta = meta;
+            write_results(path, &recorded, &TokenTable::new())?;
+            eprintln!(
+                "recorded {} fused frames -> {}",
+                recorded.samples.len(),
+                path.display()
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&stats)?);
+        session
+            .close()
+            .await
+            .map_err(|e| anyhow::anyhow!("closing the session: {e}"))?;
+        Ok(())
+    })
+}
