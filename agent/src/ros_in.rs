@@ -41,7 +41,12 @@ impl RosInput {
             RosType::Vision => Detection3DArray::NAME,
             RosType::Autoware => DetectedObjects::NAME,
         };
-        keys::subscribe_key(self.layout, self.domain, &self.topic, name).map_err(|e| anyhow!(e))
+        Ok(keys::subscribe_key(
+            self.layout,
+            self.domain,
+            &self.topic,
+            name,
+        )?)
     }
 
     /// The boxes of one message's CDR payload.

@@ -34,9 +34,19 @@ pub fn dds_type_name(name: &str) -> String {
     }
 }
 
-/// The key a message of type `name` on `topic` is published on; `Err` names what is wrong.
-pub fn publish_key(layout: Layout, domain: u32, topic: &str, name: &str) -> Result<String, String> {
-    let t = topic_chunks(topic).ok_or_else(|| format!("'{topic}' is not a ROS 2 topic name"))?;
+/// A topic name that is not one: empty, with an empty level, a wildcard or a space.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error("'{0}' is not a ROS 2 topic name")]
+pub struct BadTopic(pub String);
+
+/// The key a message of type `name` on `topic` is published on.
+pub fn publish_key(
+    layout: Layout,
+    domain: u32,
+    topic: &str,
+    name: &str,
+) -> Result<String, BadTopic> {
+    let t = topic_chunks(topic).ok_or_else(|| BadTopic(topic.to_string()))?;
     Ok(match layout {
         Layout::RmwZenoh => format!("{domain}/{t}/{}/{}", dds_type_name(name), type_hash(name)),
         Layout::Bridge => t.to_string(),
@@ -50,8 +60,8 @@ pub fn subscribe_key(
     domain: u32,
     topic: &str,
     name: &str,
-) -> Result<String, String> {
-    let t = topic_chunks(topic).ok_or_else(|| format!("'{topic}' is not a ROS 2 topic name"))?;
+) -> Result<String, BadTopic> {
+    let t = topic_chunks(topic).ok_or_else(|| BadTopic(topic.to_string()))?;
     Ok(match layout {
         Layout::RmwZenoh => format!("{domain}/{t}/{}/*", dds_type_name(name)),
         Layout::Bridge => t.to_string(),
