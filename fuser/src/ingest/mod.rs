@@ -181,6 +181,9 @@ pub struct AgentStats {
     pub clock_lag_ms: Option<f64>,
     /// Whether the agent holds a liveliness token.
     pub token: bool,
+    /// Boxes its CPMs carried of classes the project has no name for (an animal, a group):
+    /// left out.
+    pub unnamed: u64,
 }
 
 /// The admission state.
@@ -235,6 +238,13 @@ impl Ingest {
     /// The notes of admitted frames since the last call.
     pub fn take_notes(&mut self) -> Vec<Note> {
         std::mem::take(&mut self.notes)
+    }
+
+    /// Counts `n` boxes of an admitted CPM that were left out for their class.
+    pub fn unnamed(&mut self, agent: &str, n: u64) {
+        if let Some(st) = self.agents.get_mut(agent) {
+            st.stats.unnamed += n;
+        }
     }
 
     /// Rejections so far by reason, forgotten agents included.

@@ -410,3 +410,15 @@ fn the_names_of_other_roles_are_refused() {
     assert_eq!(i.rejected()["reserved_name"], 6);
     assert_eq!(i.tracked(), 0);
 }
+
+#[test]
+fn boxes_a_cpm_carried_without_a_class_here_are_counted_for_their_agent() {
+    let mut i = Ingest::new(IngestConfig::default());
+    i.offer("a", &payload("a", NOW), NOW).unwrap();
+    i.unnamed("a", 2);
+    i.unnamed("a", 1);
+    i.unnamed("nobody", 5);
+    let stats = i.agent_stats();
+    assert_eq!(stats["a"].unnamed, 3);
+    assert!(!stats.contains_key("nobody"));
+}

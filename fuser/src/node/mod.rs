@@ -341,17 +341,10 @@ impl State {
         let key = s.key_expr().as_str();
         let payload = s.payload().to_bytes();
         let cpm = v2x_protocol::net::is_cpm(s.encoding());
-        let geo = self.map_origin;
-        let len = payload.len();
         if self.region.is_none() {
             if let Some(agent) = keys::agent_of_detections(&self.ns, key) {
                 let now = self.clock.now_us();
-                let result = self.ingest.offer_decoded(&agent, len, now, || {
-                    cpm::decode(cpm, &agent, &payload, &geo)
-                });
-                self.drop_evicted();
-                self.log_notes();
-                match result {
+                match self.offer(&agent, cpm, &payload, now) {
                     Ok(frame) => self.admit(&agent, frame, now),
                     Err(r) => self.warn(&r, key),
                 }
@@ -373,12 +366,7 @@ impl State {
             }
         };
         let now = self.clock.now_us();
-        let result = self.ingest.offer_decoded(&agent, len, now, || {
-            cpm::decode(cpm, &agent, &payload, &geo)
-        });
-        self.drop_evicted();
-        self.log_notes();
-        let frame = match result {
+        let frame = match self.offer(&agent, cpm, &payload, now) {
             Ok(f) => f,
             Err(r) => return self.warn(&r, key),
         };
@@ -389,6 +377,28 @@ impl State {
                 self.warn(&r, key);
             }
         }
+    }
+
+    /// A payload heard on `agent`'s key through admission: a frame, or a CPM (`cpm`) whose
+    /// boxes of classes without a name here are counted as `unnamed`.
+    fn offer(
+        &mut self,
+        agent: &str,
+        cpm: bool,
+        payload: &[u8],
+        now: u64,
+    ) -> Result<v2x_protocol::Frame, Rejection> {
+        let geo = self.map_origin;
+        let unnamed = std::cell::Cell::new(0);
+        let result = self.ingest.offer_decoded(agent, payload.len(), now, || {
+            cpm::decode(cpm, agent, payload, &geo, &unnamed)
+        });
+        if result.is_ok() {
+            self.ingest.unnamed(agent, unnamed.get());
+        }
+        self.drop_evicted();
+        self.log_notes();
+        result
     }
 
     fn drop_evicted(&mut self) {
