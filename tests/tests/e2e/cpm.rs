@@ -55,7 +55,11 @@ async fn a_cpm_agent_and_a_frame_agent_fuse_together() {
     let stats = within(10, "fuser shutdown", task).await.unwrap();
     let (sa_, sb_) = (&stats.agents["a"], &stats.agents["b"]);
     assert_eq!((sa_.invalid, sa_.fused, sb_.fused), (0, 2, 2));
-    assert_eq!((sa_.unnamed, sa_.objects), (0, 4), "every car of the CPMs has its class");
+    assert_eq!(
+        (sa_.unnamed, sa_.objects),
+        (0, 4),
+        "every car of the CPMs has its class"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread")]
