@@ -418,6 +418,10 @@ pub struct AgentSpec {
     /// The agent's Zenoh options (used when roles run on separate hosts).
     #[serde(default)]
     pub zenoh: ZenohArgs,
+    /// Sends ETSI CPMs instead of frames (docs/cpm.md), placed on the earth by the scenario's
+    /// `map_origin`.
+    #[serde(default)]
+    pub cpm: bool,
 }
 
 impl AgentSpec {
@@ -483,6 +487,9 @@ pub struct Scenario {
     /// A city of regional fusers over meshed routers instead of one fuser (`[regions]`).
     #[serde(default)]
     pub regions: Option<RegionsSpec>,
+    /// WGS84 latitude and longitude (degrees) of the map's origin, for agents that send CPMs.
+    #[serde(default)]
+    pub map_origin: [f64; 2],
 }
 
 fn default_ns() -> String {
@@ -499,6 +506,14 @@ fn onef() -> f64 {
 }
 
 impl Scenario {
+    /// Where the map lies on the earth, for CPMs.
+    pub fn geo(&self) -> v2x_cpm::Geo {
+        v2x_cpm::Geo {
+            lat_deg: self.map_origin[0],
+            lon_deg: self.map_origin[1],
+        }
+    }
+
     /// Parses and checks a scenario; `source` names it in errors, `base` resolves relative paths.
     pub fn parse(text: &str, source: &str, base: Option<&Path>) -> anyhow::Result<Scenario> {
         let mut s: Scenario = toml::from_str(text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
@@ -540,6 +555,12 @@ impl Scenario {
         }
         if !(self.speed > 0.0 && self.speed.is_finite()) {
             return Err(format!("speed must be > 0 (got {})", self.speed));
+        }
+        let [lat, lon] = self.map_origin;
+        if !(lat.abs() <= 90.0 && lon.abs() <= 180.0) {
+            return Err(format!(
+                "map_origin must be [latitude, longitude] in degrees (got [{lat}, {lon}])"
+            ));
         }
         self.check_dataset()?;
         self.check_fuser()?;

@@ -113,6 +113,9 @@ pub async fn agent_role(
     )
     .await?
     .counting_cpm();
+    if spec.cpm {
+        agent = agent.sending_cpm(scenario.geo());
+    }
     match &scenario.regions {
         None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
         Some(r) => {
@@ -291,6 +294,7 @@ fn node_config(
     cfg.max_wait_ms = scenario.fuser.max_wait_ms;
     cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;
     cfg.ingest.area = scenario.fuser.area();
+    cfg.map_origin = scenario.geo();
     Ok(cfg)
 }
 

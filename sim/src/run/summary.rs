@@ -264,7 +264,7 @@ pub fn summarize(
     totals: &BTreeMap<String, AgentSide>,
     wall_s: f64,
 ) -> Summary {
-    let (fused, covered) = fused_metrics(gt, schedule, outcome);
+    let (fused, covered) = fused_metrics(scenario, gt, schedule, outcome);
     let tracking = scenario
         .fuser
         .track
@@ -315,13 +315,26 @@ fn first_flagged(outcome: &FuserOutcome) -> BTreeMap<String, f64> {
     out
 }
 
-/// Scores one frame; boxes of recorded agents (DAIR-V2X) carry no ground-truth ids and match by
-/// distance.
-fn score(gt: &GroundTruth, acc: &mut Accumulator, objects: &[GtObject], dets: &[Detection]) {
-    if gt.recorded.is_some() {
+/// Scores one frame; boxes of recorded agents (DAIR-V2X) carry no ground-truth ids, and those
+/// that crossed the air as CPMs only their low 16 bits (docs/cpm.md): they match by distance.
+fn score(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    acc: &mut Accumulator,
+    objects: &[GtObject],
+    dets: &[Detection],
+) {
+    if gt.recorded.is_some() || scenario.agents.iter().any(|a| a.cpm) {
+        let unnamed: Vec<Detection> = dets
+            .iter()
+            .map(|d| Detection {
+                id: v2x_protocol::NO_ID,
+                ..d.clone()
+            })
+            .collect();
         acc.add_frame(
             objects,
-            &crate::metrics::ids_by_distance(objects, dets, 2.0),
+            &crate::metrics::ids_by_distance(objects, &unnamed, 2.0),
         );
     } else {
         acc.add_frame(objects, dets);
@@ -332,6 +345,7 @@ fn score(gt: &GroundTruth, acc: &mut Accumulator, objects: &[GtObject], dets: &[
 /// a scheduled frame the run reached but no fused window came near counts as missed. Also which
 /// scheduled frames a window came near.
 fn fused_metrics(
+    scenario: &Scenario,
     gt: &GroundTruth,
     schedule: &Schedule,
     outcome: &FuserOutcome,
@@ -339,7 +353,13 @@ fn fused_metrics(
     let mut acc = Accumulator::new();
     let mut covered = vec![false; schedule.frames.len()];
     for (&t, dets) in &outcome.fused {
-        score(gt, &mut acc, &gt.objects_at(schedule.scene, t), dets);
+        score(
+            scenario,
+            gt,
+            &mut acc,
+            &gt.objects_at(schedule.scene, t),
+            dets,
+        );
         if let Some(k) = schedule.frame_near(t) {
             covered[k] = true;
         }
@@ -415,7 +435,7 @@ fn agent_metrics(
             }
             let objects = gt.objects_at(schedule.scene, t);
             let view = agent_view(scenario, gt, schedule, idx, j, t, &state.noise).0;
-            score(gt, &mut acc, &objects, &view);
+            score(scenario, gt, &mut acc, &objects, &view);
         }
         out.insert(a.name.clone(), acc.summary());
     }

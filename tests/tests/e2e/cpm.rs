@@ -106,3 +106,32 @@ async fn a_cpm_is_checked_as_a_frame_is() {
     stop.send(()).unwrap();
     within(10, "fuser shutdown", task).await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scenario_agent_sends_cpms_and_its_payload_is_their_size() {
+    // The default scenario, 6 s at twice real time, its vehicle sending CPMs.
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/default.toml");
+    let toml = std::fs::read_to_string(path)
+        .unwrap()
+        .replace(
+            "duration_s = 20.0",
+            "duration_s = 6.0\nmap_origin = [48.1374, 11.5755]",
+        )
+        .replace("speed = 1.0", "speed = 2.0")
+        .replace("namespace = \"default\"", "namespace = \"cpmrun\"")
+        .replace("noise = \"mild\"", "noise = \"mild\"\ncpm = true");
+    let s = v2x_sim::scenario::Scenario::parse(&toml, "cpmrun", None).unwrap();
+    assert!(s.agents[0].cpm && !s.agents[1].cpm);
+    let gt = s.dataset.data_args().load().unwrap();
+    let (summary, _) = within(90, "the run", v2x_sim::run::run_local(&s, &gt))
+        .await
+        .unwrap();
+    assert_eq!(summary.windows_incomplete, 0);
+    let veh = &summary.bandwidth["veh"];
+    let rsu = &summary.bandwidth["rsu"];
+    // What the vehicle put on the air is the CPMs the agent counts; the roadside's frames are
+    // smaller than their CPMs.
+    assert_eq!(Some(veh.payload_bytes_per_frame), veh.cpm_bytes_per_frame);
+    assert!(rsu.payload_bytes_per_frame < rsu.cpm_bytes_per_frame.unwrap());
+    assert!(summary.fused.recall.unwrap() > 0.9, "{:?}", summary.fused);
+}
