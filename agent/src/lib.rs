@@ -282,18 +282,19 @@ impl Agent {
             let payload = match &self.cpm {
                 None => wire::encode(f).map_err(anyhow::Error::from),
                 Some(geo) => v2x_cpm::encode(f, geo).map_err(anyhow::Error::from),
+            }
+            .with_context(|| format!("agent {}: frame {} does not encode", self.name, f.seq))?;
+            // A message sent as a CPM is its own count; a frame's CPM is encoded to be counted.
+            let cpm_bytes = match (self.count_cpm, self.cpm.is_some()) {
+                (false, _) => 0,
+                (true, true) => payload.len() as u64,
+                (true, false) => v2x_cpm::message_bytes(f) as u64,
             };
             Ok(Part {
-                payload: payload.with_context(|| {
-                    format!("agent {}: frame {} does not encode", self.name, f.seq)
-                })?,
+                payload,
                 cpm: self.cpm.is_some(),
                 objects: f.detections.len() as u64,
-                cpm_bytes: if self.count_cpm {
-                    v2x_cpm::message_bytes(f) as u64
-                } else {
-                    0
-                },
+                cpm_bytes,
                 tile,
             })
         };

@@ -272,7 +272,7 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
         // A detector's message without a covariance: its boxes take --default-std, else mild.
         default_std: cli
             .default_std
-            .unwrap_or(Uncertainty::uniform(0.2, 0.1, 2f64.to_radians())),
+            .unwrap_or(v2x_protocol::NoiseProfile::Mild.std()),
     };
     let key = input.key()?;
     let (session, mut agent) = start(cli).await?;

@@ -39,6 +39,21 @@ pub fn dds_type_name(name: &str) -> String {
 #[error("'{0}' is not a ROS 2 topic name")]
 pub struct BadTopic(pub String);
 
+/// The key of messages of type `name` on `topic`, with rmw_zenoh's layout naming `hash`.
+fn key(
+    layout: Layout,
+    domain: u32,
+    topic: &str,
+    name: &str,
+    hash: &str,
+) -> Result<String, BadTopic> {
+    let t = topic_chunks(topic).ok_or_else(|| BadTopic(topic.to_string()))?;
+    Ok(match layout {
+        Layout::RmwZenoh => format!("{domain}/{t}/{}/{hash}", dds_type_name(name)),
+        Layout::Bridge => t.to_string(),
+    })
+}
+
 /// The key a message of type `name` on `topic` is published on.
 pub fn publish_key(
     layout: Layout,
@@ -46,11 +61,7 @@ pub fn publish_key(
     topic: &str,
     name: &str,
 ) -> Result<String, BadTopic> {
-    let t = topic_chunks(topic).ok_or_else(|| BadTopic(topic.to_string()))?;
-    Ok(match layout {
-        Layout::RmwZenoh => format!("{domain}/{t}/{}/{}", dds_type_name(name), type_hash(name)),
-        Layout::Bridge => t.to_string(),
-    })
+    key(layout, domain, topic, name, &type_hash(name))
 }
 
 /// The key expression that hears messages of type `name` on `topic`: with rmw_zenoh any type
@@ -61,11 +72,7 @@ pub fn subscribe_key(
     topic: &str,
     name: &str,
 ) -> Result<String, BadTopic> {
-    let t = topic_chunks(topic).ok_or_else(|| BadTopic(topic.to_string()))?;
-    Ok(match layout {
-        Layout::RmwZenoh => format!("{domain}/{t}/{}/*", dds_type_name(name)),
-        Layout::Bridge => t.to_string(),
-    })
+    key(layout, domain, topic, name, "*")
 }
 
 /// The attachment rmw_zenoh puts on each message: its sequence number and source timestamp

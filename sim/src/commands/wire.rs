@@ -8,7 +8,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use v2x_cpm::Geo;
 use v2x_protocol::nuscenes_json::{self, MissingStd, TokenTable};
-use v2x_protocol::{wire, AgentKind, Frame, Uncertainty};
+use v2x_protocol::{wire, AgentKind, Frame};
 
 /// What `v2x-sim wire` writes.
 #[derive(Copy, Clone, Debug, ValueEnum, PartialEq)]
@@ -105,7 +105,7 @@ pub fn run(args: WireArgs) -> anyhow::Result<()> {
 fn frames_of(path: &Path, args: &WireArgs) -> anyhow::Result<(String, Vec<(String, Frame)>)> {
     let mut tokens = TokenTable::new();
     // Stds are carried as stated; a box without them goes as the mild setting's.
-    let missing = MissingStd::Default(Uncertainty::uniform(0.2, 0.1, 2f64.to_radians()));
+    let missing = MissingStd::Default(v2x_protocol::NoiseProfile::Mild.std());
     let results = nuscenes_json::read_results(path, &mut tokens, missing)?;
     let agent = results.meta["v2x_agent"]
         .as_str()
