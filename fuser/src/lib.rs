@@ -10,7 +10,8 @@
 //! the consistency monitor) and [`stdmodel`] (an agent's calibrated error model).
 //! [`detector`] readies a real detector's boxes (stds from score and range, group scores,
 //! duplicates and tail). [`motion`] predicts boxes to a window's time, [`ratelog`] bounds the node's warnings and
-//! [`fuzzing`] holds the fuzz targets' entry points. [`offline`] fuses nuScenes results files,
+//! [`fuzzing`] holds the fuzz targets' entry points. [`settings`] is every setting of the fuser,
+//! for the command line and scenario files alike. [`offline`] fuses nuScenes results files,
 //! and `node` (feature `node`, on by default) is the thin Zenoh shell the `v2x-fuser` binary
 //! runs. With `default-features = false` the crate is the fusion library alone, without zenoh,
 //! tokio, clap or tracing.
@@ -33,6 +34,7 @@ pub mod parts;
 pub mod pipeline;
 pub mod ratelog;
 pub mod region;
+pub mod settings;
 pub mod stdmodel;
 pub mod tracker;
 #[cfg(feature = "node")]

@@ -227,6 +227,19 @@ impl FromStr for Method {
     }
 }
 
+impl serde::Serialize for Method {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Method {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 /// CSBA-WLS over N agents: the running fused set (with its WLS covariances) is associated with
 /// each next agent's list in agent order (`docs/method.md` §1); each group is fused from all its
 /// members, a joining member's terms added to the group's sums.

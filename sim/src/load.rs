@@ -172,16 +172,25 @@ pub struct FrameBytes {
     pub cpm_bytes_per_frame: f64,
 }
 
+/// The fuser of a load run: a window per capture period, every agent's boxes fused however
+/// many (the load is the point).
+fn fuser_config(args: &LoadArgs, ns: &str) -> anyhow::Result<NodeConfig> {
+    let mut s = v2x_fuser::settings::FuserSettings {
+        method: args.method,
+        window_ms: 1000.0 / args.hz,
+        max_wait_ms: 100.0,
+        ..Default::default()
+    };
+    s.admission.max_objects_per_agent = s.admission.max_objects_per_agent.max(args.objects);
+    s.node_config(ns)
+        .map_err(|e| anyhow::anyhow!(e.on_command_line()))
+}
+
 /// Runs the load test.
 pub async fn run(args: &LoadArgs) -> anyhow::Result<LoadReport> {
     let ns = "load";
-    let mut cfg = NodeConfig::new(ns, args.method);
-    cfg.window_ms = 1000.0 / args.hz;
-    cfg.max_wait_ms = 100.0;
-    // The load is the point: every agent's boxes are fused, however many.
-    cfg.ingest.max_objects = cfg.ingest.max_objects.max(args.objects);
     let layout = Layout {
-        fusers: vec![cfg],
+        fusers: vec![fuser_config(args, ns)?],
         tiling: None,
         sites: vec![[0.0, 0.0]],
     };
@@ -260,18 +269,15 @@ pub async fn run_regions(args: &LoadArgs) -> anyhow::Result<Vec<RegionRow>> {
         let fusers = tiles
             .iter()
             .map(|&tile| {
-                let mut cfg = NodeConfig::new(&ns, args.method);
-                cfg.window_ms = 1000.0 / args.hz;
-                cfg.max_wait_ms = 100.0;
-                cfg.ingest.max_objects = cfg.ingest.max_objects.max(args.objects);
+                let mut cfg = fuser_config(args, &ns)?;
                 cfg.region = Some(Region {
                     tiling,
                     tile,
                     halo_m: v2x_fuser::region::DEFAULT_HALO_M,
                 });
-                cfg
+                Ok(cfg)
             })
-            .collect();
+            .collect::<anyhow::Result<_>>()?;
         let sites = (0..4)
             .map(|b| [(b as f64 + 0.5) * BLOCK_M, 0.5 * BLOCK_M])
             .collect();

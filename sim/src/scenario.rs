@@ -7,10 +7,10 @@ use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
 use crate::timeline::fuser_restarts;
 use serde::Deserialize;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use v2x_agent::Link;
 use v2x_fuser::region::Region;
+use v2x_fuser::settings::FuserSettings;
 use v2x_fuser::Method;
 use v2x_protocol::net::ZenohArgs;
 use v2x_protocol::tiles::{Tile, Tiling};
@@ -93,134 +93,55 @@ impl DatasetSpec {
     }
 }
 
-/// The fuser role.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(default, deny_unknown_fields)]
+/// The fuser role: its settings, the keys of `v2x-fuser node`'s flags
+/// ([`v2x_fuser::settings`]; the replay speed is the run's `speed`), and its Zenoh options.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FuserSpec {
-    /// Method name (`v2x-fuser fuse --help` lists them).
-    pub method: String,
-    /// Window width delta t (ms).
-    pub window_ms: f64,
-    /// Longest wait for missing live agents (ms).
-    pub max_wait_ms: f64,
-    /// Motion-compensate each window to its latest capture time.
-    pub compensation: bool,
-    /// Register every agent to the roadside unit by its boxes before association
-    /// (`v2x-fuser node --align`).
-    pub align: bool,
-    /// The registration's settings (`[fuser.registration]`), with `align`.
-    pub registration: RegistrationSpec,
-    /// Follow the fused boxes over time and publish tracks on `v2x/NS/tracks`
-    /// (`v2x-fuser node --track`).
-    pub track: bool,
-    /// With `track`: associate each agent's boxes with the tracks first, fusing between agents
-    /// only the rest (`v2x-fuser node --track-guided`, `docs/method.md` §8.1).
-    pub track_guided: bool,
-    /// Learn each agent's stds from its boxes and fuse with them (`v2x-fuser node
-    /// --learn-std`); the stats say what was learned and flag inconsistent agents.
-    pub learn_std: bool,
-    /// Calibrated error models by agent name (`v2x-sim calibrate`; `v2x-fuser node --std-model
-    /// AGENT=FILE`), paths relative to the scenario file.
-    pub std_models: BTreeMap<String, PathBuf>,
-    /// Most boxes one agent brings into a window (`v2x-fuser node --max-objects-per-agent`).
-    pub max_objects_per_agent: usize,
-    /// The area of interest `[x, y, radius]` (m, map frame); unset: learned from the agents
-    /// (`v2x-fuser node --area`).
-    pub area: Option<[f64; 3]>,
+    /// Method, window, stds, registration, tracking and admission.
+    pub settings: FuserSettings,
     /// The fuser's Zenoh options (used when roles run on separate hosts).
     pub zenoh: ZenohArgs,
 }
 
+impl<'de> Deserialize<'de> for FuserSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        FuserSpec::from_table(toml::Table::deserialize(d)?).map_err(serde::de::Error::custom)
+    }
+}
+
 impl FuserSpec {
-    /// The calibrated error models, each file read and checked.
-    pub fn models(&self) -> Result<v2x_fuser::stdmodel::Models, String> {
-        let mut models = v2x_fuser::stdmodel::Models::default();
-        for (agent, path) in &self.std_models {
-            let at = |e: String| format!("fuser.std_models.{agent}: {}: {e}", path.display());
-            let text = std::fs::read_to_string(path).map_err(|e| at(e.to_string()))?;
-            let m = v2x_fuser::stdmodel::ErrorModel::from_json(&text).map_err(at)?;
-            models.0.insert(agent.clone(), m);
+    /// Reads a `[fuser]` table; an error names the key it is about.
+    fn from_table(mut table: toml::Table) -> Result<FuserSpec, String> {
+        let zenoh = match table.remove("zenoh") {
+            Some(z) => z.try_into().map_err(|e| format!("fuser.zenoh: {e}"))?,
+            None => ZenohArgs::default(),
+        };
+        if let Some(k) = FuserSettings::unknown_keys(table.keys().map(String::as_str)).first() {
+            return Err(format!(
+                "fuser: unknown key '{k}' (expected one of: {}, zenoh)",
+                FuserSettings::keys().join(", ")
+            ));
         }
-        Ok(models)
+        // Each key alone first: every setting has a default, so the one that fails is named.
+        for (k, v) in &table {
+            let one = toml::Table::from_iter([(k.clone(), v.clone())]);
+            toml::Value::Table(one)
+                .try_into::<FuserSettings>()
+                .map_err(|e| format!("fuser.{k}: {e}"))?;
+        }
+        let settings = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e| format!("fuser: {e}"))?;
+        Ok(FuserSpec { settings, zenoh })
     }
 
-    /// The area of interest the node admits boxes in.
-    pub fn area(&self) -> v2x_fuser::ingest::Area {
-        match self.area {
-            Some([x, y, r]) => v2x_fuser::ingest::Area::Given {
-                center: [x, y],
-                radius_m: r,
-            },
-            None => v2x_fuser::ingest::Area::DEFAULT,
-        }
-    }
-}
-
-impl Default for FuserSpec {
-    fn default() -> Self {
-        FuserSpec {
-            method: "csba-wls+".into(),
-            window_ms: 100.0,
-            max_wait_ms: 150.0,
-            compensation: true,
-            align: false,
-            registration: RegistrationSpec::default(),
-            track: false,
-            track_guided: false,
-            learn_std: false,
-            std_models: BTreeMap::new(),
-            max_objects_per_agent: v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT,
-            area: None,
-            zenoh: ZenohArgs::default(),
-        }
-    }
-}
-
-/// The registration's settings in a scenario (`[fuser.registration]`), as the node's
-/// `--align-*` flags.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(default, deny_unknown_fields)]
-pub struct RegistrationSpec {
-    /// Fewest matched boxes a window measures an offset from.
-    pub min_matches: usize,
-    /// Std per axis (m) of how far two agents' boxes of one object disagree beyond their stds.
-    pub disagreement_m: f64,
-    /// Time constant (s) with which an estimate fades to none without matches.
-    pub tau_s: f64,
-    /// Chi-square (2 degrees of freedom) an estimated shift must reach to be applied.
-    pub chi2: f64,
-    /// Chi-square (1 degree of freedom) an estimated turn must reach to be applied.
-    pub turn_chi2: f64,
-    /// Largest centre distance (m) of a candidate match before any correction.
-    pub gate_m: f64,
-}
-
-impl Default for RegistrationSpec {
-    fn default() -> Self {
-        let p = v2x_fuser::align::AlignParams::default();
-        RegistrationSpec {
-            min_matches: p.min_matches,
-            disagreement_m: p.disagreement_m,
-            tau_s: p.tau_s,
-            chi2: p.chi2,
-            turn_chi2: p.turn_chi2,
-            gate_m: p.gate_m,
-        }
-    }
-}
-
-impl RegistrationSpec {
-    /// The registration's parameters.
-    pub fn params(&self) -> v2x_fuser::align::AlignParams {
-        v2x_fuser::align::AlignParams {
-            min_matches: self.min_matches,
-            disagreement_m: self.disagreement_m,
-            tau_s: self.tau_s,
-            chi2: self.chi2,
-            turn_chi2: self.turn_chi2,
-            gate_m: self.gate_m,
-            ..Default::default()
-        }
+    /// The node's configuration on `ns` at replay speed `speed`: the window shortened by it, the
+    /// predictions scaled by it.
+    pub fn node_config(&self, ns: &str, speed: f64) -> anyhow::Result<v2x_fuser::node::NodeConfig> {
+        let mut s = self.settings.clone();
+        s.motion.time_scale = speed;
+        s.window_ms /= speed;
+        s.node_config(ns).map_err(|e| anyhow::anyhow!("fuser.{e}"))
     }
 }
 
@@ -523,7 +444,7 @@ impl Scenario {
             }
         }
         if let Some(base) = base {
-            for path in s.fuser.std_models.values_mut() {
+            for (_, path) in &mut s.fuser.settings.stds.std_models {
                 if path.is_relative() {
                     *path = base.join(&*path);
                 }
@@ -611,43 +532,21 @@ impl Scenario {
         Ok(())
     }
 
-    /// The fuser's method, budget, area, window and registration.
+    /// The fuser's settings: known keys, values in range, models that read, agents that exist.
     fn check_fuser(&self) -> Result<(), String> {
-        self.fuser
-            .method
-            .parse::<Method>()
-            .map_err(|e| format!("fuser.method: {e}"))?;
-        if self.fuser.max_objects_per_agent == 0 {
-            return Err("fuser.max_objects_per_agent must be at least 1".into());
-        }
-        if self.fuser.track_guided && !self.fuser.track {
-            return Err(
-                "fuser.track_guided: set fuser.track = true too (it says how to track)".into(),
-            );
-        }
-        self.fuser
-            .area()
-            .validate()
-            .map_err(|e| format!("fuser.area: {e}"))?;
-        if let Some(a) = self
-            .fuser
+        let settings = &self.fuser.settings;
+        settings.check().map_err(|e| format!("fuser.{e}"))?;
+        if let Some((a, _)) = settings
+            .stds
             .std_models
-            .keys()
-            .find(|a| !self.agents.iter().any(|s| &s.name == *a))
+            .iter()
+            .find(|(a, _)| !self.agents.iter().any(|s| &s.name == a))
         {
             return Err(format!(
                 "fuser.std_models: '{a}' is not an agent of this scenario"
             ));
         }
-        self.fuser.models()?;
-        if !(self.fuser.window_ms > 0.0) || !(self.fuser.max_wait_ms >= 0.0) {
-            return Err("fuser.window_ms must be > 0 and fuser.max_wait_ms >= 0".into());
-        }
-        self.fuser
-            .registration
-            .params()
-            .validate()
-            .map_err(|e| format!("fuser.registration: {e}"))?;
+        settings.stds.models().map_err(|e| format!("fuser.{e}"))?;
         Ok(())
     }
 
@@ -708,7 +607,7 @@ impl Scenario {
             return Ok(());
         };
         r.check(self.security.mode)?;
-        if self.fuser.align {
+        if self.fuser.settings.align.align {
             return Err("regions: fuser.align needs one fuser".into());
         }
         if !fuser_restarts(&self.events).is_empty() {
@@ -754,7 +653,7 @@ impl Scenario {
 
     /// The fusion method.
     pub fn method(&self) -> Method {
-        self.fuser.method.parse().expect("checked")
+        self.fuser.settings.method
     }
 }
 
@@ -790,7 +689,30 @@ mod tests {
         );
         assert!(
             bad("[fuser]\nmethod = \"kalman\"\n[[agents]]\nname = \"a\"\nnoise = \"mild\"")
-                .contains("fuser.method")
+                .contains("fuser.method: unknown method 'kalman'")
+        );
+        assert!(
+            bad("[fuser]\nwindw_ms = 50\n[[agents]]\nname = \"a\"\nnoise = \"mild\"")
+                .contains("fuser: unknown key 'windw_ms' (expected one of: ")
+        );
+        assert!(
+            bad("[fuser]\ntime_scale = 2\n[[agents]]\nname = \"a\"\nnoise = \"mild\"")
+                .contains("unknown key 'time_scale'")
+        );
+        assert!(
+            bad("[fuser.registration]\nchi3 = 1\n[[agents]]\nname = \"a\"\nnoise = \"mild\"")
+                .contains("unknown field `chi3`")
+        );
+        let z = Scenario::parse(
+            "[fuser.zenoh]\nlisten = [\"tcp/127.0.0.1:7000\"]\n[[agents]]\nname = \"a\"\nnoise = \"mild\"",
+            "x.toml",
+            None,
+        )
+        .unwrap();
+        assert_eq!(z.fuser.zenoh.listen, ["tcp/127.0.0.1:7000"]);
+        assert!(
+            bad("[fuser]\nwindow_ms = \"x\"\n[[agents]]\nname = \"a\"\nnoise = \"mild\"")
+                .contains("fuser.window_ms: invalid type: string \"x\", expected f64")
         );
         assert!(bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\ncolour = 3").contains("colour"));
         assert!(bad(
@@ -803,7 +725,7 @@ mod tests {
             None,
         )
         .unwrap();
-        let p = s.fuser.registration.params();
+        let p = s.fuser.settings.align.registration.params().unwrap();
         assert_eq!((p.chi2, p.min_matches), (30.0, 5));
         assert_eq!(p.tau_s, v2x_fuser::align::AlignParams::default().tau_s);
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
@@ -828,14 +750,14 @@ mod tests {
         assert!(bad(&format!("[fuser]\nmax_objects_per_agent = 0\n{agent}"))
             .contains("fuser.max_objects_per_agent"));
         assert!(bad(&format!("[fuser]\ntrack_guided = true\n{agent}"))
-            .contains("fuser.track_guided: set fuser.track = true too"));
+            .contains("fuser.track_guided: set track too"));
         let guided = Scenario::parse(
             &format!("[fuser]\ntrack = true\ntrack_guided = true\n{agent}"),
             "x.toml",
             None,
         )
         .unwrap();
-        assert!(guided.fuser.track_guided);
+        assert!(guided.fuser.settings.track.track_guided);
         let s = Scenario::parse(
             &format!("[fuser]\narea = [5, 6, 70]\n{agent}"),
             "x.toml",
@@ -843,11 +765,11 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            s.fuser.area(),
-            v2x_fuser::ingest::Area::Given {
+            s.fuser.settings.admission.area,
+            Some(v2x_fuser::ingest::Area::Given {
                 center: [5.0, 6.0],
                 radius_m: 70.0
-            }
+            })
         );
         assert!(
             bad("[[agents]]\nname = \"a\"\nnoise = \"mild\"\nfaults = \"flip=3\"")
@@ -904,6 +826,6 @@ mod tests {
         );
         assert_eq!(n.agents[2].faults, Faults::NONE);
         assert_eq!(n.agents[2].std, AgentNoise::realistic().std);
-        assert!(!s.fuser.align);
+        assert!(!s.fuser.settings.align.align);
     }
 }

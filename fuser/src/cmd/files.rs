@@ -29,9 +29,9 @@ pub(crate) struct FilesArgs {
     #[arg(long, conflicts_with_all = ["default_std", "learn_std"])]
     pub(crate) detector: bool,
     #[command(flatten)]
-    pub(crate) motion: MotionArgs,
+    pub(crate) motion: v2x_fuser::settings::MotionSettings,
     #[command(flatten)]
-    pub(crate) stds: StdArgs,
+    pub(crate) stds: v2x_fuser::settings::StdSettings,
     /// Window width delta t (ms) when the files carry capture times.
     #[arg(long, default_value_t = 100.0)]
     pub(crate) window_ms: f64,
@@ -74,11 +74,11 @@ impl FilesArgs {
             anyhow::bail!("--window-ms must be > 0");
         }
         let mut opts = v2x_fuser::offline::OfflineOptions {
-            motion: self.motion.params()?,
+            motion: self.motion.params().map_err(flag_error)?,
             window_ms: self.window_ms,
             align: None,
-            learn: self.stds.params()?,
-            models: self.stds.models_by_input(inputs)?,
+            learn: self.stds.learn().map_err(flag_error)?,
+            models: models_by_input(&self.stds, inputs)?,
             detector: self
                 .detector
                 .then(v2x_fuser::detector::DetectorParams::default),
@@ -87,7 +87,7 @@ impl FilesArgs {
         let missing = match self.detector {
             // Every std is replaced by the detector's.
             true => MissingStd::Default(v2x_fuser::offline::kitti_default_std()),
-            false => self.stds.missing(self.default_std, inputs),
+            false => missing(&self.stds, self.default_std, inputs),
         };
         Ok((missing, opts))
     }
@@ -99,7 +99,7 @@ pub(crate) struct FuseArgs {
     #[command(flatten)]
     pub(crate) files: FilesArgs,
     #[command(flatten)]
-    pub(crate) align: AlignArgs,
+    pub(crate) align: v2x_fuser::settings::AlignSettings,
     /// With --align: the reference agent, as its position among the inputs (1 = first).
     /// `v2x-sim gen` writes the roadside unit as agent2.json.
     #[arg(long, default_value_t = 2, requires = "align")]
@@ -158,7 +158,7 @@ pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
     } = args;
     let method = files.method;
     let (missing, mut opts) = files.options(inputs.len())?;
-    let align_params = align.params()?;
+    let align_params = align.params().map_err(flag_error)?;
     if align_params.is_some() && !(1..=inputs.len()).contains(&align_to) {
         anyhow::bail!(
             "--align-to {align_to}: there are {} inputs (give 1 to {})",

@@ -1,7 +1,7 @@
 //! `v2x-fuser node`: the fuser on the network, its options and its run.
 
 use std::path::PathBuf;
-use v2x_fuser::{node, Method};
+use v2x_fuser::node;
 use v2x_protocol::nuscenes_json::{
     default_meta, provenance_json, write_results, Results, TokenTable,
 };
@@ -14,42 +14,10 @@ pub(crate) struct NodeArgs {
     /// Scenario namespace (keys v2x/NS/...).
     #[arg(long, default_value = "default")]
     pub(crate) ns: String,
-    /// Fusion method.
-    #[arg(long, short, default_value = "csba-wls+")]
-    pub(crate) method: Method,
-    /// Window width delta t (ms).
-    #[arg(long, default_value_t = 100.0)]
-    pub(crate) window_ms: f64,
-    /// Longest wait for missing live agents after a window's first frame (ms).
-    #[arg(long, default_value_t = 150.0)]
-    pub(crate) max_wait_ms: f64,
-    /// The agents send a detector's boxes with the stds it is given (as `v2x-agent` replays
-    /// `v2x-sim gen --dataset v2v4real`'s files): CSBA-3D groups are scored by the noisy-OR of
-    /// their members and fused boxes below 0.4 dropped, as `v2x-fuser fuse --detector` does.
-    #[arg(long)]
-    pub(crate) detector: bool,
     #[command(flatten)]
-    pub(crate) limits: Box<IngestArgs>,
-    #[command(flatten)]
-    pub(crate) motion: MotionArgs,
-    #[command(flatten)]
-    pub(crate) stds: StdArgs,
+    pub(crate) settings: Box<v2x_fuser::settings::FuserSettings>,
     #[command(flatten)]
     pub(crate) region: RegionArgs,
-    #[command(flatten)]
-    pub(crate) align: AlignArgs,
-    /// Also follow the fused boxes over time (`v2x-fuser track`'s tracker) and publish the
-    /// tracks each window updated on v2x/NS/tracks, each box's id its track's (the seven
-    /// classes of the nuScenes tracking benchmark, as `v2x-fuser track` writes them).
-    #[arg(long)]
-    pub(crate) track: bool,
-    /// With --track: also track barriers, traffic cones and construction vehicles.
-    #[arg(long, requires = "track")]
-    pub(crate) track_all_classes: bool,
-    /// With --track: associate each agent's boxes with the tracks first and fuse between agents
-    /// only the rest (`v2x-fuser track --guided`); the fused frames stay as they are.
-    #[arg(long, requires = "track")]
-    pub(crate) track_guided: bool,
     /// With --track and --tile: do not hear the neighbouring regions' tracks, so that an object
     /// crossing into this tile starts a track of this region's own (by default it keeps the id
     /// its neighbour gave it; docs/method.md §9.1).
@@ -80,18 +48,8 @@ pub(crate) struct NodeArgs {
 pub(crate) fn run_node(args: NodeArgs) -> anyhow::Result<()> {
     let NodeArgs {
         ns,
-        method,
-        window_ms,
-        max_wait_ms,
-        detector,
-        limits,
-        motion,
-        stds,
+        settings,
         region,
-        align,
-        track,
-        track_all_classes,
-        track_guided,
         no_track_handover,
         map_origin,
         ros,
@@ -107,22 +65,8 @@ pub(crate) fn run_node(args: NodeArgs) -> anyhow::Result<()> {
                 anyhow::bail!("--duration-s must be > 0");
             }
         }
-        let mut cfg = node::NodeConfig::new(&ns, method);
-        cfg.window_ms = window_ms;
-        cfg.max_wait_ms = max_wait_ms;
-        cfg.detector = detector.then(v2x_fuser::detector::DetectorParams::default);
-        limits.apply(&mut cfg)?;
-        cfg.motion = motion.params()?;
+        let mut cfg = settings.node_config(&ns).map_err(flag_error)?;
         cfg.region = region.region()?;
-        cfg.align = align.params()?;
-        cfg.learn = stds.params()?;
-        cfg.models = stds.models()?;
-        cfg.track = track.then(|| v2x_fuser::tracker::TrackerParams {
-            all_classes: track_all_classes,
-            guided: track_guided,
-            ..Default::default()
-        });
-        cfg.set_time_scale(motion.time_scale);
         cfg.handover = !no_track_handover;
         cfg.map_origin = map_origin;
         cfg.viz = viz.open().await?;

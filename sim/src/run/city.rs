@@ -113,7 +113,7 @@ pub async fn run_city_local(
     };
     let epoch = now_us() + 1_500_000;
     let (done_tx, done_rx) = watch::channel(false);
-    let max_wait = scenario.fuser.max_wait_ms;
+    let max_wait = scenario.fuser.settings.max_wait_ms;
     let mut fusers = Vec::new();
     for (k, (f, region)) in regions.fusers.iter().zip(regions.regions()).enumerate() {
         let router = regions.router(&f.router).expect("checked");

@@ -127,7 +127,7 @@ async fn run_local_until(
     let start = std::time::Instant::now();
     let epoch = now_us() + 1_000_000;
     let (done_tx, done_rx) = tokio::sync::oneshot::channel::<()>();
-    let max_wait = scenario.fuser.max_wait_ms;
+    let max_wait = scenario.fuser.settings.max_wait_ms;
     let fuser_stop = {
         let stop = stop.clone();
         async move {
@@ -559,7 +559,7 @@ pub(crate) fn fuser_end_us(scenario: &Scenario, schedule: &Schedule, epoch: u64)
         schedule.t0_us + schedule.duration_us(),
         scenario.speed,
     ) + 2_000_000
-        + (scenario.fuser.max_wait_ms * 1000.0) as u64
+        + (scenario.fuser.settings.max_wait_ms * 1000.0) as u64
 }
 
 /// One agent's role in a run: its session, the run's shared start from the fuser, its frames,

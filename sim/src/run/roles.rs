@@ -12,7 +12,6 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::{now_us, Agent, AgentTotals};
-use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::{self, NodeConfig, NodeStats};
 use v2x_protocol::traffic::Traffic;
 use v2x_protocol::{Detection, Frame};
@@ -265,35 +264,16 @@ fn node_config(
     region: Option<v2x_fuser::region::Region>,
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<NodeConfig> {
-    let mut cfg = NodeConfig::new(&scenario.namespace, scenario.method());
+    let mut cfg = scenario
+        .fuser
+        .node_config(&scenario.namespace, scenario.speed)?;
     // Real detectors' boxes: their groups scored and their tail dropped, as `--detector` does.
-    cfg.detector = (scenario.dataset.kind == crate::cli::DatasetKind::V2v4real)
-        .then(v2x_fuser::detector::DetectorParams::default);
+    if scenario.dataset.kind == crate::cli::DatasetKind::V2v4real {
+        cfg.detector = Some(v2x_fuser::detector::DetectorParams::default());
+    }
     cfg.region = region;
     cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);
     cfg.viz = viz;
-    cfg.motion = scenario.fuser.compensation.then(MotionParams::default);
-    cfg.align = scenario
-        .fuser
-        .align
-        .then(|| scenario.fuser.registration.params());
-    cfg.track = scenario
-        .fuser
-        .track
-        .then(|| v2x_fuser::tracker::TrackerParams {
-            guided: scenario.fuser.track_guided,
-            ..Default::default()
-        });
-    cfg.learn = scenario
-        .fuser
-        .learn_std
-        .then(v2x_fuser::learn::LearnParams::default);
-    cfg.set_time_scale(scenario.speed);
-    cfg.models = scenario.fuser.models().map_err(anyhow::Error::msg)?;
-    cfg.window_ms = scenario.fuser.window_ms / scenario.speed;
-    cfg.max_wait_ms = scenario.fuser.max_wait_ms;
-    cfg.ingest.max_objects = scenario.fuser.max_objects_per_agent;
-    cfg.ingest.area = scenario.fuser.area();
     cfg.map_origin = scenario.geo();
     Ok(cfg)
 }
@@ -413,7 +393,7 @@ pub async fn regional_fuser_role(
     let traffic = sampler.await.unwrap_or_default();
     // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
     // was not going to come.
-    let stopped = now_us().saturating_sub((scenario.fuser.max_wait_ms * 1000.0) as u64);
+    let stopped = now_us().saturating_sub((scenario.fuser.settings.max_wait_ms * 1000.0) as u64);
     let reached_us = schedule.data_us(epoch_us, stopped, speed);
     Ok(FuserOutcome {
         stats,

@@ -267,6 +267,8 @@ pub fn summarize(
     let (fused, covered) = fused_metrics(scenario, gt, schedule, outcome);
     let tracking = scenario
         .fuser
+        .settings
+        .track
         .track
         .then(|| tracking_metrics(gt, schedule, outcome, &covered));
     let (bandwidth, counts) = agent_traffic(scenario, schedule, outcome, totals);
@@ -793,7 +795,7 @@ mod tests {
     /// The town's 20 frames fused and tracked exactly: ids from `id(object, frame)`.
     fn tracked_with(id: impl Fn(u32, usize) -> u32) -> Summary {
         let mut scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
-        scenario.fuser.track = true;
+        scenario.fuser.settings.track.track = true;
         let (gt, schedule) = town();
         let mut outcome = FuserOutcome::default();
         for (k, &gi) in schedule.frames.iter().enumerate() {
