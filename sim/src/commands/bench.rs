@@ -82,43 +82,95 @@ pub struct BenchArgs {
     pub results: Vec<PathBuf>,
 }
 
-/// Runs `v2x-sim bench`: one of its modes.
+/// What one `v2x-sim bench` run measures, told from its flags once.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Mode {
+    /// `--dataset dair-v2x`: the vehicle, the roadside and every method.
+    Dair,
+    /// `--dataset v2v4real`: each car, the dataset's references and every method.
+    V2v4real,
+    /// A table over ground truth with simulated agents.
+    Truth(TruthMode),
+}
+
+/// The tables over ground truth with simulated agents.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TruthMode {
+    /// `--tile-size`: one fuser against regional fusers of tiles of this side (m).
+    Regions(f64),
+    /// `--tile-size --tracking`: the same, tracked.
+    RegionTracking(f64),
+    /// `--tracking --seeds`: the tracking table per seed, summarised.
+    TrackingSeeds,
+    /// `--tracking`: single-frame fusion against tracking.
+    Tracking,
+    /// `--profile`: the nuScenes detection benchmark under these noise settings.
+    Detection(String),
+    /// `--async`: agents captured at different instants.
+    Asynchronous,
+    /// The paper's Table 2 (no mode flag).
+    Table2,
+}
+
+impl Mode {
+    /// The mode the flags select, or why they select none.
+    pub fn of(args: &BenchArgs) -> anyhow::Result<Mode> {
+        if args.data.is_dair() {
+            if args.tile_size.is_some()
+                || args.tracking
+                || args.profile.is_some()
+                || args.asynchronous
+                || args.plot.is_some()
+            {
+                bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
+            }
+            return Ok(Mode::Dair);
+        }
+        if args.data.is_v2v4real() {
+            if args.tile_size.is_some()
+                || args.profile.is_some()
+                || args.asynchronous
+                || args.plot.is_some()
+            {
+                bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async and --plot");
+            }
+            return Ok(Mode::V2v4real);
+        }
+        Ok(Mode::Truth(
+            match (args.tile_size, args.tracking, &args.profile) {
+                (Some(size), true, _) => TruthMode::RegionTracking(size),
+                (Some(size), false, _) => TruthMode::Regions(size),
+                (None, true, _) if !args.seeds.is_empty() => TruthMode::TrackingSeeds,
+                (None, true, _) => TruthMode::Tracking,
+                (None, false, Some(profile)) => TruthMode::Detection(profile.clone()),
+                (None, false, None) if args.asynchronous => TruthMode::Asynchronous,
+                (None, false, None) => TruthMode::Table2,
+            },
+        ))
+    }
+}
+
+/// Runs `v2x-sim bench`: the mode its flags select.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    if args.data.is_dair() {
-        return dair(&args);
-    }
-    if args.data.is_v2v4real() {
-        return v2v4real(&args);
-    }
+    let mode = match Mode::of(&args)? {
+        Mode::Dair => return dair(&args),
+        Mode::V2v4real => return v2v4real(&args),
+        Mode::Truth(mode) => mode,
+    };
     let gt = args.data.load()?;
-    if let Some(size) = args.tile_size {
-        return match args.tracking {
-            true => region_tracking(&args, &gt, size),
-            false => regions(&args, &gt, size),
-        };
+    match mode {
+        TruthMode::Regions(size) => regions(&args, &gt, size),
+        TruthMode::RegionTracking(size) => region_tracking(&args, &gt, size),
+        TruthMode::TrackingSeeds => tracking_seeds(&args, &gt),
+        TruthMode::Tracking => tracking(&args, &gt),
+        TruthMode::Detection(profile) => detection(&args, &gt, &profile),
+        TruthMode::Asynchronous => asynchronous(&args, &gt),
+        TruthMode::Table2 => table2(&args, &gt),
     }
-    if args.tracking {
-        return tracking(&args, &gt);
-    }
-    if let Some(profile) = &args.profile {
-        return detection(&args, &gt, profile);
-    }
-    if args.asynchronous {
-        return asynchronous(&args, &gt);
-    }
-    table2(&args, &gt)
 }
 
 /// `--dataset dair-v2x`: the vehicle, the roadside and every method on real cooperative data.
 fn dair(args: &BenchArgs) -> anyhow::Result<()> {
-    if args.tile_size.is_some()
-        || args.tracking
-        || args.profile.is_some()
-        || args.asynchronous
-        || args.plot.is_some()
-    {
-        bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
-    }
     let d = args.data.load_dair()?;
     let methods = real_data_methods(&args.methods)?;
     if methods.contains(&Method::GtWls) {
@@ -167,13 +219,6 @@ fn real_data_methods(list: &str) -> anyhow::Result<Vec<Method>> {
 /// `--dataset v2v4real`: each car, the dataset's references and every method on real
 /// detections of two cars, by V2V4Real's protocol.
 fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
-    if args.tile_size.is_some()
-        || args.profile.is_some()
-        || args.asynchronous
-        || args.plot.is_some()
-    {
-        bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async and --plot");
-    }
     let mut d = args
         .data
         .load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
@@ -325,9 +370,6 @@ fn tracking_seeds(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
 
 /// `--tracking`: single-frame fusion against tracking.
 fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
-    if !args.seeds.is_empty() {
-        return tracking_seeds(args, gt);
-    }
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
     let (seed, range, format) = (args.seed, args.range, args.format);
     let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, range)?;
@@ -455,4 +497,54 @@ fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        bench: BenchArgs,
+    }
+
+    fn mode(flags: &[&str]) -> anyhow::Result<Mode> {
+        let cli = Cli::try_parse_from(std::iter::once("bench").chain(flags.iter().copied()))?;
+        Mode::of(&cli.bench)
+    }
+
+    #[test]
+    fn each_flag_selects_its_mode_and_real_data_refuses_the_others() {
+        let truth = |m| Mode::Truth(m);
+        assert_eq!(mode(&[]).unwrap(), truth(TruthMode::Table2));
+        assert_eq!(mode(&["--async"]).unwrap(), truth(TruthMode::Asynchronous));
+        assert_eq!(
+            mode(&["--profile", "realistic"]).unwrap(),
+            truth(TruthMode::Detection("realistic".into()))
+        );
+        assert_eq!(mode(&["--tracking"]).unwrap(), truth(TruthMode::Tracking));
+        assert_eq!(
+            mode(&["--tracking", "--seeds", "1,2"]).unwrap(),
+            truth(TruthMode::TrackingSeeds)
+        );
+        assert_eq!(
+            mode(&["--tile-size", "50"]).unwrap(),
+            truth(TruthMode::Regions(50.0))
+        );
+        assert_eq!(
+            mode(&["--tile-size", "50", "--tracking"]).unwrap(),
+            truth(TruthMode::RegionTracking(50.0))
+        );
+        let v2v = ["--dataset", "v2v4real", "--dataroot", "x"];
+        assert_eq!(mode(&v2v).unwrap(), Mode::V2v4real);
+        let err = mode(&[&v2v[..], &["--tile-size", "50"]].concat()).unwrap_err();
+        assert!(err.to_string().contains("leave out --tile-size"), "{err}");
+        let dair = ["--dataset", "dair-v2x", "--dataroot", "x", "--tracking"];
+        assert!(mode(&dair)
+            .unwrap_err()
+            .to_string()
+            .contains("dair-v2x runs its own table"));
+    }
 }
