@@ -25,7 +25,7 @@ fn frame(n: usize) -> Frame {
                     std: [0.3, 0.3],
                 }),
                 id: i as u32,
-                ..Detection::car((i % 20) as f64 * 5.0, (i / 20) as f64 * 5.0, 0.3)
+                ..v2x_protocol::fixtures::car((i % 20) as f64 * 5.0, (i / 20) as f64 * 5.0, 0.3)
             })
             .collect(),
     }

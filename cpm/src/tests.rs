@@ -366,7 +366,7 @@ fn a_large_frame_is_several_messages_and_the_clock_does_not_count() {
     let b = |n: usize, t: u64| {
         let mut f = frame(
             (0..n)
-                .map(|i| Detection::car(i as f64 * 3.0, (i % 7) as f64, 0.3))
+                .map(|i| v2x_protocol::fixtures::car(i as f64 * 3.0, (i % 7) as f64, 0.3))
                 .collect(),
         );
         f.capture_us = t;

@@ -195,7 +195,7 @@ mod tests {
             score: 1.0,
             std: Uncertainty::uniform(1.0, 1.0, 1.0),
             id: 0,
-            ..Detection::car(0.0, 0.0, 1.0)
+            ..v2x_protocol::fixtures::car(0.0, 0.0, 1.0)
         }
     }
 

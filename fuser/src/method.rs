@@ -351,7 +351,7 @@ mod tests {
             yaw: 0.3,
             score: 0.7,
             id,
-            ..Detection::car(x, y, s)
+            ..v2x_protocol::fixtures::car(x, y, s)
         }
     }
 

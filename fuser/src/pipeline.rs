@@ -216,7 +216,7 @@ mod tests {
     fn car(x: f64, score: f64) -> Detection {
         Detection {
             score,
-            ..Detection::car(x, 0.0, 0.5)
+            ..v2x_protocol::fixtures::car(x, 0.0, 0.5)
         }
     }
 

@@ -25,7 +25,7 @@ fn uniform(mut state: u64) -> impl FnMut() -> f64 {
 /// tokens).
 fn urban_frame(n: usize) -> Frame {
     let mut next = uniform(0x9E37_79B9_7F4A_7C15);
-    let mix = Class::URBAN_MIX;
+    let mix = v2x_protocol::fixtures::URBAN_MIX;
     let detections = (0..n)
         .map(|i| {
             let class = mix[i % mix.len()];

@@ -32,21 +32,6 @@ pub enum Class {
 }
 
 impl Class {
-    /// A nuScenes-like urban mix in ten draws (four cars, two pedestrians, a barrier, a cone, a
-    /// truck, a bicycle), for synthetic scenes in benches and examples.
-    pub const URBAN_MIX: [Class; 10] = [
-        Class::Car,
-        Class::Car,
-        Class::Car,
-        Class::Car,
-        Class::Pedestrian,
-        Class::Pedestrian,
-        Class::Barrier,
-        Class::TrafficCone,
-        Class::Truck,
-        Class::Bicycle,
-    ];
-
     /// All classes, in wire-code order.
     pub const ALL: [Class; 10] = [
         Class::Car,
@@ -357,22 +342,6 @@ pub struct Detection {
 }
 
 impl Detection {
-    /// A car of typical size (4.5 x 1.9 x 1.6 m) centred at (x, y, 0) and heading along x, with
-    /// `pos_std` m of position std and 0.1 of size and yaw std, score 0.8, no velocity, no id.
-    pub fn car(x: f64, y: f64, pos_std: f64) -> Detection {
-        Detection {
-            class: Class::Car,
-            center: [x, y, 0.0],
-            size: [4.5, 1.9, 1.6],
-            yaw: 0.0,
-            score: 0.8,
-            std: Uncertainty::uniform(pos_std, 0.1, 0.1),
-            pos_cov: None,
-            velocity: None,
-            id: NO_ID,
-        }
-    }
-
     /// The centre covariance: the full one when present, else diagonal from `std.pos`.
     pub fn position_covariance(&self) -> [[f64; 3]; 3] {
         self.pos_cov.as_deref().copied().unwrap_or_else(|| {

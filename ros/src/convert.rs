@@ -417,13 +417,13 @@ mod tests {
 
     #[test]
     fn fused_boxes_come_back_from_their_detected_objects() {
-        let mut car = Detection::car(3.0, -4.0, 0.4);
+        let mut car = v2x_protocol::fixtures::car(3.0, -4.0, 0.4);
         car.yaw = 2.5;
         car.velocity = Some(Velocity {
             v: [1.5, -2.0],
             std: [0.3, 0.3],
         });
-        let mut walker = Detection::car(-1.0, 2.0, 0.2);
+        let mut walker = v2x_protocol::fixtures::car(-1.0, 2.0, 0.2);
         walker.class = Class::Pedestrian;
         let mut cone = walker.clone();
         cone.class = Class::TrafficCone;
@@ -476,7 +476,7 @@ mod tests {
 
     #[test]
     fn tracks_keep_their_ids_in_their_uuids() {
-        let mut a = Detection::car(1.0, 2.0, 0.3);
+        let mut a = v2x_protocol::fixtures::car(1.0, 2.0, 0.3);
         a.id = 0x0102_0304;
         let mut b = a.clone();
         b.id = 7;

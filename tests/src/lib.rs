@@ -92,7 +92,7 @@ pub mod fuser {
         Detection {
             center: [x, 0.0, 0.8],
             id,
-            ..Detection::car(x, 0.0, 0.5)
+            ..v2x_protocol::fixtures::car(x, 0.0, 0.5)
         }
     }
 

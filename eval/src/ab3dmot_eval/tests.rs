@@ -8,7 +8,7 @@ fn boxed(x: f64, y: f64, h: f64, id: u32, score: f64) -> Detection {
         size: [4.0, 2.0, h],
         id,
         score,
-        ..Detection::car(x, 0.0, 0.3)
+        ..v2x_protocol::fixtures::car(x, 0.0, 0.3)
     }
 }
 

@@ -8,7 +8,7 @@ fn car(x: f64, y: f64, z: f64, score: f64) -> Detection {
         size: [4.0, 2.0, 1.6],
         score,
         std: Uncertainty::uniform(0.3, 0.1, 0.1),
-        ..Detection::car(x, y, 0.3)
+        ..v2x_protocol::fixtures::car(x, y, 0.3)
     }
 }
 

@@ -4,7 +4,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use v2x_protocol::{wrap_angle, Class, Detection, NoiseProfile, Uncertainty};
+use v2x_protocol::{wrap_angle, Detection, NoiseProfile, Uncertainty};
 
 /// Ground truth of `n` objects, then one noisy copy per agent.
 pub fn scene(n: usize, agents: usize, noise: NoiseProfile, seed: u64) -> Vec<Vec<Detection>> {
@@ -12,7 +12,8 @@ pub fn scene(n: usize, agents: usize, noise: NoiseProfile, seed: u64) -> Vec<Vec
     let radius = 50.0 * (n as f64 / 80.0).sqrt();
     let gt: Vec<Detection> = (0..n)
         .map(|i| {
-            let class = Class::URBAN_MIX[rng.gen_range(0..Class::URBAN_MIX.len())];
+            let class = v2x_protocol::fixtures::URBAN_MIX
+                [rng.gen_range(0..v2x_protocol::fixtures::URBAN_MIX.len())];
             let r = radius * rng.gen::<f64>().sqrt();
             let a = rng.gen::<f64>() * std::f64::consts::TAU;
             Detection {

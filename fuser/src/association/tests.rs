@@ -20,7 +20,7 @@ fn det(
             yaw: yaw_std,
         },
         id: 0,
-        ..Detection::car(0.0, 0.0, pos_std)
+        ..v2x_protocol::fixtures::car(0.0, 0.0, pos_std)
     }
 }
 

@@ -10,7 +10,7 @@ fn car(x: f64, y: f64, std: f64) -> Detection {
         size: [4.6, 1.95, 1.75],
         yaw: 0.3,
         std: Uncertainty::uniform(std, std / 5.0, std / 10.0),
-        ..Detection::car(x, y, std)
+        ..v2x_protocol::fixtures::car(x, y, std)
     }
 }
 

@@ -10,7 +10,7 @@ fn det(x: f64) -> Detection {
         center: [x, 0.0, 0.5],
         std: Uncertainty::uniform(0.3, 0.1, 0.05),
         id: 0,
-        ..Detection::car(x, 0.0, 0.3)
+        ..v2x_protocol::fixtures::car(x, 0.0, 0.3)
     }
 }
 

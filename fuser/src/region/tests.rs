@@ -9,7 +9,7 @@ fn det(x: f64, y: f64, std: f64) -> Detection {
         yaw: 0.2,
         std: Uncertainty::uniform(std, 0.1, 0.05),
         id: 0,
-        ..Detection::car(x, y, std)
+        ..v2x_protocol::fixtures::car(x, y, std)
     }
 }
 

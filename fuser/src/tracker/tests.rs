@@ -10,7 +10,7 @@ pub(super) fn car(x: f64, y: f64, yaw: f64) -> Detection {
     Detection {
         center: [x, y, 1.0],
         yaw,
-        ..Detection::car(x, y, 0.5)
+        ..v2x_protocol::fixtures::car(x, y, 0.5)
     }
 }
 

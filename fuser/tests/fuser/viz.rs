@@ -17,7 +17,7 @@ fn car(x: f64, id: u32) -> Detection {
             std: [0.3, 0.3],
         }),
         id,
-        ..Detection::car(x, 2.0, 0.5)
+        ..v2x_protocol::fixtures::car(x, 2.0, 0.5)
     }
 }
 
