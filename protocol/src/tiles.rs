@@ -28,11 +28,37 @@ impl fmt::Display for Tile {
     }
 }
 
-impl FromStr for Tile {
-    type Err = String;
+/// A tile, a grid or a tile list that cannot be.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TileError {
+    /// A tile name not of the form COLUMN_ROW.
+    #[error("tile '{0}': expected COLUMN_ROW, e.g. 0_0 or -1_2")]
+    Name(String),
+    /// A tile side that is not finite or under 1 m.
+    #[error("tile size {0} m: expected a finite size of at least 1 m")]
+    Size(f64),
+    /// A tile list longer than any list of [`MAX_TILES_PER_CAPTURE`] tiles.
+    #[error("tile list of {0} bytes is too long")]
+    TooLong(usize),
+    /// A tile list that is not UTF-8.
+    #[error("tile list is not UTF-8")]
+    NotUtf8,
+    /// A tile list of no tiles or too many.
+    #[error("a capture covers 1 to {MAX_TILES_PER_CAPTURE} tiles (got {0})")]
+    Count(usize),
+    /// A tile list out of order or with a tile twice.
+    #[error("tile list is not sorted without repeats")]
+    Unsorted,
+    /// A part that came without its tile list.
+    #[error("no tile list attached")]
+    Missing,
+}
 
-    fn from_str(s: &str) -> Result<Self, String> {
-        let bad = || format!("tile '{s}': expected COLUMN_ROW, e.g. 0_0 or -1_2");
+impl FromStr for Tile {
+    type Err = TileError;
+
+    fn from_str(s: &str) -> Result<Self, TileError> {
+        let bad = || TileError::Name(s.to_string());
         let (x, y) = s.split_once('_').ok_or_else(bad)?;
         let t = Tile {
             x: x.parse().map_err(|_| bad())?,
@@ -54,11 +80,9 @@ pub struct Tiling {
 
 impl Tiling {
     /// A grid of `size_m` tiles (positive and finite, at least 1 m).
-    pub fn new(size_m: f64) -> Result<Self, String> {
+    pub fn new(size_m: f64) -> Result<Self, TileError> {
         if !(size_m.is_finite() && size_m >= 1.0) {
-            return Err(format!(
-                "tile size {size_m} m: expected a finite size of at least 1 m"
-            ));
+            return Err(TileError::Size(size_m));
         }
         Ok(Tiling { size_m })
     }
@@ -113,7 +137,7 @@ impl Tiling {
 
 /// The attachment of a capture's parts: its tiles, sorted, without repeats, separated by spaces
 /// (`0_0 1_0`).
-pub fn encode_tiles(tiles: &[Tile]) -> Result<Vec<u8>, String> {
+pub fn encode_tiles(tiles: &[Tile]) -> Result<Vec<u8>, TileError> {
     check_tiles(tiles)?;
     Ok(tiles
         .iter()
@@ -125,11 +149,11 @@ pub fn encode_tiles(tiles: &[Tile]) -> Result<Vec<u8>, String> {
 
 /// Reads a part's attachment back: at least one and at most [`MAX_TILES_PER_CAPTURE`] tiles,
 /// sorted and without repeats (what [`encode_tiles`] writes).
-pub fn decode_tiles(bytes: &[u8]) -> Result<Vec<Tile>, String> {
+pub fn decode_tiles(bytes: &[u8]) -> Result<Vec<Tile>, TileError> {
     if bytes.len() > MAX_TILES_PER_CAPTURE * 24 {
-        return Err(format!("tile list of {} bytes is too long", bytes.len()));
+        return Err(TileError::TooLong(bytes.len()));
     }
-    let text = std::str::from_utf8(bytes).map_err(|_| "tile list is not UTF-8".to_string())?;
+    let text = std::str::from_utf8(bytes).map_err(|_| TileError::NotUtf8)?;
     let tiles = text
         .split(' ')
         .map(str::parse)
@@ -138,15 +162,12 @@ pub fn decode_tiles(bytes: &[u8]) -> Result<Vec<Tile>, String> {
     Ok(tiles)
 }
 
-fn check_tiles(tiles: &[Tile]) -> Result<(), String> {
+fn check_tiles(tiles: &[Tile]) -> Result<(), TileError> {
     if tiles.is_empty() || tiles.len() > MAX_TILES_PER_CAPTURE {
-        return Err(format!(
-            "a capture covers 1 to {MAX_TILES_PER_CAPTURE} tiles (got {})",
-            tiles.len()
-        ));
+        return Err(TileError::Count(tiles.len()));
     }
     if tiles.windows(2).any(|w| w[0] >= w[1]) {
-        return Err("tile list is not sorted without repeats".into());
+        return Err(TileError::Unsorted);
     }
     Ok(())
 }

@@ -27,7 +27,7 @@ pub enum Rejection {
     /// Stamped this many us behind the fuser's clock, beyond the tolerance.
     Stale(u64),
     /// With regions: the part's attachment does not hold a valid tile list.
-    BadTiles(String),
+    BadTiles(v2x_protocol::tiles::TileError),
     /// With regions: the part does not fit its capture ([`crate::parts`]).
     Part(crate::parts::PartError),
 }

@@ -356,7 +356,7 @@ impl State {
         };
         let listed = match s.attachment() {
             Some(a) => v2x_protocol::tiles::decode_tiles(&a.to_bytes()),
-            None => Err("no tile list attached".to_string()),
+            None => Err(v2x_protocol::tiles::TileError::Missing),
         };
         let listed = match listed {
             Ok(l) => l,
