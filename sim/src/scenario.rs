@@ -6,6 +6,7 @@ use crate::cli::DataArgs;
 use crate::faults::Faults;
 use crate::noise::{AgentNoise, NoiseSetting};
 use crate::timeline::fuser_restarts;
+use anyhow::{anyhow, bail};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use v2x_agent::Link;
@@ -261,44 +262,34 @@ impl RegionsSpec {
         self.routers.iter().position(|r| r.name == name)
     }
 
-    fn check(&self, security: SecurityMode) -> Result<(), String> {
-        Tiling::new(self.tile_m).map_err(|e| format!("regions.tile_m: {e}"))?;
+    fn check(&self, security: SecurityMode) -> anyhow::Result<()> {
+        Tiling::new(self.tile_m).map_err(|e| anyhow!("regions.tile_m: {e}"))?;
         if !(self.halo_m >= 0.0 && self.halo_m.is_finite()) {
-            return Err(format!("regions.halo_m must be >= 0 (got {})", self.halo_m));
+            bail!("regions.halo_m must be >= 0 (got {})", self.halo_m);
         }
         if security != SecurityMode::Plain {
-            return Err(
-                "regions: a city runs plain for now (mutual TLS needs a certificate per router)"
-                    .into(),
-            );
+            bail!("regions: a city runs plain for now (mutual TLS needs a certificate per router)");
         }
         if self.routers.is_empty() || self.fusers.is_empty() {
-            return Err(
+            bail!(
                 "regions: a city needs at least one [[regions.routers]] and one [[regions.fusers]]"
-                    .into(),
             );
         }
         let mut names = std::collections::BTreeSet::new();
         for r in &self.routers {
-            keys::validate_chunk("regions.routers: name", &r.name)?;
+            keys::validate_chunk("regions.routers: name", &r.name).map_err(anyhow::Error::msg)?;
             if !names.insert(&r.name) {
-                return Err(format!(
-                    "regions.routers: the name '{}' is used twice",
-                    r.name
-                ));
+                bail!("regions.routers: the name '{}' is used twice", r.name);
             }
         }
         let mut tiles = std::collections::BTreeSet::new();
         for f in &self.fusers {
-            let t: Tile = f.tile.parse().map_err(|e| format!("regions.fusers: {e}"))?;
+            let t: Tile = f.tile.parse().map_err(|e| anyhow!("regions.fusers: {e}"))?;
             if !tiles.insert(t) {
-                return Err(format!("regions.fusers: tile {t} has two fusers"));
+                bail!("regions.fusers: tile {t} has two fusers");
             }
             if self.router(&f.router).is_none() {
-                return Err(format!(
-                    "regions.fusers: tile {t}: no router named '{}'",
-                    f.router
-                ));
+                bail!("regions.fusers: tile {t}: no router named '{}'", f.router);
             }
         }
         Ok(())
@@ -466,34 +457,32 @@ impl Scenario {
         Scenario::parse(&text, &path.display().to_string(), path.parent())
     }
 
-    fn check(&self) -> Result<(), String> {
-        keys::validate_chunk("namespace", &self.namespace)?;
+    fn check(&self) -> anyhow::Result<()> {
+        keys::validate_chunk("namespace", &self.namespace).map_err(anyhow::Error::msg)?;
         if self.agents.is_empty() {
-            return Err("a scenario needs at least one [[agents]] entry".into());
+            bail!("a scenario needs at least one [[agents]] entry");
         }
         if !(self.duration_s > 0.0 && self.duration_s.is_finite()) {
-            return Err(format!("duration_s must be > 0 (got {})", self.duration_s));
+            bail!("duration_s must be > 0 (got {})", self.duration_s);
         }
         if !(self.speed > 0.0 && self.speed.is_finite()) {
-            return Err(format!("speed must be > 0 (got {})", self.speed));
+            bail!("speed must be > 0 (got {})", self.speed);
         }
         let [lat, lon] = self.map_origin;
         if !(lat.abs() <= 90.0 && lon.abs() <= 180.0) {
-            return Err(format!(
-                "map_origin must be [latitude, longitude] in degrees (got [{lat}, {lon}])"
-            ));
+            bail!("map_origin must be [latitude, longitude] in degrees (got [{lat}, {lon}])");
         }
         self.check_dataset()?;
         self.check_fuser()?;
         self.check_agents()?;
         self.check_regions()?;
         let names: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
-        crate::timeline::check(&self.events, &names, self.duration_s)
+        crate::timeline::check(&self.events, &names, self.duration_s).map_err(anyhow::Error::msg)
     }
 
     /// A recorded data set's scenario (DAIR-V2X, V2V4Real): a data root, its two agents at their
     /// recorded times.
-    fn check_dataset(&self) -> Result<(), String> {
+    fn check_dataset(&self) -> anyhow::Result<()> {
         let (data, root, agents) = match self.dataset.kind {
             crate::cli::DatasetKind::DairV2x => (
                 "DAIR-V2X",
@@ -508,110 +497,105 @@ impl Scenario {
             _ => return Ok(()),
         };
         if self.dataset.dataroot.is_none() {
-            return Err(format!("dataset: kind = {root}"));
+            bail!("dataset: kind = {root}");
         }
         if self.agents.len() != 2 {
-            return Err(format!(
+            bail!(
                 "dataset: {data} has two agents, {agents}; the scenario names {}",
                 self.agents.len()
-            ));
+            );
         }
         if let Some(a) = self
             .agents
             .iter()
             .find(|a| a.hz.is_some() || a.phase_ms != 0.0)
         {
-            return Err(format!(
+            bail!(
                 "agents: {}: {data} agents capture at their recorded times; leave out hz and phase_ms",
                 a.name
-            ));
+            );
         }
         if self.regions.is_some() {
-            return Err("regions: a city runs on the synthetic town or nuScenes tables".into());
+            bail!("regions: a city runs on the synthetic town or nuScenes tables");
         }
         Ok(())
     }
 
     /// The fuser's settings: known keys, values in range, models that read, agents that exist.
-    fn check_fuser(&self) -> Result<(), String> {
+    fn check_fuser(&self) -> anyhow::Result<()> {
         let settings = &self.fuser.settings;
-        settings.check().map_err(|e| format!("fuser.{e}"))?;
+        settings.check().map_err(|e| anyhow!("fuser.{e}"))?;
         if let Some((a, _)) = settings
             .stds
             .std_models
             .iter()
             .find(|(a, _)| !self.agents.iter().any(|s| &s.name == a))
         {
-            return Err(format!(
-                "fuser.std_models: '{a}' is not an agent of this scenario"
-            ));
+            bail!("fuser.std_models: '{a}' is not an agent of this scenario");
         }
-        settings.stds.models().map_err(|e| format!("fuser.{e}"))?;
+        settings.stds.models().map_err(|e| anyhow!("fuser.{e}"))?;
         Ok(())
     }
 
     /// Every agent: a free name, its noise, faults, link, range, rate and phase.
-    fn check_agents(&self) -> Result<(), String> {
+    fn check_agents(&self) -> anyhow::Result<()> {
         let mut names = std::collections::BTreeSet::new();
         for a in &self.agents {
-            keys::validate_chunk("agent name", &a.name).map_err(|e| format!("agents: {e}"))?;
+            keys::validate_chunk("agent name", &a.name).map_err(|e| anyhow!("agents: {e}"))?;
             if a.name == "fuser" || v2x_protocol::acl::reserved(&a.name) {
-                return Err(format!(
-                    "agents: the name '{}' belongs to another role",
-                    a.name
-                ));
+                bail!("agents: the name '{}' belongs to another role", a.name);
             }
             if !names.insert(a.name.clone()) {
-                return Err(format!("agents: the name '{}' is used twice", a.name));
+                bail!("agents: the name '{}' is used twice", a.name);
             }
             a.noise
                 .parse::<AgentNoise>()
-                .map_err(|e| format!("agent {}: noise: {e}", a.name))?;
+                .map_err(|e| anyhow!("agent {}: noise: {e}", a.name))?;
             if let Some(f) = &a.faults {
                 f.parse::<Faults>()
-                    .map_err(|e| format!("agent {}: faults: {e}", a.name))?;
+                    .map_err(|e| anyhow!("agent {}: faults: {e}", a.name))?;
             }
             match a.stated_std.as_deref().map(str::parse::<Stated>) {
-                Some(Err(e)) => return Err(format!("agent {}: stated_std: {e}", a.name)),
+                Some(Err(e)) => bail!("agent {}: stated_std: {e}", a.name),
                 Some(Ok(Stated::Nothing)) => {
-                    return Err(format!(
+                    bail!(
                         "agent {}: stated_std: every box on the wire carries stds; state x1000 for an agent that knows nothing",
                         a.name
-                    ))
+                    )
                 }
                 _ => {}
             }
             a.link
                 .validate()
-                .map_err(|e| format!("agent {}: link: {e}", a.name))?;
+                .map_err(|e| anyhow!("agent {}: link: {e}", a.name))?;
             if let Some(r) = a.range_m {
                 if !(r > 0.0) {
-                    return Err(format!("agent {}: range_m must be > 0", a.name));
+                    bail!("agent {}: range_m must be > 0", a.name);
                 }
             }
             if let Some(hz) = a.hz {
                 if !(hz > 0.0 && hz <= 1000.0) {
-                    return Err(format!("agent {}: hz must be in (0, 1000]", a.name));
+                    bail!("agent {}: hz must be in (0, 1000]", a.name);
                 }
             }
             if !(a.phase_ms >= 0.0 && a.phase_ms < 60_000.0) {
-                return Err(format!("agent {}: phase_ms must be in [0, 60000)", a.name));
+                bail!("agent {}: phase_ms must be in [0, 60000)", a.name);
             }
         }
         Ok(())
     }
 
     /// A city: its routers and fusers, one fuser's features left out, agents in step.
-    fn check_regions(&self) -> Result<(), String> {
+    fn check_regions(&self) -> anyhow::Result<()> {
         let Some(r) = &self.regions else {
             return Ok(());
         };
         r.check(self.security.mode)?;
         if self.fuser.settings.align.align {
-            return Err("regions: fuser.align needs one fuser".into());
+            bail!("regions: fuser.align needs one fuser");
         }
         if !fuser_restarts(&self.events).is_empty() {
-            return Err("regions: scripted fuser restarts need one fuser".into());
+            bail!("regions: scripted fuser restarts need one fuser");
         }
         // The regions' windows are joined by reference time: agents capture in step.
         let first = &self.agents[0];
@@ -620,20 +604,20 @@ impl Scenario {
             .iter()
             .find(|a| a.hz != first.hz || a.phase_ms != first.phase_ms)
         {
-            return Err(format!(
+            bail!(
                 "regions: agent {} captures out of step with {} (a city's agents share hz and phase_ms)",
                 a.name, first.name
-            ));
+            );
         }
         if let Some(a) = self
             .agents
             .iter()
             .find(|a| a.name.starts_with("router-") || a.name.starts_with("fuser-"))
         {
-            return Err(format!(
+            bail!(
                 "agents: the name '{}' is a city role's (router-NAME, fuser-TILE)",
                 a.name
-            ));
+            );
         }
         Ok(())
     }

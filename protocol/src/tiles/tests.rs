@@ -21,7 +21,10 @@ fn tiles_are_half_open_squares() {
         }
     );
     assert!(Tiling::new(0.5).is_err());
-    assert!(Tiling::new(f64::NAN).unwrap_err().to_string().contains("tile size"));
+    assert!(Tiling::new(f64::NAN)
+        .unwrap_err()
+        .to_string()
+        .contains("tile size"));
 }
 
 #[test]
@@ -52,7 +55,11 @@ fn tile_names_round_trip() {
         assert_eq!(t.to_string().parse::<Tile>().unwrap(), t);
         crate::keys::validate_chunk("tile", &t.to_string()).unwrap();
     }
-    assert!("3".parse::<Tile>().unwrap_err().to_string().contains("COLUMN_ROW"));
+    assert!("3"
+        .parse::<Tile>()
+        .unwrap_err()
+        .to_string()
+        .contains("COLUMN_ROW"));
     assert!("a_1".parse::<Tile>().is_err());
 }
 
@@ -91,7 +98,10 @@ fn tile_lists_round_trip_and_reject_what_the_encoder_cannot_write() {
     let many: Vec<Tile> = (0..=MAX_TILES_PER_CAPTURE as i32)
         .map(|x| Tile { x, y: 0 })
         .collect();
-    assert!(encode_tiles(&many).unwrap_err().to_string().contains("1 to 64"));
+    assert!(encode_tiles(&many)
+        .unwrap_err()
+        .to_string()
+        .contains("1 to 64"));
     assert!(decode_tiles(
         &many
             .iter()
