@@ -1,0 +1,138 @@
+//! What a node is given (its configuration, usually built from
+//! [`crate::settings::FuserSettings`]), what it hands out per fused window, and its clock.
+
+use crate::ingest::IngestConfig;
+use crate::motion::MotionParams;
+use crate::region::Region;
+use crate::Method;
+use std::sync::Arc;
+use std::time::Instant;
+use v2x_protocol::{Frame, Provenance};
+
+/// How the node runs.
+#[derive(Clone, Debug)]
+pub struct NodeConfig {
+    /// Scenario namespace.
+    pub ns: String,
+    /// Fusion method.
+    pub method: Method,
+    /// The agents send a detector's boxes (`crate::detector`): a CSBA-3D method's groups are
+    /// scored by the noisy-OR of their members and fused boxes below the threshold dropped;
+    /// the stds are the agents' own. `None`: the method's own scores, every box kept.
+    pub detector: Option<crate::detector::DetectorParams>,
+    /// Window width delta t (ms).
+    pub window_ms: f64,
+    /// Longest wait for missing agents after a window's first frame (ms).
+    pub max_wait_ms: f64,
+    /// Admission limits: clock tolerance, agent table, boxes per agent, area of interest.
+    pub ingest: IngestConfig,
+    /// Closed windows that may wait for fusion; beyond, windows are dropped and counted.
+    pub queue: usize,
+    /// Interval of the rate-limited log summaries (s).
+    pub log_interval_s: f64,
+    /// Motion compensation of each window to its latest capture time (`None`: boxes are fused
+    /// as captured).
+    pub motion: Option<MotionParams>,
+    /// Registration of every agent to the roadside unit by its boxes before association
+    /// (`None`: agents' poses are trusted).
+    pub align: Option<crate::align::AlignParams>,
+    /// Tracking of the fused boxes, published on `v2x/NS/tracks` (`None`: no tracks).
+    pub track: Option<crate::tracker::TrackerParams>,
+    /// Each agent's stds learned from its boxes and fused instead of the stated ones (`None`:
+    /// the stated ones are trusted).
+    pub learn: Option<crate::learn::LearnParams>,
+    /// Calibrated error models by agent name, applied to the agents' boxes before anything
+    /// else (`--std-model`).
+    pub models: crate::stdmodel::Models,
+    /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
+    pub viz: Option<Arc<crate::viz::Viz>>,
+    /// The region this fuser serves (`None`: the single fuser of the namespace, on
+    /// `v2x/NS/det/*`).
+    pub region: Option<Region>,
+    /// With a region and tracking: hear the neighbours' tracks and keep an object's tracking id
+    /// across tile borders (`crate::tracker::handover`); off, each region's ids are its own.
+    pub handover: bool,
+    /// Where the map frame lies on the earth, to read agents' ETSI CPMs (docs/cpm.md); the
+    /// agents must give the same.
+    pub map_origin: v2x_cpm::Geo,
+}
+
+impl NodeConfig {
+    /// The defaults: windows of 100 ms waiting at most 150 ms, 1 s clock tolerance, 256 agents,
+    /// a fusion queue of 16 windows, log summaries every 10 s, motion compensation on.
+    pub fn new(ns: &str, method: Method) -> Self {
+        NodeConfig {
+            ns: ns.to_string(),
+            method,
+            detector: None,
+            window_ms: 100.0,
+            max_wait_ms: 150.0,
+            ingest: IngestConfig::default(),
+            queue: 16,
+            log_interval_s: 10.0,
+            motion: Some(MotionParams::default()),
+            align: None,
+            track: None,
+            learn: None,
+            models: Default::default(),
+            viz: None,
+            region: None,
+            handover: true,
+            map_origin: Default::default(),
+        }
+    }
+
+    /// Sets the replay speed of motion compensation, tracking and the learner at once
+    /// ([`crate::pipeline::set_time_scale`]): call it after setting them.
+    pub fn set_time_scale(&mut self, s: f64) {
+        crate::pipeline::set_time_scale(
+            s,
+            self.motion.as_mut(),
+            self.learn.as_mut(),
+            self.track.as_mut(),
+        );
+    }
+}
+
+/// A fused window as published.
+#[derive(Clone, Debug)]
+pub struct Fused {
+    /// The fused frame (agent "fuser", capture time = the window's reference time: its latest
+    /// capture).
+    pub frame: Frame,
+    /// The window's agents, whether it was complete, and each fused box's contributing agents
+    /// (published with the frame).
+    pub provenance: Provenance,
+    /// With tracking: the confirmed tracks the window updated, each box's id its tracking id
+    /// (as published on the tracks key).
+    pub tracks: Option<Vec<v2x_protocol::Detection>>,
+    /// With registration: each registered agent's estimate in this window.
+    pub registration: std::collections::BTreeMap<String, crate::align::Registration>,
+    /// With learned stds: what is learned of each agent after this window.
+    pub learned: std::collections::BTreeMap<String, crate::learn::AgentReport>,
+}
+
+/// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in
+/// microseconds since the Unix epoch (the time base of capture times).
+#[derive(Clone, Copy, Debug)]
+pub struct Clock {
+    wall0_us: u64,
+    mono0: Instant,
+}
+
+impl Clock {
+    /// Starts now.
+    pub fn start() -> Self {
+        Clock {
+            wall0_us: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_micros() as u64),
+            mono0: Instant::now(),
+        }
+    }
+
+    /// Now, in microseconds since the Unix epoch.
+    pub fn now_us(&self) -> u64 {
+        self.wall0_us + self.mono0.elapsed().as_micros() as u64
+    }
+}
