@@ -16,11 +16,14 @@
 mod config;
 mod cpm;
 mod handover;
+mod query;
 pub mod ros_out;
 mod stats;
 mod worker;
 
 pub use config::{Clock, Fused, NodeConfig};
+use query::reply_stats;
+pub use query::{query_stats, query_stats_at};
 pub use stats::{FitStats, Latency, NodeStats};
 pub use v2x_protocol::net::shutdown_signal;
 pub use worker::fuse_window;
@@ -36,7 +39,6 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::mpsc;
 use v2x_protocol::{keys, Frame};
-use zenoh::bytes::Encoding;
 use zenoh::sample::SampleKind;
 
 const MAX_LATENCY_SAMPLES: usize = 200_000;
@@ -671,48 +673,4 @@ fn log_start(cfg: &NodeConfig, method: &str) {
             cfg.window_ms
         ),
     }
-}
-
-/// Answers a statistics query with `stats` as JSON.
-async fn reply_stats(q: &zenoh::query::Query, key: &str, stats: &NodeStats) {
-    match serde_json::to_vec(stats) {
-        Ok(body) => {
-            if let Err(e) = q
-                .reply(key.to_owned(), body)
-                .encoding(Encoding::APPLICATION_JSON)
-                .await
-            {
-                tracing::warn!("stats reply failed: {e}");
-            }
-        }
-        Err(e) => tracing::warn!("stats do not serialize: {e}"),
-    }
-}
-
-/// Asks a running fuser for its statistics.
-pub async fn query_stats(
-    session: &zenoh::Session,
-    ns: &str,
-    timeout: Duration,
-) -> anyhow::Result<serde_json::Value> {
-    query_stats_at(session, &keys::fuser_stats(ns), timeout).await
-}
-
-/// Asks the fuser answering on `key` (a [`keys::FuserKeys::stats`]) for its statistics.
-pub async fn query_stats_at(
-    session: &zenoh::Session,
-    key: &str,
-    timeout: Duration,
-) -> anyhow::Result<serde_json::Value> {
-    let replies = session
-        .get(key)
-        .timeout(timeout)
-        .await
-        .map_err(|e| anyhow!("cannot query {key}: {e}"))?;
-    while let Ok(reply) = replies.recv_async().await {
-        if let Ok(sample) = reply.result() {
-            return Ok(serde_json::from_slice(&sample.payload().to_bytes())?);
-        }
-    }
-    anyhow::bail!("no fuser answered on {key} within {timeout:?}")
 }
