@@ -38,6 +38,11 @@ impl SettingsError {
         }
     }
 
+    /// A setting whose flag is its key's (`max_wait_ms`: `--max-wait-ms`).
+    fn of(key: &str, problem: impl Into<String>) -> SettingsError {
+        SettingsError::new(key, &format!("--{}", key.replace('_', "-")), problem)
+    }
+
     /// The error as the command line says it: by its flag.
     pub fn on_command_line(&self) -> String {
         format!("{}: {}", self.flag, self.problem)
@@ -141,23 +146,14 @@ impl MotionSettings {
     pub fn params(&self) -> Result<Option<MotionParams>, SettingsError> {
         let ok = |x: f64| x >= 0.0 && x.is_finite();
         if !ok(self.speed_bound_mps) {
-            return Err(SettingsError::new(
-                "speed_bound_mps",
-                "--speed-bound-mps",
-                "must be >= 0",
-            ));
+            return Err(SettingsError::of("speed_bound_mps", "must be >= 0"));
         }
         if !ok(self.accel_std) {
-            return Err(SettingsError::new(
-                "accel_std",
-                "--accel-std",
-                "must be >= 0",
-            ));
+            return Err(SettingsError::of("accel_std", "must be >= 0"));
         }
         if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
-            return Err(SettingsError::new(
+            return Err(SettingsError::of(
                 "time_scale",
-                "--time-scale",
                 "must be > 0, the replay speed (1 live)",
             ));
         }
@@ -230,11 +226,7 @@ impl StdSettings {
     /// The online learner (`None`: the stated stds are trusted).
     pub fn learn(&self) -> Result<Option<LearnParams>, SettingsError> {
         if !(self.std_flag_ratio > 1.0 && self.std_flag_ratio.is_finite()) {
-            return Err(SettingsError::new(
-                "std_flag_ratio",
-                "--std-flag-ratio",
-                "must be > 1",
-            ));
+            return Err(SettingsError::of("std_flag_ratio", "must be > 1"));
         }
         Ok(self.learn_std.then(|| LearnParams {
             flag_ratio: self.std_flag_ratio,
@@ -375,10 +367,8 @@ impl TrackSettings {
             (self.track_all_classes, "track_all_classes"),
         ] {
             if on && !self.track {
-                let flag = format!("--{}", key.replace('_', "-"));
-                return Err(SettingsError::new(
+                return Err(SettingsError::of(
                     key,
-                    &flag,
                     "set track too (it says how to track)",
                 ));
             }
@@ -467,13 +457,7 @@ fn area_as_triple<S: Serializer>(a: &Option<Area>, s: S) -> Result<S::Ok, S::Err
 impl AdmissionSettings {
     /// The admission limits, checked, into `ingest`.
     pub fn apply(&self, ingest: &mut IngestConfig) -> Result<(), SettingsError> {
-        let bad = |key: &str, problem: &str| {
-            Err(SettingsError::new(
-                key,
-                &format!("--{}", key.replace('_', "-")),
-                problem,
-            ))
-        };
+        let bad = |key: &str, problem: &str| Err(SettingsError::of(key, problem));
         if !(self.max_clock_skew_ms >= 0.0 && self.max_clock_skew_ms.is_finite()) {
             return bad("max_clock_skew_ms", "must be >= 0 (0 turns the check off)");
         }
@@ -544,18 +528,10 @@ impl FuserSettings {
     /// Checks every setting without reading the model files.
     pub fn check(&self) -> Result<(), SettingsError> {
         if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
-            return Err(SettingsError::new(
-                "window_ms",
-                "--window-ms",
-                "must be > 0",
-            ));
+            return Err(SettingsError::of("window_ms", "must be > 0"));
         }
         if !(self.max_wait_ms >= 0.0 && self.max_wait_ms.is_finite()) {
-            return Err(SettingsError::new(
-                "max_wait_ms",
-                "--max-wait-ms",
-                "must be >= 0",
-            ));
+            return Err(SettingsError::of("max_wait_ms", "must be >= 0"));
         }
         self.admission.apply(&mut IngestConfig::default())?;
         self.motion.params()?;
