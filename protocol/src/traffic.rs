@@ -95,30 +95,91 @@ pub fn stats_pairs(keys: &[String]) -> Vec<(&'static str, String)> {
     ]
 }
 
-fn field<'a>(v: &'a Value, path: &str) -> Result<&'a Value, String> {
-    v.get(path).ok_or_else(|| format!("missing field {path}"))
+/// What is wrong with a field of the statistics.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Problem {
+    /// It is not there.
+    #[error("missing")]
+    Missing,
+    /// It is not a non-negative integer.
+    #[error("not a count")]
+    NotCount,
+    /// It is not a string.
+    #[error("not a string")]
+    NotString,
+    /// It is not a list.
+    #[error("not a list")]
+    NotList,
 }
 
-fn count(v: &Value, name: &str) -> Result<u64, String> {
+/// Why a session's traffic could not be read.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TrafficError {
+    /// The reply is not JSON.
+    #[error("not JSON: {0}")]
+    NotJson(String),
+    /// A field of the reply, by its path (`sessions[1].stats.rx_bytes`).
+    #[error("{path}: {problem}")]
+    Field {
+        /// Where in the reply.
+        path: String,
+        /// What is wrong there.
+        problem: Problem,
+    },
+    /// The admin space could not be queried.
+    #[error("cannot query the admin space: {0}")]
+    Query(String),
+    /// No statistics came back in time.
+    #[error(
+        "no statistics from the Zenoh admin space (open the session with traffic::stats_pairs)"
+    )]
+    NoAnswer,
+}
+
+impl TrafficError {
+    /// The same error one level further out: `at` goes before its path.
+    fn at(self, at: &str) -> TrafficError {
+        match self {
+            TrafficError::Field { path, problem } => TrafficError::Field {
+                path: format!("{at}.{path}"),
+                problem,
+            },
+            e => e,
+        }
+    }
+}
+
+/// A field problem at `path`.
+fn bad(path: &str, problem: Problem) -> TrafficError {
+    TrafficError::Field {
+        path: path.to_string(),
+        problem,
+    }
+}
+
+fn field<'a>(v: &'a Value, name: &str) -> Result<&'a Value, TrafficError> {
+    v.get(name).ok_or_else(|| bad(name, Problem::Missing))
+}
+
+fn count(v: &Value, name: &str) -> Result<u64, TrafficError> {
     field(v, name)?
         .as_u64()
-        .ok_or_else(|| format!("{name}: not a count"))
+        .ok_or_else(|| bad(name, Problem::NotCount))
 }
 
 /// The user-space part of a `{ "admin": n, "user": n }` counter.
-fn user(v: &Value, name: &str) -> Result<u64, String> {
-    count(field(v, name)?, "user").map_err(|e| format!("{name}.{e}"))
+fn user(v: &Value, name: &str) -> Result<u64, TrafficError> {
+    count(field(v, name)?, "user").map_err(|e| e.at(name))
 }
 
 /// The sum of a `{ "net": n, "shm": n }` counter.
-fn medium(v: &Value, name: &str) -> Result<u64, String> {
+fn medium(v: &Value, name: &str) -> Result<u64, TrafficError> {
     let m = field(v, name)?;
-    Ok(count(m, "net").map_err(|e| format!("{name}.{e}"))?
-        + count(m, "shm").map_err(|e| format!("{name}.{e}"))?)
+    Ok(count(m, "net").map_err(|e| e.at(name))? + count(m, "shm").map_err(|e| e.at(name))?)
 }
 
-fn flow(stats: &Value) -> Result<Flow, String> {
-    let dir = |d: &str| -> Result<Counters, String> {
+fn flow(stats: &Value) -> Result<Flow, TrafficError> {
+    let dir = |d: &str| -> Result<Counters, TrafficError> {
         Ok(Counters {
             bytes: count(stats, &format!("{d}_bytes"))?,
             transport_msgs: count(stats, &format!("{d}_t_msgs"))?,
@@ -133,8 +194,8 @@ fn flow(stats: &Value) -> Result<Flow, String> {
     })
 }
 
-fn key_flow(stats: &Value) -> Result<Flow, String> {
-    let dir = |d: &str| -> Result<Counters, String> {
+fn key_flow(stats: &Value) -> Result<Flow, TrafficError> {
+    let dir = |d: &str| -> Result<Counters, TrafficError> {
         Ok(Counters {
             put_msgs: user(stats, &format!("{d}_z_put_msgs"))?,
             put_payload_bytes: user(stats, &format!("{d}_z_put_pl_bytes"))?,
@@ -147,22 +208,27 @@ fn key_flow(stats: &Value) -> Result<Flow, String> {
     })
 }
 
-fn keys_of(v: &Value) -> Result<BTreeMap<String, Flow>, String> {
-    let mut out = BTreeMap::new();
-    let Some(list) = v.get("stats_filtered") else {
-        return Ok(out);
-    };
-    for (i, entry) in list
+/// The elements of the list `name` of `v`.
+fn list<'a>(v: &'a Value, name: &str) -> Result<&'a Vec<Value>, TrafficError> {
+    field(v, name)?
         .as_array()
-        .ok_or("stats_filtered: not a list")?
-        .iter()
-        .enumerate()
-    {
-        let key = field(entry, "key")?
+        .ok_or_else(|| bad(name, Problem::NotList))
+}
+
+fn keys_of(v: &Value) -> Result<BTreeMap<String, Flow>, TrafficError> {
+    let mut out = BTreeMap::new();
+    if v.get("stats_filtered").is_none() {
+        return Ok(out);
+    }
+    for (i, entry) in list(v, "stats_filtered")?.iter().enumerate() {
+        let at = format!("stats_filtered[{i}]");
+        let key = field(entry, "key")
+            .map_err(|e| e.at(&at))?
             .as_str()
-            .ok_or_else(|| format!("stats_filtered[{i}].key: not a string"))?;
-        let f =
-            key_flow(field(entry, "stats")?).map_err(|e| format!("stats_filtered[{i}]: {e}"))?;
+            .ok_or_else(|| bad(&format!("{at}.key"), Problem::NotString))?;
+        let f = field(entry, "stats")
+            .and_then(|s| key_flow(s).map_err(|e| e.at("stats")))
+            .map_err(|e| e.at(&at))?;
         out.insert(key.to_string(), f);
     }
     Ok(out)
@@ -170,29 +236,29 @@ fn keys_of(v: &Value) -> Result<BTreeMap<String, Flow>, String> {
 
 impl Traffic {
     /// Reads the admin space's description of a session queried with `_stats=true`.
-    pub fn parse(json: &[u8]) -> Result<Traffic, String> {
-        let v: Value = serde_json::from_slice(json).map_err(|e| format!("not JSON: {e}"))?;
-        let total = flow(field(&v, "stats")?).map_err(|e| format!("stats: {e}"))?;
+    pub fn parse(json: &[u8]) -> Result<Traffic, TrafficError> {
+        let v: Value =
+            serde_json::from_slice(json).map_err(|e| TrafficError::NotJson(e.to_string()))?;
+        let total = flow(field(&v, "stats")?).map_err(|e| e.at("stats"))?;
         let keys = keys_of(&v)?;
         let mut peers = Vec::new();
-        for (i, s) in field(&v, "sessions")?
-            .as_array()
-            .ok_or("sessions: not a list")?
-            .iter()
-            .enumerate()
-        {
-            let text = |name: &str| -> Result<String, String> {
+        for (i, s) in list(&v, "sessions")?.iter().enumerate() {
+            let at = format!("sessions[{i}]");
+            let text = |name: &str| -> Result<String, TrafficError> {
                 Ok(field(s, name)
-                    .map_err(|e| format!("sessions[{i}]: {e}"))?
+                    .map_err(|e| e.at(&at))?
                     .as_str()
-                    .ok_or_else(|| format!("sessions[{i}].{name}: not a string"))?
+                    .ok_or_else(|| bad(&format!("{at}.{name}"), Problem::NotString))?
                     .to_string())
             };
+            let total = field(s, "stats")
+                .and_then(|t| flow(t).map_err(|e| e.at("stats")))
+                .map_err(|e| e.at(&at))?;
             peers.push(Peer {
                 zid: text("peer")?,
                 whatami: text("whatami")?,
-                total: flow(field(s, "stats")?).map_err(|e| format!("sessions[{i}].stats: {e}"))?,
-                keys: keys_of(s).map_err(|e| format!("sessions[{i}]: {e}"))?,
+                total,
+                keys: keys_of(s).map_err(|e| e.at(&at))?,
             });
         }
         Ok(Traffic { total, keys, peers })
@@ -238,7 +304,7 @@ impl Traffic {
 pub async fn traffic(
     session: &zenoh::Session,
     timeout: std::time::Duration,
-) -> Result<Traffic, String> {
+) -> Result<Traffic, TrafficError> {
     let zid = session.zid();
     // The session answers for itself at `@/ZID/MODE`; replies from elsewhere are ignored.
     let prefix = format!("@/{zid}/");
@@ -246,7 +312,7 @@ pub async fn traffic(
         .get(format!("@/{zid}/*?_stats=true"))
         .timeout(timeout)
         .await
-        .map_err(|e| format!("cannot query the admin space: {e}"))?;
+        .map_err(|e| TrafficError::Query(e.to_string()))?;
     let wait = tokio::time::timeout(timeout, async {
         while let Ok(reply) = replies.recv_async().await {
             let Ok(sample) = reply.result() else {
@@ -261,11 +327,8 @@ pub async fn traffic(
     })
     .await;
     match wait {
-        Ok(Some(bytes)) => Traffic::parse(&bytes).map_err(|e| format!("Zenoh statistics: {e}")),
-        _ => Err(
-            "no statistics from the Zenoh admin space (open the session with traffic::stats_pairs)"
-                .into(),
-        ),
+        Ok(Some(bytes)) => Traffic::parse(&bytes),
+        _ => Err(TrafficError::NoAnswer),
     }
 }
 

@@ -154,18 +154,38 @@ fn malformed_replies_name_the_field() {
     let mut v = sample();
     v["sessions"][1]["stats"]["rx_bytes"] = json!(-3);
     let e = Traffic::parse(v.to_string().as_bytes()).unwrap_err();
-    assert_eq!(e, "sessions[1].stats: rx_bytes: not a count");
+    assert_eq!(e.to_string(), "sessions[1].stats.rx_bytes: not a count");
+    assert_eq!(
+        e,
+        TrafficError::Field {
+            path: "sessions[1].stats.rx_bytes".into(),
+            problem: Problem::NotCount
+        }
+    );
     let mut v = sample();
     v["stats"]["tx_z_put_msgs"] = json!({ "admin": 1 });
     let e = Traffic::parse(v.to_string().as_bytes()).unwrap_err();
-    assert_eq!(e, "stats: tx_z_put_msgs.missing field user");
+    assert_eq!(e.to_string(), "stats.tx_z_put_msgs.user: missing");
+    let mut v = sample();
+    v["stats_filtered"][0]["key"] = json!(3);
+    let e = Traffic::parse(v.to_string().as_bytes()).unwrap_err();
+    assert_eq!(e.to_string(), "stats_filtered[0].key: not a string");
+    let mut v = sample();
+    v["sessions"][0]["stats_filtered"][0]["stats"] = json!({});
+    let e = Traffic::parse(v.to_string().as_bytes()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "sessions[0].stats_filtered[0].stats.tx_z_put_msgs: missing"
+    );
     let e = Traffic::parse(b"{").unwrap_err();
-    assert!(e.starts_with("not JSON"), "{e}");
+    assert!(matches!(e, TrafficError::NotJson(_)), "{e}");
     let mut v = sample();
     v.as_object_mut().unwrap().remove("sessions");
     assert_eq!(
-        Traffic::parse(v.to_string().as_bytes()).unwrap_err(),
-        "missing field sessions"
+        Traffic::parse(v.to_string().as_bytes())
+            .unwrap_err()
+            .to_string(),
+        "sessions: missing"
     );
 }
 
