@@ -70,6 +70,53 @@ impl Region {
     }
 }
 
+/// What one fuser serves: every agent's boxes, or one tile and its halo.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Scope {
+    /// The single fuser of a namespace.
+    Whole,
+    /// A regional fuser.
+    Tile(Region),
+}
+
+impl From<Option<Region>> for Scope {
+    fn from(r: Option<Region>) -> Scope {
+        r.map_or(Scope::Whole, Scope::Tile)
+    }
+}
+
+impl Scope {
+    /// The region, for a regional fuser.
+    pub fn region(&self) -> Option<&Region> {
+        match self {
+            Scope::Whole => None,
+            Scope::Tile(r) => Some(r),
+        }
+    }
+
+    /// The tile it publishes, for a regional fuser.
+    pub fn tile(&self) -> Option<Tile> {
+        self.region().map(|r| r.tile)
+    }
+
+    /// Whether a box is the fuser's input: within its tile and halo (every box, for the whole).
+    pub fn takes(&self, d: &Detection) -> bool {
+        self.region()
+            .is_none_or(|r| r.tiling.within(r.tile, d.center, r.halo_m))
+    }
+
+    /// Whether a fused box is the fuser's to publish: its centre lies in its tile (every box,
+    /// for the whole).
+    pub fn owns(&self, d: &Detection) -> bool {
+        self.region().is_none_or(|r| r.owns(d))
+    }
+
+    /// The keys it publishes and answers on.
+    pub fn keys(&self, ns: &str) -> v2x_protocol::keys::FuserKeys {
+        v2x_protocol::keys::FuserKeys::of(ns, self.tile())
+    }
+}
+
 /// The regions a window needs: every tile some box of `agents` lies in, and the tiles around
 /// those (a fused centre lies between its members, so it can fall in a corner tile none of them
 /// is in).

@@ -82,6 +82,11 @@ impl NodeConfig {
         }
     }
 
+    /// What the node serves: the whole namespace, or its region's tile and halo.
+    pub fn scope(&self) -> crate::region::Scope {
+        self.region.into()
+    }
+
     /// Sets the replay speed of motion compensation, tracking and the learner at once
     /// ([`crate::pipeline::set_time_scale`]): call it after setting them.
     pub fn set_time_scale(&mut self, s: f64) {

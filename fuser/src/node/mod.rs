@@ -31,7 +31,7 @@ pub use worker::fuse_window;
 use crate::ingest::{Ingest, IngestConfig, Rejection};
 use crate::parts::{Assembled, Parts};
 use crate::ratelog::RateLog;
-use crate::region::Region;
+use crate::region::Scope;
 use crate::window::{Closed, Windows};
 use anyhow::anyhow;
 use std::future::Future;
@@ -56,7 +56,7 @@ struct State {
     queued: usize,
     last_prune_us: u64,
     viz: Option<Arc<crate::viz::Viz>>,
-    region: Option<Region>,
+    scope: Scope,
     /// Where the map lies, to read CPMs.
     map_origin: v2x_cpm::Geo,
     parts: Parts,
@@ -112,7 +112,7 @@ impl State {
             stats: NodeStats {
                 ns: cfg.ns.clone(),
                 method: cfg.method.name(),
-                region: cfg.region.map(|r| r.tile.to_string()),
+                region: cfg.scope().tile().map(|t| t.to_string()),
                 ..Default::default()
             },
             e2e: Default::default(),
@@ -120,7 +120,7 @@ impl State {
             fusion: Vec::new(),
             queued: 0,
             last_prune_us: now,
-            region: cfg.region,
+            scope: cfg.scope(),
             map_origin: cfg.map_origin,
             // A capture's parts leave its agent together: waiting half the window's wait for
             // a missing one leaves the other half for the capture to make its window.
@@ -215,7 +215,7 @@ impl State {
         let key = s.key_expr().as_str();
         let payload = s.payload().to_bytes();
         let cpm = v2x_protocol::net::is_cpm(s.encoding());
-        if self.region.is_none() {
+        if self.scope == Scope::Whole {
             if let Some(agent) = keys::agent_of_detections(&self.ns, key) {
                 let now = self.clock.now_us();
                 match self.offer(&agent, cpm, &payload, now) {
@@ -296,11 +296,8 @@ impl State {
     /// Puts an admitted frame into its window (a regional fuser first keeps the boxes within
     /// its tile and halo).
     fn admit(&mut self, agent: &str, mut frame: Frame, now: u64) {
-        if let Some(r) = &self.region {
-            frame
-                .detections
-                .retain(|d| r.tiling.within(r.tile, d.center, r.halo_m));
-        }
+        let scope = self.scope;
+        frame.detections.retain(|d| scope.takes(d));
         let (n, t) = (frame.detections.len(), frame.capture_us);
         if let Some(v) = &self.viz {
             let topic = format!("/agents/{agent}");
@@ -476,7 +473,7 @@ pub async fn run(
 ) -> anyhow::Result<NodeStats> {
     check(&cfg)?;
     let ns = cfg.ns.clone();
-    let fk = keys::FuserKeys::of(&ns, cfg.region.map(|r| r.tile));
+    let fk = cfg.scope().keys(&ns);
     let overflow = Arc::new(std::sync::atomic::AtomicU64::new(0));
     let (mut det, subscribed) = subscribe_detections(session, &cfg, overflow.clone()).await?;
     let alive = session
@@ -503,9 +500,9 @@ pub async fn run(
         None => None,
     };
     // A regional fuser that tracks hears its neighbours' tracks, to keep ids across borders.
-    let (heard, _handover) = match (&cfg.region, cfg.track) {
-        (Some(r), Some(_)) if cfg.handover => {
-            let (heard, subs) = handover::subscribe(session, &ns, r).await?;
+    let (heard, _handover) = match (cfg.scope(), cfg.track) {
+        (Scope::Tile(r), Some(_)) if cfg.handover => {
+            let (heard, subs) = handover::subscribe(session, &ns, &r).await?;
             (Some(heard), subs)
         }
         _ => (None, Vec::new()),
@@ -520,7 +517,7 @@ pub async fn run(
             models: std::sync::Arc::new(cfg.models.clone()),
         },
         track: cfg.track,
-        region: cfg.region,
+        scope: cfg.scope(),
         heard,
     };
     let worker = tokio::spawn(worker::run(
@@ -628,7 +625,7 @@ async fn subscribe_detections(
     overflow: Arc<std::sync::atomic::AtomicU64>,
 ) -> anyhow::Result<(Inbox, Vec<v2x_protocol::tiles::Tile>)> {
     let ns = &cfg.ns;
-    let Some(r) = &cfg.region else {
+    let Scope::Tile(r) = cfg.scope() else {
         let key = keys::all_detections(ns);
         let sub = session
             .declare_subscriber(key.clone())
@@ -660,12 +657,12 @@ async fn subscribe_detections(
 /// Says what the node serves.
 fn log_start(cfg: &NodeConfig, method: &str) {
     let ns = &cfg.ns;
-    match &cfg.region {
-        None => tracing::info!(
+    match cfg.scope() {
+        Scope::Whole => tracing::info!(
             "fuser on v2x/{ns}: method {method}, window {} ms",
             cfg.window_ms
         ),
-        Some(r) => tracing::info!(
+        Scope::Tile(r) => tracing::info!(
             "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {method}, window {} ms",
             r.tile,
             r.tiling.size_m(),

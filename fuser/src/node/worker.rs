@@ -6,6 +6,7 @@
 
 use super::{Clock, Fused};
 use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
+use crate::region::Scope;
 use crate::tracker::handover::{id_block, published, step_region, Handover};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::window::Closed;
@@ -85,14 +86,14 @@ pub fn fuse_window(
 }
 
 /// Keeps the fused boxes a region owns (centre in its tile), with their sources.
-fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
+fn keep_owned(scope: &Scope, fused: &mut Fused) {
     let dets = std::mem::take(&mut fused.frame.detections);
     let sources = std::mem::take(&mut fused.provenance.sources);
     let has_sources = sources.len() == dets.len();
     let mut sources = sources.into_iter();
     for d in dets {
         let s = if has_sources { sources.next() } else { None };
-        if region.owns(&d) {
+        if scope.owns(&d) {
             fused.frame.detections.push(d);
             fused.provenance.sources.extend(s);
         }
@@ -104,7 +105,7 @@ fn keep_owned(region: &crate::region::Region, fused: &mut Fused) {
 pub(super) struct Fusion {
     pub steps: Steps,
     pub track: Option<TrackerParams>,
-    pub region: Option<crate::region::Region>,
+    pub scope: Scope,
     /// A tracking regional fuser's neighbours' tracks, as heard.
     pub heard: Option<super::handover::Heard>,
 }
@@ -124,14 +125,17 @@ impl Fusion {
 
     fn fresh(&self) -> Carried {
         // A region's tracks take ids of its tile's own block, so no two regions give one id.
-        let tracker = self.track.map(|p| match &self.region {
-            Some(r) => Tracker::with_ids(p, id_block(r.tile)),
+        let tracker = self.track.map(|p| match self.scope.tile() {
+            Some(tile) => Tracker::with_ids(p, id_block(tile)),
             None => Tracker::new(p),
         });
         Carried {
             pipeline: Some(self.pipeline()),
             tracker,
-            handover: self.track.and(self.region).map(Handover::new),
+            handover: self
+                .track
+                .and(self.scope.region().copied())
+                .map(Handover::new),
         }
     }
 }
@@ -187,13 +191,13 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
     let pipeline = state.pipeline.get_or_insert_with(|| f.pipeline());
     let (mut fused, lists) = fuse_window(pipeline, closed, seq);
     let mut halo = None;
-    if let Some(r) = &f.region {
+    if f.scope != Scope::Whole {
         if state.tracker.is_some() {
             let mut all = fused.frame.clone();
             wire::fit(&mut all);
             halo = Some(all);
         }
-        keep_owned(r, &mut fused);
+        keep_owned(&f.scope, &mut fused);
     }
     let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
     let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
@@ -205,7 +209,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
             h.adopt(t);
         }
         let input = halo.as_ref().unwrap_or(&fused.frame);
-        let frame = tracks_frame(t, input, &lists, &f.steps.method, f.region.as_ref());
+        let frame = tracks_frame(t, input, &lists, &f.steps.method, f.scope.region());
         let bytes = wire::encode(&frame);
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())

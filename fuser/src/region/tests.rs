@@ -136,3 +136,43 @@ fn regions_together_fuse_what_one_fuser_fuses() {
         }
     }
 }
+
+#[test]
+fn a_scope_takes_its_tile_and_halo_and_owns_its_tile() {
+    let r = Region {
+        tiling: Tiling::new(100.0).unwrap(),
+        tile: Tile { x: 1, y: 0 },
+        halo_m: 10.0,
+    };
+    let at = |x: f64| Detection {
+        center: [x, 50.0, 0.0],
+        ..v2x_protocol::fixtures::car(0.0, 0.0, 0.3)
+    };
+    let tile = Scope::from(Some(r));
+    // The tile is [100, 200) x [0, 100); the halo reaches 90 and 210.
+    for (x, takes, owns) in [
+        (89.9, false, false),
+        (90.0, true, false),
+        (100.0, true, true),
+        (199.9, true, true),
+        (200.0, true, false),
+        (210.0, false, false),
+    ] {
+        assert_eq!(
+            (tile.takes(&at(x)), tile.owns(&at(x))),
+            (takes, owns),
+            "{x}"
+        );
+        assert!(Scope::Whole.takes(&at(x)) && Scope::Whole.owns(&at(x)));
+    }
+    assert_eq!(tile.tile(), Some(r.tile));
+    assert_eq!(Scope::from(None), Scope::Whole);
+    assert_eq!(
+        tile.keys("ns"),
+        v2x_protocol::keys::FuserKeys::of("ns", Some(r.tile))
+    );
+    assert_eq!(
+        Scope::Whole.keys("ns"),
+        v2x_protocol::keys::FuserKeys::of("ns", None)
+    );
+}
