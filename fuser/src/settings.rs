@@ -511,9 +511,9 @@ impl AdmissionSettings {
 impl FuserSettings {
     /// Of `keys` (a scenario's `[fuser]` table), those that name no setting.
     pub fn unknown_keys<'a>(keys: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
-        let known = serde_json::to_value(FuserSettings::default()).expect("settings serialize");
+        let known = FuserSettings::keys();
         keys.into_iter()
-            .filter(|k| known.get(k).is_none())
+            .filter(|k| !known.iter().any(|n| n == k))
             .collect()
     }
 
@@ -527,12 +527,7 @@ impl FuserSettings {
 
     /// Checks every setting without reading the model files.
     pub fn check(&self) -> Result<(), SettingsError> {
-        if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
-            return Err(SettingsError::of("window_ms", "must be > 0"));
-        }
-        if !(self.max_wait_ms >= 0.0 && self.max_wait_ms.is_finite()) {
-            return Err(SettingsError::of("max_wait_ms", "must be >= 0"));
-        }
+        self.check_window()?;
         self.admission.apply(&mut IngestConfig::default())?;
         self.motion.params()?;
         self.stds.learn()?;
@@ -541,11 +536,22 @@ impl FuserSettings {
         Ok(())
     }
 
+    /// The window's width and wait.
+    fn check_window(&self) -> Result<(), SettingsError> {
+        if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
+            return Err(SettingsError::of("window_ms", "must be > 0"));
+        }
+        if !(self.max_wait_ms >= 0.0 && self.max_wait_ms.is_finite()) {
+            return Err(SettingsError::of("max_wait_ms", "must be >= 0"));
+        }
+        Ok(())
+    }
+
     /// The node's configuration on namespace `ns`: every step from these settings, the model
     /// files read, the replay speed ([`MotionSettings::time_scale`]) applied once.
     #[cfg(feature = "node")]
     pub fn node_config(&self, ns: &str) -> Result<crate::node::NodeConfig, SettingsError> {
-        self.check()?;
+        self.check_window()?;
         let mut cfg = crate::node::NodeConfig::new(ns, self.method);
         cfg.window_ms = self.window_ms;
         cfg.max_wait_ms = self.max_wait_ms;

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use v2x_fuser::align::AlignParams;
 use v2x_fuser::learn::LearnParams;
-use v2x_fuser::motion::MotionParams;
 use v2x_fuser::offline::OfflineOptions;
+use v2x_fuser::settings::{MotionSettings, SettingsError, StdSettings};
 use v2x_fuser::stdmodel::ErrorModel;
 use v2x_fuser::tracker::TrackerParams;
 use v2x_fuser::Method;
@@ -57,19 +57,26 @@ impl Options {
     /// The method, how boxes without stds are read and the offline options, for `inputs` agents.
     pub fn offline(&self, inputs: usize) -> PyResult<(Method, MissingStd, OfflineOptions)> {
         let bad = |e: String| Err(PyValueError::new_err(e));
-        let ok = |x: f64| x >= 0.0 && x.is_finite();
-        if !ok(self.speed_bound_mps) || !ok(self.accel_std) {
-            return bad("speed_bound_mps and accel_std must be >= 0".into());
+        // The motion and std groups of the command line's settings, checked as they check them.
+        let setting = |e: SettingsError| PyValueError::new_err(e.to_string());
+        let motion = MotionSettings {
+            compensation: self.compensate,
+            speed_bound_mps: self.speed_bound_mps,
+            accel_std: self.accel_std,
+            time_scale: self.time_scale,
         }
-        if !(self.time_scale > 0.0 && self.time_scale.is_finite()) {
-            return bad("time_scale must be > 0, the replay speed (1 live)".into());
-        }
+        .params()
+        .map_err(setting)?;
         if !(self.window_ms > 0.0 && self.window_ms.is_finite()) {
             return bad("window_ms must be > 0".into());
         }
-        if !(self.std_flag_ratio > 1.0 && self.std_flag_ratio.is_finite()) {
-            return bad("std_flag_ratio must be > 1".into());
+        let learn = StdSettings {
+            learn_std: self.learn_std,
+            std_flag_ratio: self.std_flag_ratio,
+            ..Default::default()
         }
+        .learn()
+        .map_err(setting)?;
         let align = match self.align_to {
             None => None,
             Some(k) if k < inputs => Some((AlignParams::default(), k)),
@@ -80,10 +87,6 @@ impl Options {
                 ))
             }
         };
-        let learn = self.learn_std.then(|| LearnParams {
-            flag_ratio: self.std_flag_ratio,
-            ..Default::default()
-        });
         let models = self.models(inputs)?;
         if self.detector && (self.default_std.is_some() || self.learn_std) {
             return bad("detector gives every box its stds (or std_models an input's): leave out default_std and learn_std".into());
@@ -97,11 +100,7 @@ impl Options {
             (None, false) => MissingStd::Error,
         };
         let mut opts = OfflineOptions {
-            motion: self.compensate.then_some(MotionParams {
-                accel_std: self.accel_std,
-                speed_bound: self.speed_bound_mps,
-                ..Default::default()
-            }),
+            motion,
             window_ms: self.window_ms,
             align,
             learn,
