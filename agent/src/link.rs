@@ -10,8 +10,8 @@ use std::collections::BinaryHeap;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use tokio::sync::mpsc;
-use v2x_protocol::keys;
 use v2x_protocol::tiles::Tile;
+use v2x_protocol::{keys, InvalidValue};
 
 /// Most per-tile publishers an agent keeps declared; beyond, the least recently used goes.
 const MAX_TILE_PUBLISHERS: usize = 64;
@@ -97,21 +97,19 @@ pub struct Link {
 
 impl Link {
     /// Checks the values are usable, naming the bad field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidValue> {
         if !(self.latency_ms.is_finite() && self.latency_ms >= 0.0) {
-            return Err(format!("latency_ms must be >= 0 (got {})", self.latency_ms));
+            return Err(InvalidValue::new("latency_ms", ">= 0", self.latency_ms));
         }
         if !(self.jitter_ms.is_finite() && self.jitter_ms >= 0.0) {
-            return Err(format!("jitter_ms must be >= 0 (got {})", self.jitter_ms));
+            return Err(InvalidValue::new("jitter_ms", ">= 0", self.jitter_ms));
         }
         if !(0.0..=1.0).contains(&self.drop_rate) {
-            return Err(format!(
-                "drop_rate must be in [0, 1] (got {})",
-                self.drop_rate
-            ));
+            return Err(InvalidValue::new("drop_rate", "in [0, 1]", self.drop_rate));
         }
         if !self.clock_offset_ms.is_finite() {
-            return Err("clock_offset_ms must be finite".into());
+            let got = self.clock_offset_ms;
+            return Err(InvalidValue::new("clock_offset_ms", "finite", got));
         }
         Ok(())
     }

@@ -63,5 +63,8 @@ fn help_and_clear_errors() {
     ]);
     assert!(err.contains("`translation` must be 3 numbers"), "{err}");
     let err = run(&["--name", "veh", "--map-origin", "95,0"]);
-    assert!(err.contains("latitude '95'"), "{err}");
+    assert!(
+        err.contains("latitude must be a number of degrees within +-90 (got 95)"),
+        "{err}"
+    );
 }

@@ -240,9 +240,14 @@ fn the_map_lies_on_the_tangent_plane_of_its_origin() {
 fn a_map_origin_is_read_as_lat_lon() {
     let g: Geo = "42.336,-71.057".parse().unwrap();
     assert_eq!((g.lat_deg, g.lon_deg), (42.336, -71.057));
-    assert!("91,0".parse::<Geo>().unwrap_err().contains("latitude"));
-    assert!("0,x".parse::<Geo>().unwrap_err().contains("longitude 'x'"));
-    assert!("1".parse::<Geo>().unwrap_err().contains("LAT,LON"));
+    let e = "91,0".parse::<Geo>().unwrap_err();
+    assert_eq!((e.field.as_str(), e.got.as_str()), ("latitude", "91"));
+    let e = "0,x".parse::<Geo>().unwrap_err();
+    assert_eq!((e.field.as_str(), e.got.as_str()), ("longitude", "x"));
+    assert_eq!(
+        "1".parse::<Geo>().unwrap_err().to_string(),
+        "map origin must be LAT,LON in degrees (got 1)"
+    );
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! The message's units: its quantisation rule ("n if the value is at most n units and more than
 //! n - 1"), confidences at 95 %, ITS time, and the map frame placed on WGS84.
 
+use v2x_protocol::InvalidValue;
+
 /// Two-sided 95 % factor of a normal distribution: a CPM confidence is this many stds.
 pub(crate) const Z95: f64 = 1.959_963_984_540_054;
 
@@ -45,20 +47,22 @@ impl Geo {
 }
 
 impl std::str::FromStr for Geo {
-    type Err = String;
+    type Err = InvalidValue;
 
     /// `LAT,LON` in degrees.
-    fn from_str(s: &str) -> Result<Geo, String> {
+    fn from_str(s: &str) -> Result<Geo, InvalidValue> {
         let parts: Vec<&str> = s.split(',').collect();
         let [lat, lon] = parts.as_slice() else {
-            return Err(format!("expected LAT,LON in degrees, got '{s}'"));
+            return Err(InvalidValue::new("map origin", "LAT,LON in degrees", s));
         };
-        let num = |t: &str, what, max: f64| {
+        let num = |t: &str, what: &str, max: f64| {
             t.trim()
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.abs() <= max)
-                .ok_or_else(|| format!("{what} '{t}' is not a number of degrees within +-{max}"))
+                .ok_or_else(|| {
+                    InvalidValue::new(what, format!("a number of degrees within +-{max}"), t)
+                })
         };
         Ok(Geo {
             lat_deg: num(lat, "latitude", 90.0)?,

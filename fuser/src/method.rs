@@ -7,7 +7,7 @@ use crate::baselines;
 use crate::fusion::GroupSum;
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{AgentSet, Detection};
+use v2x_protocol::{AgentSet, Detection, UnknownName};
 
 pub use crate::fusion::Sourced;
 
@@ -211,19 +211,13 @@ impl fmt::Display for Method {
 }
 
 impl FromStr for Method {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         METHODS
             .iter()
             .find(|n| n.name == s)
             .map(|n| n.method)
-            .ok_or_else(|| {
-                let names: Vec<_> = METHODS.iter().map(|n| n.name).collect();
-                format!(
-                    "unknown method '{s}' (expected one of: {})",
-                    names.join(", ")
-                )
-            })
+            .ok_or_else(|| UnknownName::new("method", s, METHODS.iter().map(|n| n.name)))
     }
 }
 
@@ -366,10 +360,9 @@ mod tests {
         for (i, m) in all.iter().enumerate() {
             assert!(!all[..i].contains(m), "{m} registered twice");
         }
-        assert!("kalman"
-            .parse::<Method>()
-            .unwrap_err()
-            .contains("csba-wls+"));
+        let e = "kalman".parse::<Method>().unwrap_err();
+        assert_eq!(e.given, "kalman");
+        assert!(e.expected.contains(&"csba-wls+"));
     }
 
     #[test]

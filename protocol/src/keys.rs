@@ -14,18 +14,49 @@ use crate::tiles::Tile;
 /// Root of every key.
 pub const ROOT: &str = "v2x";
 
+/// Why a name cannot be a key chunk.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NameError {
+    /// The name is empty.
+    #[error("{what} must not be empty")]
+    Empty {
+        /// What the name names (`agent name`, `namespace`, ...).
+        what: &'static str,
+    },
+    /// The name holds a separator, a wildcard or whitespace.
+    #[error("{what} '{name}' contains '{c}'; use letters, digits, '-', '_' or '.'")]
+    BadChar {
+        /// What the name names.
+        what: &'static str,
+        /// The name.
+        name: String,
+        /// The first character a key chunk cannot hold.
+        c: char,
+    },
+    /// The name is longer than its limit.
+    #[error("{len} bytes, more than the limit {max}")]
+    TooLong {
+        /// The name's length in bytes.
+        len: usize,
+        /// The limit.
+        max: usize,
+    },
+}
+
 /// Checks that a namespace or agent name is a single, non-empty key chunk without wildcards.
-pub fn validate_chunk(what: &str, s: &str) -> Result<(), String> {
+pub fn validate_chunk(what: &'static str, s: &str) -> Result<(), NameError> {
     if s.is_empty() {
-        return Err(format!("{what} must not be empty"));
+        return Err(NameError::Empty { what });
     }
     if let Some(c) = s
         .chars()
         .find(|c| matches!(c, '/' | '*' | '$' | '?' | '#') || c.is_whitespace())
     {
-        return Err(format!(
-            "{what} '{s}' contains '{c}'; use letters, digits, '-', '_' or '.'"
-        ));
+        return Err(NameError::BadChar {
+            what,
+            name: s.to_string(),
+            c,
+        });
     }
     Ok(())
 }

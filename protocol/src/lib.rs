@@ -13,6 +13,7 @@ pub mod acl;
 #[cfg(feature = "fixtures")]
 pub mod fixtures;
 pub mod fuzzing;
+mod invalid;
 pub mod keys;
 pub mod kitti;
 pub mod limits;
@@ -24,5 +25,6 @@ pub mod traffic;
 mod types;
 pub mod wire;
 
-pub use provenance::{AgentSet, Provenance};
+pub use invalid::{InvalidValue, UnknownName};
+pub use provenance::{AgentSet, Provenance, ProvenanceError};
 pub use types::*;

@@ -52,6 +52,35 @@ impl fmt::Display for JsonError {
 
 impl std::error::Error for JsonError {}
 
+impl JsonError {
+    /// A problem with the whole file.
+    pub fn file(file: &Path, message: impl Into<String>) -> JsonError {
+        JsonError {
+            file: file.to_path_buf(),
+            sample: None,
+            index: None,
+            field: None,
+            message: message.into(),
+        }
+    }
+
+    /// A problem with a field of box `index` of `sample`.
+    pub fn field(
+        file: &Path,
+        sample: &str,
+        index: usize,
+        field: &str,
+        message: impl Into<String>,
+    ) -> JsonError {
+        JsonError {
+            sample: Some(sample.to_string()),
+            index: Some(index),
+            field: Some(field.to_string()),
+            ..JsonError::file(file, message)
+        }
+    }
+}
+
 /// The object id of an instance token, the same in every process: the 32-bit FNV-1a hash of its
 /// UTF-8 bytes, with `NO_ID` (4294967295) moved to 4294967294.
 pub fn stable_id(token: &str) -> u32 {

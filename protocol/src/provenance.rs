@@ -3,6 +3,7 @@
 //! bitmask over the window's agent list). The wire carries it in fused frames
 //! (`docs/wire-format.md`, "Provenance").
 
+use crate::keys::NameError;
 use crate::limits::MAX_WINDOW_AGENTS;
 
 /// A set of agents, as indices into a window's agent list (bit k of byte k / 8: agent k); up to
@@ -105,39 +106,96 @@ pub struct Provenance {
     pub sources: Vec<AgentSet>,
 }
 
+/// Why a provenance does not fit its frame.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ProvenanceError {
+    /// More agents than [`MAX_WINDOW_AGENTS`].
+    #[error("{0} agents, more than the limit {MAX_WINDOW_AGENTS}")]
+    TooManyAgents(usize),
+    /// An agent's name is not a valid agent name.
+    #[error("agent {index}: {error}")]
+    BadAgent {
+        /// The agent's place in the list.
+        index: usize,
+        /// What is wrong with its name.
+        error: NameError,
+    },
+    /// An agent is listed twice.
+    #[error("agent {index}: '{agent}' is listed twice")]
+    Twice {
+        /// The second place it holds in the list.
+        index: usize,
+        /// Its name.
+        agent: String,
+    },
+    /// Not one source set per box.
+    #[error("{sets} source sets for {boxes} boxes")]
+    Sources {
+        /// Source sets given.
+        sets: usize,
+        /// Boxes in the frame.
+        boxes: usize,
+    },
+    /// A box has no source agent.
+    #[error("box {0}: no source agent")]
+    NoSource(usize),
+    /// A box names an agent beyond the list.
+    #[error("box {index}: source agent {agent} beyond the {listed} listed")]
+    Beyond {
+        /// The box.
+        index: usize,
+        /// The highest agent it names.
+        agent: usize,
+        /// Agents listed.
+        listed: usize,
+    },
+    /// The completeness byte is neither 0 nor 1.
+    #[error("complete must be 0 or 1, not {0}")]
+    BadComplete(u8),
+    /// A decoded source mask names no agent or one beyond the list.
+    #[error("object {object}: source mask names no agent or one beyond the {listed} listed")]
+    BadMask {
+        /// The object.
+        object: usize,
+        /// Agents listed.
+        listed: usize,
+    },
+}
+
 impl Provenance {
     /// Checks the provenance of a frame of `n_boxes` boxes: at most [`MAX_WINDOW_AGENTS`]
     /// distinct agents, one non-empty source set per box, each within the agent list.
-    pub fn check(&self, n_boxes: usize) -> Result<(), String> {
+    pub fn check(&self, n_boxes: usize) -> Result<(), ProvenanceError> {
         if self.agents.len() > MAX_WINDOW_AGENTS {
-            return Err(format!(
-                "{} agents, more than the limit {MAX_WINDOW_AGENTS}",
-                self.agents.len()
-            ));
+            return Err(ProvenanceError::TooManyAgents(self.agents.len()));
         }
         let mut seen = std::collections::HashSet::with_capacity(self.agents.len());
-        for (i, a) in self.agents.iter().enumerate() {
-            crate::wire::check_agent_name(a).map_err(|e| format!("agent {i}: {e}"))?;
+        for (index, a) in self.agents.iter().enumerate() {
+            crate::wire::check_agent_name(a)
+                .map_err(|error| ProvenanceError::BadAgent { index, error })?;
             if !seen.insert(a) {
-                return Err(format!("agent {i}: '{a}' is listed twice"));
+                return Err(ProvenanceError::Twice {
+                    index,
+                    agent: a.clone(),
+                });
             }
         }
         if self.sources.len() != n_boxes {
-            return Err(format!(
-                "{} source sets for {n_boxes} boxes",
-                self.sources.len()
-            ));
+            return Err(ProvenanceError::Sources {
+                sets: self.sources.len(),
+                boxes: n_boxes,
+            });
         }
         for (i, s) in self.sources.iter().enumerate() {
             if s.is_empty() {
-                return Err(format!("box {i}: no source agent"));
+                return Err(ProvenanceError::NoSource(i));
             }
             if s.bound() > self.agents.len() {
-                return Err(format!(
-                    "box {i}: source agent {} beyond the {} listed",
-                    s.bound() - 1,
-                    self.agents.len()
-                ));
+                return Err(ProvenanceError::Beyond {
+                    index: i,
+                    agent: s.bound() - 1,
+                    listed: self.agents.len(),
+                });
             }
         }
         Ok(())
@@ -183,19 +241,32 @@ mod tests {
         };
         assert_eq!(p.check(2), Ok(()));
         assert_eq!(p.names(&p.sources[1]).collect::<Vec<_>>(), vec!["a", "b"]);
-        assert!(p
-            .check(3)
-            .unwrap_err()
-            .contains("2 source sets for 3 boxes"));
+        let e = p.check(3).unwrap_err();
+        assert_eq!(e, ProvenanceError::Sources { sets: 2, boxes: 3 });
+        assert_eq!(e.to_string(), "2 source sets for 3 boxes");
         let mut q = p.clone();
         q.sources[0] = AgentSet::single(2);
-        assert!(q.check(2).unwrap_err().contains("box 0"));
+        let e = ProvenanceError::Beyond {
+            index: 0,
+            agent: 2,
+            listed: 2,
+        };
+        assert_eq!(q.check(2), Err(e));
         q.sources[0] = AgentSet::new();
-        assert!(q.check(2).unwrap_err().contains("no source"));
+        assert_eq!(q.check(2), Err(ProvenanceError::NoSource(0)));
         let mut q = p.clone();
         q.agents[1] = "a".into();
-        assert!(q.check(2).unwrap_err().contains("twice"));
+        let e = ProvenanceError::Twice {
+            index: 1,
+            agent: "a".into(),
+        };
+        assert_eq!(q.check(2), Err(e));
         q.agents[1] = "a/b".into();
-        assert!(q.check(2).unwrap_err().starts_with("agent 1"));
+        let e = q.check(2).unwrap_err();
+        assert!(matches!(e, ProvenanceError::BadAgent { index: 1, .. }));
+        assert_eq!(
+            e.to_string(),
+            "agent 1: agent name 'a/b' contains '/'; use letters, digits, '-', '_' or '.'"
+        );
     }
 }

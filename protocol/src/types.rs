@@ -5,6 +5,8 @@ use std::f64::consts::PI;
 use std::fmt;
 use std::str::FromStr;
 
+use crate::UnknownName;
+
 /// One of the 10 nuScenes detection classes.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -148,12 +150,10 @@ impl fmt::Display for Class {
 }
 
 impl FromStr for Class {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Class::from_name(s).ok_or_else(|| {
-            let names: Vec<_> = Class::ALL.iter().map(|c| c.name()).collect();
-            format!("unknown class '{s}' (expected one of {})", names.join(", "))
-        })
+        Class::from_name(s)
+            .ok_or_else(|| UnknownName::new("class", s, Class::ALL.iter().map(|c| c.name())))
     }
 }
 
@@ -269,45 +269,55 @@ impl fmt::Display for NoiseProfile {
 }
 
 impl FromStr for NoiseProfile {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         NoiseProfile::ALL
             .into_iter()
             .find(|p| p.name() == s)
             .ok_or_else(|| {
-                format!("unknown noise profile '{s}' (expected mild, moderate or large)")
+                UnknownName::new(
+                    "noise profile",
+                    s,
+                    NoiseProfile::ALL.map(NoiseProfile::name),
+                )
             })
     }
 }
 
+/// Why a std setting cannot be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StdSettingError {
+    /// Neither a profile nor three numbers.
+    #[error("invalid std '{0}': expected mild, moderate, large or three numbers POS,SIZE,YAW_DEG")]
+    Form(String),
+    /// Three numbers, one outside the wire's domain.
+    #[error(
+        "invalid std '{0}': each value must lie in [{min}, {max:.0}] (metres, metres, degrees)",
+        min = crate::limits::STD_MIN,
+        max = crate::limits::std_max()
+    )]
+    OutOfRange(String),
+}
+
 /// Parses a std setting: a profile name, or `POS,SIZE,YAW_DEG` in metres and degrees.
-pub fn parse_std(s: &str) -> Result<Uncertainty, String> {
+pub fn parse_std(s: &str) -> Result<Uncertainty, StdSettingError> {
     if let Ok(p) = s.parse::<NoiseProfile>() {
         return Ok(p.std());
     }
+    let form = || StdSettingError::Form(s.to_string());
     let parts: Vec<f64> = s
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| {
-            format!("invalid std '{s}': expected mild, moderate, large or POS,SIZE,YAW_DEG")
-        })?;
-    match parts[..] {
-        [pos, size, yaw] => {
-            let u = Uncertainty::uniform(pos, size, yaw.to_radians());
-            if u.is_valid() {
-                Ok(u)
-            } else {
-                Err(format!(
-                    "invalid std '{s}': each value must lie in [{}, {:.0}] (metres, metres, degrees)",
-                    crate::limits::STD_MIN,
-                    crate::limits::std_max()
-                ))
-            }
-        }
-        _ => Err(format!(
-            "invalid std '{s}': expected mild, moderate, large or three numbers POS,SIZE,YAW_DEG"
-        )),
+        .map_err(|_| form())?;
+    let [pos, size, yaw] = parts[..] else {
+        return Err(form());
+    };
+    let u = Uncertainty::uniform(pos, size, yaw.to_radians());
+    if u.is_valid() {
+        Ok(u)
+    } else {
+        Err(StdSettingError::OutOfRange(s.to_string()))
     }
 }
 
@@ -420,13 +430,15 @@ pub enum AgentKind {
 }
 
 impl FromStr for AgentKind {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "vehicle" => Ok(AgentKind::Vehicle),
             "infrastructure" | "infra" | "rsu" => Ok(AgentKind::Infrastructure),
-            _ => Err(format!(
-                "unknown agent kind '{s}' (expected vehicle or infrastructure)"
+            _ => Err(UnknownName::new(
+                "agent kind",
+                s,
+                ["vehicle", "infrastructure"],
             )),
         }
     }
@@ -499,7 +511,11 @@ mod tests {
         );
         assert_eq!(Class::from_category("human.pedestrian.stroller"), None);
         assert_eq!(Class::from_code(10), None);
-        assert!("lorry".parse::<Class>().unwrap_err().contains("car"));
+        assert!("lorry"
+            .parse::<Class>()
+            .unwrap_err()
+            .expected
+            .contains(&"car"));
     }
 
     #[test]

@@ -17,13 +17,14 @@
 //! output) into the domain. Decoding checks the payload size and the object count before it
 //! reads a single object, validates every field, and returns a [`DecodeError`]; it never panics.
 
+use crate::keys::{self, NameError};
 use crate::limits::{
     coord_in_range, size_in_range, std_in_range, std_of_code, vel_in_range, MAX_AGENT_NAME,
     MAX_OBJECTS, MAX_PAYLOAD, MAX_WINDOW_AGENTS, STD_CODE_MAX, STD_MIN, STD_PER_UNIT, VEL_STEP,
 };
 use crate::{
-    keys, wrap_angle, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty,
-    Velocity, NO_ID,
+    wrap_angle, AgentKind, AgentSet, Class, Detection, Frame, Provenance, ProvenanceError,
+    Uncertainty, Velocity, NO_ID,
 };
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -89,10 +90,10 @@ pub enum EncodeError {
     TooManyObjects(usize),
     /// The agent name is empty, too long or not a single key chunk.
     #[error("agent name: {0}")]
-    BadAgentName(String),
+    BadAgentName(NameError),
     /// The provenance does not fit the frame (agents, source sets).
     #[error("provenance: {0}")]
-    BadProvenance(String),
+    BadProvenance(ProvenanceError),
 }
 
 /// Why a payload could not be decoded.
@@ -121,10 +122,10 @@ pub enum DecodeError {
     TooManyObjects(u64),
     /// The agent name is empty, too long or not a single key chunk.
     #[error("agent name: {0}")]
-    BadAgentName(String),
+    BadAgentName(NameError),
     /// The provenance section is invalid (agents, completeness, source masks).
     #[error("provenance: {0}")]
-    BadProvenance(String),
+    BadProvenance(ProvenanceError),
     /// A decoded size is outside the domain.
     #[error("object {index}: size '{field}' is out of range ({cm} cm)")]
     SizeOutOfRange {
@@ -337,12 +338,12 @@ fn check_stds(u: &Uncertainty, index: usize) -> Result<[u16; 7], EncodeError> {
 
 /// Checks an agent name the way both directions do: non-empty, at most [`MAX_AGENT_NAME`]
 /// bytes, one key chunk without wildcards.
-pub fn check_agent_name(name: &str) -> Result<(), String> {
+pub fn check_agent_name(name: &str) -> Result<(), NameError> {
     if name.len() > MAX_AGENT_NAME {
-        return Err(format!(
-            "{} bytes, more than the limit {MAX_AGENT_NAME}",
-            name.len()
-        ));
+        return Err(NameError::TooLong {
+            len: name.len(),
+            max: MAX_AGENT_NAME,
+        });
     }
     keys::validate_chunk("agent name", name)
 }
@@ -628,12 +629,12 @@ fn read_provenance(r: &mut Reader) -> Result<ProvenanceHead, DecodeError> {
     let complete = match r.take::<u8>()? {
         0 => false,
         1 => true,
-        c => return Err(bad(format!("complete must be 0 or 1, not {c}"))),
+        c => return Err(bad(ProvenanceError::BadComplete(c))),
     };
     let n: u64 = r.take()?;
     if n > MAX_WINDOW_AGENTS as u64 {
-        return Err(bad(format!(
-            "{n} agents, more than the limit {MAX_WINDOW_AGENTS}"
+        return Err(bad(ProvenanceError::TooManyAgents(
+            usize::try_from(n).unwrap_or(usize::MAX),
         )));
     }
     let mut agents = Vec::with_capacity(n as usize);
@@ -740,10 +741,10 @@ pub fn decode_with(bytes: &[u8]) -> Result<(Frame, Option<Provenance>), DecodeEr
         if let (Some(len), Some(h)) = (mask_len, &head) {
             let set = AgentSet::from_bytes(r.take_bytes(len)?);
             if set.is_empty() || set.bound() > h.agents.len() {
-                return Err(DecodeError::BadProvenance(format!(
-                    "object {i}: source mask names no agent or one beyond the {} listed",
-                    h.agents.len()
-                )));
+                return Err(DecodeError::BadProvenance(ProvenanceError::BadMask {
+                    object: i,
+                    listed: h.agents.len(),
+                }));
             }
             sources.push(set);
         }

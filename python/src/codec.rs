@@ -8,7 +8,7 @@ use pyo3::types::PyBytes;
 use serde_json::{json, Map, Value};
 use v2x_protocol::nuscenes_json::TokenTable;
 use v2x_protocol::{wire, AgentKind, AgentSet, Class, Detection, Frame, Provenance, Uncertainty};
-use v2x_protocol::{Velocity, NO_ID};
+use v2x_protocol::{UnknownName, Velocity, NO_ID};
 
 /// Decodes a payload into the JSON of its frame dict.
 #[pyfunction]
@@ -24,7 +24,7 @@ pub fn decode_json(py: Python<'_>, payload: &[u8]) -> PyResult<String> {
 pub fn encode_json<'py>(py: Python<'py>, frame: &str) -> PyResult<Bound<'py, PyBytes>> {
     let value: Value = serde_json::from_str(frame)
         .map_err(|e| PyValueError::new_err(format!("frame: not JSON: {e}")))?;
-    let (frame, provenance) = frame_of(&value).map_err(EncodeError::new_err)?;
+    let (frame, provenance) = frame_of(&value).map_err(|e| EncodeError::new_err(e.to_string()))?;
     let bytes = wire::encode_with(&frame, provenance.as_ref())
         .map_err(|e| EncodeError::new_err(e.to_string()))?;
     Ok(PyBytes::new(py, &bytes))
@@ -43,7 +43,9 @@ pub fn encode_boxes<'py>(
     boxes: &Bound<'py, PyAny>,
     default_std: Option<&str>,
 ) -> PyResult<Bound<'py, PyBytes>> {
-    let kind: AgentKind = kind.parse().map_err(PyValueError::new_err)?;
+    let kind: AgentKind = kind
+        .parse()
+        .map_err(|e: v2x_protocol::UnknownName| PyValueError::new_err(e.to_string()))?;
     let missing = crate::options::missing_std(default_std)?;
     let detections = crate::boxdict::read_boxes("boxes", boxes, &mut TokenTable::new(), missing)?;
     let frame = Frame {
@@ -109,34 +111,55 @@ fn object_json(d: &Detection) -> Value {
     o
 }
 
-/// Where a value sits in a frame dict, for errors: `objects[3].center`.
+/// A frame dict's value that is missing or of the wrong kind.
+#[derive(Debug, Clone, PartialEq)]
+struct DictError {
+    /// Where it sits: `objects[3].center`.
+    path: String,
+    /// What it should have been.
+    expected: String,
+}
+
+impl std::fmt::Display for DictError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.path, self.expected)
+    }
+}
+
+/// Where a value sits in a frame dict, for errors: `objects[3].`.
 struct At<'a>(&'a str);
 
 impl At<'_> {
-    fn field<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v Value, String> {
-        obj.get(name)
-            .ok_or_else(|| format!("{}{name}: missing", self.0))
+    fn err(&self, name: &str, expected: impl Into<String>) -> DictError {
+        DictError {
+            path: format!("{}{name}", self.0),
+            expected: expected.into(),
+        }
     }
 
-    fn int(&self, obj: &Map<String, Value>, name: &str, max: u64) -> Result<u64, String> {
+    fn field<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v Value, DictError> {
+        obj.get(name).ok_or_else(|| self.err(name, "missing"))
+    }
+
+    fn int(&self, obj: &Map<String, Value>, name: &str, max: u64) -> Result<u64, DictError> {
         self.field(obj, name)?
             .as_u64()
             .filter(|v| *v <= max)
-            .ok_or_else(|| format!("{}{name}: expected an integer from 0 to {max}", self.0))
+            .ok_or_else(|| self.err(name, format!("expected an integer from 0 to {max}")))
     }
 
-    fn number(&self, obj: &Map<String, Value>, name: &str) -> Result<f64, String> {
+    fn number(&self, obj: &Map<String, Value>, name: &str) -> Result<f64, DictError> {
         self.field(obj, name)?
             .as_f64()
-            .ok_or_else(|| format!("{}{name}: expected a number", self.0))
+            .ok_or_else(|| self.err(name, "expected a number"))
     }
 
     fn numbers<const N: usize>(
         &self,
         obj: &Map<String, Value>,
         name: &str,
-    ) -> Result<[f64; N], String> {
-        let bad = || format!("{}{name}: expected {N} numbers", self.0);
+    ) -> Result<[f64; N], DictError> {
+        let bad = || self.err(name, format!("expected {N} numbers"));
         let arr = self.field(obj, name)?.as_array().ok_or_else(bad)?;
         if arr.len() != N {
             return Err(bad());
@@ -148,29 +171,43 @@ impl At<'_> {
         Ok(out)
     }
 
-    fn string<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v str, String> {
+    fn string<'v>(&self, obj: &'v Map<String, Value>, name: &str) -> Result<&'v str, DictError> {
         self.field(obj, name)?
             .as_str()
-            .ok_or_else(|| format!("{}{name}: expected a string", self.0))
+            .ok_or_else(|| self.err(name, "expected a string"))
+    }
+
+    /// A name of a closed set (a class, a kind).
+    fn name<T: std::str::FromStr<Err = UnknownName>>(
+        &self,
+        obj: &Map<String, Value>,
+        name: &str,
+    ) -> Result<T, DictError> {
+        self.string(obj, name)?
+            .parse()
+            .map_err(|e: UnknownName| self.err(name, e.to_string()))
     }
 }
 
 /// A frame dict (and a fused frame's provenance when it lists `agents`) from its JSON; the values
 /// are checked by the encoder.
-fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), String> {
-    let f = v.as_object().ok_or("frame: expected a dict")?;
+fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), DictError> {
     let at = At("");
-    let kind: AgentKind = at.string(f, "kind")?.parse()?;
+    let f = v
+        .as_object()
+        .ok_or_else(|| at.err("frame", "expected a dict"))?;
+    let kind: AgentKind = at.name(f, "kind")?;
     let agents: Option<Vec<String>> = match f.get("agents") {
         None | Some(Value::Null) => None,
         Some(a) => Some(
-            serde_json::from_value(a.clone()).map_err(|_| "agents: expected a list of names")?,
+            serde_json::from_value(a.clone())
+                .map_err(|_| at.err("agents", "expected a list of names"))?,
         ),
     };
     let objects = at
         .field(f, "objects")?
         .as_array()
-        .ok_or("objects: expected a list")?;
+        .ok_or_else(|| at.err("objects", "expected a list"))?;
     let mut detections = Vec::with_capacity(objects.len());
     let mut sources = Vec::new();
     for (i, o) in objects.iter().enumerate() {
@@ -178,7 +215,7 @@ fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), String> {
         let at = At(&prefix);
         let o = o
             .as_object()
-            .ok_or_else(|| format!("objects[{i}]: expected a dict"))?;
+            .ok_or_else(|| At("").err(&format!("objects[{i}]"), "expected a dict"))?;
         detections.push(object_of(&at, o)?);
         if let Some(agents) = &agents {
             sources.push(sources_of(&at, o, agents)?);
@@ -202,7 +239,7 @@ fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), String> {
             complete: f
                 .get("complete")
                 .map_or(Some(true), Value::as_bool)
-                .ok_or("complete: expected true or false")?,
+                .ok_or_else(|| at.err("complete", "expected true or false"))?,
             sources,
         }),
     };
@@ -210,8 +247,8 @@ fn frame_of(v: &Value) -> Result<(Frame, Option<Provenance>), String> {
 }
 
 /// One object of a frame dict.
-fn object_of(at: &At, o: &Map<String, Value>) -> Result<Detection, String> {
-    let class: Class = at.string(o, "class")?.parse()?;
+fn object_of(at: &At, o: &Map<String, Value>) -> Result<Detection, DictError> {
+    let class: Class = at.name(o, "class")?;
     let id = match o.get("id") {
         None | Some(Value::Null) => NO_ID,
         Some(_) => at.int(o, "id", (NO_ID - 1) as u64)? as u32,
@@ -240,17 +277,17 @@ fn object_of(at: &At, o: &Map<String, Value>) -> Result<Detection, String> {
 }
 
 /// The source set of one object of a fused frame dict: its `sources`, names among `agents`.
-fn sources_of(at: &At, o: &Map<String, Value>, agents: &[String]) -> Result<AgentSet, String> {
+fn sources_of(at: &At, o: &Map<String, Value>, agents: &[String]) -> Result<AgentSet, DictError> {
     let names = at
         .field(o, "sources")?
         .as_array()
-        .ok_or_else(|| format!("{}sources: expected a list of agent names", at.0))?;
+        .ok_or_else(|| at.err("sources", "expected a list of agent names"))?;
     let mut set = AgentSet::new();
     for n in names {
         let k = n
             .as_str()
             .and_then(|n| agents.iter().position(|a| a == n))
-            .ok_or_else(|| format!("{}sources: {n} is not one of the frame's agents", at.0))?;
+            .ok_or_else(|| at.err("sources", format!("{n} is not one of the frame's agents")))?;
         set.insert(k);
     }
     Ok(set)

@@ -84,7 +84,8 @@ pub fn evaluate_json(
             return Err(bad("tracking is scored at each sample's frame over the seven tracking classes: leave classes and at unset".into()));
         }
         return py.detach(|| {
-            let tracks = v2x_eval::tracking_eval::parse_tracking(path, document).map_err(bad)?;
+            let tracks = v2x_eval::tracking_eval::parse_tracking(path, document)
+                .map_err(|e| bad(e.to_string()))?;
             let (m, note) = file_eval::evaluate_tracking(gt, &tracks, path, all_frames)
                 .map_err(|e| bad(e.0))?;
             Ok((to_json(&m), note.unwrap_or_default()))

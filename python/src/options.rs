@@ -38,7 +38,8 @@ pub struct Options {
 
 /// A method by name.
 pub fn method(name: &str) -> PyResult<Method> {
-    name.parse().map_err(PyValueError::new_err)
+    name.parse()
+        .map_err(|e: v2x_protocol::UnknownName| PyValueError::new_err(e.to_string()))
 }
 
 /// What to do with boxes without stds: fill in `default_std` (mild, moderate, large or

@@ -8,7 +8,7 @@
 
 use crate::msg::*;
 use v2x_protocol::nuscenes_json::{quaternion_yaw, yaw_quaternion};
-use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
+use v2x_protocol::{wrap_angle, Class, Detection, InvalidValue, Uncertainty, Velocity, NO_ID};
 
 /// The pose of the message's frame in the map frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -20,17 +20,18 @@ pub struct Transform {
 }
 
 impl std::str::FromStr for Transform {
-    type Err = String;
+    type Err = InvalidValue;
 
     /// `X,Y,Z,YAW_DEG`.
-    fn from_str(s: &str) -> Result<Transform, String> {
+    fn from_str(s: &str) -> Result<Transform, InvalidValue> {
+        let bad = || InvalidValue::new("transform", "X,Y,Z,YAW_DEG (four finite numbers)", s);
         let v: Vec<f64> = s
             .split(',')
             .map(|t| t.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
             .collect::<Option<_>>()
-            .ok_or_else(|| format!("expected X,Y,Z,YAW_DEG (numbers), got '{s}'"))?;
+            .ok_or_else(bad)?;
         let [x, y, z, yaw] = v.as_slice() else {
-            return Err(format!("expected X,Y,Z,YAW_DEG (four numbers), got '{s}'"));
+            return Err(bad());
         };
         Ok(Transform {
             translation: [*x, *y, *z],

@@ -477,7 +477,7 @@ impl Scenario {
         self.check_agents()?;
         self.check_regions()?;
         let names: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
-        crate::timeline::check(&self.events, &names, self.duration_s).map_err(anyhow::Error::msg)
+        crate::timeline::check(&self.events, &names, self.duration_s).map_err(anyhow::Error::from)
     }
 
     /// A recorded data set's scenario (DAIR-V2X, V2V4Real): a data root, its two agents at their

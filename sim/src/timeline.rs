@@ -12,6 +12,8 @@ use crate::faults::Faults;
 use crate::noise::AgentNoise;
 use serde::Deserialize;
 use v2x_agent::Link;
+use v2x_protocol::InvalidValue;
+use v2x_truth::spec::SpecError;
 
 /// What an event does.
 #[derive(Copy, Clone, Debug, Deserialize, serde::Serialize, PartialEq, Eq)]
@@ -91,94 +93,163 @@ impl EventSpec {
     }
 }
 
+/// An event that cannot happen as written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("events[{index}] (at_s {at_s}, {target}): {problem}")]
+pub struct EventError {
+    /// Its place in `[[events]]`.
+    pub index: usize,
+    /// Its time (s).
+    pub at_s: f64,
+    /// Its target.
+    pub target: String,
+    /// What is wrong with it.
+    pub problem: Box<EventProblem>,
+}
+
+/// What is wrong with an event.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EventProblem {
+    /// Before the start or after the end of the run.
+    #[error("at_s must be within the run, 0 to {0} s")]
+    OutsideRun(f64),
+    /// `restart` of an agent.
+    #[error("restart applies to the target fuser")]
+    RestartOfAgent,
+    /// Another action than `restart` for the fuser.
+    #[error("the fuser can only restart, not {0:?}")]
+    FuserOnlyRestarts(Action),
+    /// A field the action does not take.
+    #[error("{field} does not apply to {action:?}")]
+    Field {
+        /// The field.
+        field: &'static str,
+        /// The action.
+        action: Action,
+    },
+    /// A restart's negative or infinite duration.
+    #[error("restart: duration_s must be 0 or more")]
+    RestartDuration,
+    /// A target that is no agent.
+    #[error("no agent of that name (agents: {})", .0.join(", "))]
+    NoAgent(Vec<String>),
+    /// `leave` of an agent that has left.
+    #[error("the agent has already left")]
+    AlreadyLeft,
+    /// `join` of an agent that is there.
+    #[error("the agent is already there")]
+    AlreadyThere,
+    /// A value the action needs, missing or out of its domain.
+    #[error("{0}")]
+    Needs(&'static str),
+    /// A link value out of its domain.
+    #[error(transparent)]
+    BadLink(InvalidValue),
+    /// A noise or faults setting that cannot be read.
+    #[error(transparent)]
+    Spec(SpecError),
+}
+
 /// Checks every event against the scenario's agents and length; errors name the event.
-pub fn check(events: &[EventSpec], agents: &[&str], duration_s: f64) -> Result<(), String> {
+pub fn check(events: &[EventSpec], agents: &[&str], duration_s: f64) -> Result<(), EventError> {
     // per agent, whether it is present, in time order
     let mut order: Vec<usize> = (0..events.len()).collect();
     order.sort_by(|&a, &b| events[a].at_s.total_cmp(&events[b].at_s).then(a.cmp(&b)));
     let mut present = vec![true; agents.len()];
-    for k in order {
-        let e = &events[k];
-        let at = |what: String| format!("events[{k}] (at_s {}, {}): {what}", e.at_s, e.target);
-        if !(e.at_s.is_finite() && (0.0..=duration_s).contains(&e.at_s)) {
-            return Err(at(format!(
-                "at_s must be within the run, 0 to {duration_s} s"
-            )));
+    for index in order {
+        let e = &events[index];
+        check_event(e, agents, &mut present, duration_s).map_err(|problem| EventError {
+            index,
+            at_s: e.at_s,
+            target: e.target.clone(),
+            problem: Box::new(problem),
+        })?;
+    }
+    Ok(())
+}
+
+/// Checks one event, in time order; `present` tells, per agent, whether it is there.
+fn check_event(
+    e: &EventSpec,
+    agents: &[&str],
+    present: &mut [bool],
+    duration_s: f64,
+) -> Result<(), EventProblem> {
+    use EventProblem::*;
+    if !(e.at_s.is_finite() && (0.0..=duration_s).contains(&e.at_s)) {
+        return Err(OutsideRun(duration_s));
+    }
+    if e.target == FUSER || e.action == Action::Restart {
+        return check_restart(e);
+    }
+    let Some(a) = agents.iter().position(|a| *a == e.target) else {
+        return Err(NoAgent(agents.iter().map(|a| a.to_string()).collect()));
+    };
+    let allowed: &[&str] = match e.action {
+        Action::Leave | Action::Join => &[],
+        Action::Link => &["latency_ms", "jitter_ms", "drop_rate"],
+        Action::LossBurst => &["duration_s"],
+        Action::ClockJump => &["jump_ms"],
+        Action::Noise => &["noise", "faults"],
+        Action::Restart => &["duration_s"],
+    };
+    if let Some(field) = e.fields().into_iter().find(|f| !allowed.contains(f)) {
+        let action = e.action;
+        return Err(Field { field, action });
+    }
+    match e.action {
+        Action::Leave if !present[a] => return Err(AlreadyLeft),
+        Action::Join if present[a] => return Err(AlreadyThere),
+        Action::Leave => present[a] = false,
+        Action::Join => present[a] = true,
+        Action::Link => {
+            if e.fields().is_empty() {
+                return Err(Needs("link needs latency_ms, jitter_ms or drop_rate"));
+            }
+            let link = Link {
+                latency_ms: e.latency_ms.unwrap_or(0.0),
+                jitter_ms: e.jitter_ms.unwrap_or(0.0),
+                drop_rate: e.drop_rate.unwrap_or(0.0),
+                clock_offset_ms: 0.0,
+            };
+            link.validate().map_err(BadLink)?;
         }
-        if e.target == FUSER || e.action == Action::Restart {
-            if e.target != FUSER {
-                return Err(at("restart applies to the target fuser".into()));
-            }
-            if e.action != Action::Restart {
-                return Err(at(format!(
-                    "the fuser can only restart, not {:?}",
-                    e.action
-                )));
-            }
-            if let Some(f) = e.fields().into_iter().find(|f| *f != "duration_s") {
-                return Err(at(format!("{f} does not apply to Restart")));
-            }
-            if e.duration_s.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
-                return Err(at("restart: duration_s must be 0 or more".into()));
-            }
-            continue;
-        }
-        let Some(a) = agents.iter().position(|a| *a == e.target) else {
-            let names = agents;
-            return Err(at(format!(
-                "no agent of that name (agents: {})",
-                names.join(", ")
-            )));
-        };
-        let allowed: &[&str] = match e.action {
-            Action::Leave | Action::Join => &[],
-            Action::Link => &["latency_ms", "jitter_ms", "drop_rate"],
-            Action::LossBurst => &["duration_s"],
-            Action::ClockJump => &["jump_ms"],
-            Action::Noise => &["noise", "faults"],
-            Action::Restart => &["duration_s"],
-        };
-        if let Some(f) = e.fields().into_iter().find(|f| !allowed.contains(f)) {
-            return Err(at(format!("{f} does not apply to {:?}", e.action)));
-        }
-        match e.action {
-            Action::Leave if !present[a] => return Err(at("the agent has already left".into())),
-            Action::Join if present[a] => return Err(at("the agent is already there".into())),
-            Action::Leave => present[a] = false,
-            Action::Join => present[a] = true,
-            Action::Link => {
-                if e.fields().is_empty() {
-                    return Err(at("link needs latency_ms, jitter_ms or drop_rate".into()));
-                }
-                let link = Link {
-                    latency_ms: e.latency_ms.unwrap_or(0.0),
-                    jitter_ms: e.jitter_ms.unwrap_or(0.0),
-                    drop_rate: e.drop_rate.unwrap_or(0.0),
-                    clock_offset_ms: 0.0,
-                };
-                link.validate().map_err(at)?;
-            }
-            Action::LossBurst => match e.duration_s {
-                Some(d) if d.is_finite() && d > 0.0 => {}
-                _ => return Err(at("loss_burst needs duration_s > 0".into())),
-            },
-            Action::Restart => {}
-            Action::ClockJump => match e.jump_ms {
-                Some(j) if j.is_finite() => {}
-                _ => return Err(at("clock_jump needs a finite jump_ms".into())),
-            },
-            Action::Noise => {
-                let Some(n) = &e.noise else {
-                    return Err(at("noise needs noise (e.g. \"large\")".into()));
-                };
-                n.parse::<AgentNoise>()
-                    .map_err(|err| at(format!("noise: {err}")))?;
-                if let Some(f) = &e.faults {
-                    f.parse::<Faults>()
-                        .map_err(|err| at(format!("faults: {err}")))?;
-                }
+        Action::LossBurst => match e.duration_s {
+            Some(d) if d.is_finite() && d > 0.0 => {}
+            _ => return Err(Needs("loss_burst needs duration_s > 0")),
+        },
+        Action::Restart => {}
+        Action::ClockJump => match e.jump_ms {
+            Some(j) if j.is_finite() => {}
+            _ => return Err(Needs("clock_jump needs a finite jump_ms")),
+        },
+        Action::Noise => {
+            let Some(n) = &e.noise else {
+                return Err(Needs("noise needs noise (e.g. \"large\")"));
+            };
+            n.parse::<AgentNoise>().map_err(Spec)?;
+            if let Some(f) = &e.faults {
+                f.parse::<Faults>().map_err(Spec)?;
             }
         }
+    }
+    Ok(())
+}
+
+/// Checks an event of the fuser or a restart: only the fuser restarts, for `duration_s` >= 0.
+fn check_restart(e: &EventSpec) -> Result<(), EventProblem> {
+    if e.target != FUSER {
+        return Err(EventProblem::RestartOfAgent);
+    }
+    if e.action != Action::Restart {
+        return Err(EventProblem::FuserOnlyRestarts(e.action));
+    }
+    if let Some(field) = e.fields().into_iter().find(|f| *f != "duration_s") {
+        let action = e.action;
+        return Err(EventProblem::Field { field, action });
+    }
+    if e.duration_s.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
+        return Err(EventProblem::RestartDuration);
     }
     Ok(())
 }

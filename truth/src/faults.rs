@@ -6,12 +6,13 @@
 //! them from a random stream of their own, so the Gaussian noise is the same with or without.
 
 use crate::seed::mix;
+use crate::spec::{Problem, SpecError};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{wrap_angle, Class};
+use v2x_protocol::{wrap_angle, Class, InvalidValue};
 
 /// One agent's fault rates. [`Faults::NONE`] is the paper's ideal detector.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -114,7 +115,7 @@ impl Faults {
     }
 
     /// Checks every rate and std, naming the first bad one.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), InvalidValue> {
         let unit = [
             ("detect", self.detect),
             ("occlusion", self.occlusion),
@@ -123,7 +124,7 @@ impl Faults {
         ];
         for (name, v) in unit {
             if !(0.0..=1.0).contains(&v) {
-                return Err(format!("{name} must be a probability in [0, 1], not {v}"));
+                return Err(InvalidValue::new(name, "a probability in [0, 1]", v));
             }
         }
         let bounded = [
@@ -133,13 +134,13 @@ impl Faults {
         ];
         for (name, v, max) in bounded {
             if !(0.0..=max).contains(&v) {
-                return Err(format!("{name} must be in [0, {max}], not {v}"));
+                return Err(InvalidValue::new(name, format!("in [0, {max}]"), v));
             }
         }
         for (name, v) in [("half_range", self.half_range_m), ("drift", self.drift_s)] {
             if let Some(v) = v {
                 if !(v > 0.0 && v <= 1e6) {
-                    return Err(format!("{name} must be > 0 (and at most 1e6), not {v}"));
+                    return Err(InvalidValue::new(name, "> 0 (and at most 1e6)", v));
                 }
             }
         }
@@ -154,29 +155,28 @@ impl Default for Faults {
 }
 
 impl FromStr for Faults {
-    type Err = String;
+    type Err = SpecError;
     /// `none`, `realistic`, or `KEY=VALUE,...` over the keys of [`FAULT_KEYS`] (unnamed keys
     /// keep the values of `none`).
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, SpecError> {
         match s.trim() {
             "none" | "" => return Ok(Faults::NONE),
             "realistic" => return Ok(Faults::REALISTIC),
             _ => {}
         }
+        let bad = |problem: Problem| SpecError::new("faults", s, problem);
         let mut f = Faults::NONE;
         for part in s.split(',') {
             let (key, value) = part.split_once('=').ok_or_else(|| {
-                format!(
-                    "invalid faults '{s}': '{part}' is not KEY=VALUE (keys: {})",
-                    keys()
-                )
+                let (part, keys) = (part.to_string(), keys());
+                bad(Problem::NotKeyValue { part, keys })
             })?;
             let (key, value) = (key.trim(), value.trim());
             let v: f64 = value
                 .parse()
                 .ok()
                 .filter(|v: &f64| v.is_finite())
-                .ok_or_else(|| format!("invalid faults '{s}': {key}: '{value}' is not a number"))?;
+                .ok_or_else(|| bad(InvalidValue::new(key, "a number", value).into()))?;
             match key {
                 "detect" => f.detect = v,
                 "half_range" => f.half_range_m = Some(v),
@@ -188,15 +188,12 @@ impl FromStr for Faults {
                 "pose_yaw" => f.pose_yaw = v.to_radians(),
                 "drift" => f.drift_s = Some(v),
                 _ => {
-                    return Err(format!(
-                        "invalid faults '{s}': unknown key '{key}' (keys: {})",
-                        keys()
-                    ))
+                    let (key, keys) = (key.to_string(), keys());
+                    return Err(bad(Problem::UnknownKey { key, keys }));
                 }
             }
         }
-        f.check()
-            .map_err(|e| format!("invalid faults '{s}': {e}"))?;
+        f.check().map_err(|e| bad(e.into()))?;
         Ok(f)
     }
 }
@@ -251,12 +248,9 @@ pub const FAULT_KEYS: &[(&str, &str)] = &[
     ),
 ];
 
-fn keys() -> String {
-    FAULT_KEYS
-        .iter()
-        .map(|(k, _)| *k)
-        .collect::<Vec<_>>()
-        .join(", ")
+/// The names of [`FAULT_KEYS`].
+fn keys() -> Vec<&'static str> {
+    FAULT_KEYS.iter().map(|(k, _)| *k).collect()
 }
 
 /// The class a detector confuses `c` with: car and truck, pedestrian and bicycle, bicycle and
@@ -332,13 +326,23 @@ mod tests {
             Faults::REALISTIC.to_string().parse::<Faults>().unwrap(),
             Faults::REALISTIC
         );
-        let err = |s: &str| s.parse::<Faults>().unwrap_err();
-        assert!(err("flip=2").contains("flip must be a probability"));
-        assert!(err("flip=x").contains("flip: 'x' is not a number"));
-        assert!(err("speed=1").contains("unknown key 'speed'"));
-        assert!(err("fp").contains("not KEY=VALUE"));
-        assert!(err("half_range=0").contains("half_range must be > 0"));
-        assert!(err("fp=nan").contains("not a number"));
+        let err = |s: &str| s.parse::<Faults>().unwrap_err().problem;
+        let value = |field: &str, expected: &str, got: &str| {
+            Problem::Value(InvalidValue::new(field, expected, got))
+        };
+        assert_eq!(err("flip=2"), value("flip", "a probability in [0, 1]", "2"));
+        assert_eq!(err("flip=x"), value("flip", "a number", "x"));
+        let keys = keys();
+        let key = "speed".to_string();
+        assert_eq!(err("speed=1"), Problem::UnknownKey { key, keys });
+        assert!(matches!(err("fp"), Problem::NotKeyValue { part, .. } if part == "fp"));
+        let e = value("half_range", "> 0 (and at most 1e6)", "0");
+        assert_eq!(err("half_range=0"), e);
+        assert_eq!(err("fp=nan"), value("fp", "a number", "nan"));
+        assert_eq!(
+            "flip=2".parse::<Faults>().unwrap_err().to_string(),
+            "invalid faults 'flip=2': flip must be a probability in [0, 1] (got 2)"
+        );
     }
 
     #[test]

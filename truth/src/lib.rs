@@ -14,6 +14,7 @@ pub mod dataset;
 pub mod faults;
 pub mod noise;
 pub mod seed;
+pub mod spec;
 pub mod stated;
 pub mod town;
 pub mod v2v4real;

@@ -11,13 +11,16 @@ use crate::dataset::{GroundTruth, GtFrame, GtObject, Recorded};
 use crate::faults::{false_positive_class, hidden, look_alike, Faults};
 use crate::faults::{FALSE_POSITIVE_RADIUS, FALSE_POSITIVE_SCORE_DROP};
 pub use crate::seed::mix;
+use crate::spec::SpecError;
 use crate::stated::Stated;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{wrap_angle, AgentKind, Detection, NoiseProfile, Uncertainty, Velocity, NO_ID};
+use v2x_protocol::{
+    wrap_angle, AgentKind, Detection, InvalidValue, NoiseProfile, Uncertainty, Velocity, NO_ID,
+};
 
 /// How one agent perceives.
 #[derive(Clone, Debug, PartialEq)]
@@ -117,10 +120,10 @@ impl AgentNoise {
 }
 
 impl FromStr for AgentNoise {
-    type Err = String;
+    type Err = SpecError;
     /// A profile name (`realistic` and `labels` included), `POS,SIZE,YAW_DEG`, or
     /// `POS,SIZE,YAW_DEG,VEL` (VEL in m/s).
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, SpecError> {
         if let Ok(p) = s.parse::<NoiseProfile>() {
             return Ok(AgentNoise::profile(p));
         }
@@ -133,21 +136,23 @@ impl FromStr for AgentNoise {
         let parts: Vec<&str> = s.split(',').collect();
         let (stds, vel) = match parts.len() {
             4 => {
-                let v: f64 = parts[3].trim().parse().map_err(|_| {
-                    format!(
-                        "invalid noise '{s}': the velocity std '{}' is not a number",
-                        parts[3]
-                    )
-                })?;
-                if !v2x_protocol::limits::std_in_range(v) {
-                    return Err(format!("invalid noise '{s}': the velocity std must be > 0"));
-                }
+                let v = parts[3]
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|v| v2x_protocol::limits::std_in_range(*v))
+                    .ok_or_else(|| {
+                        let e = InvalidValue::new("the velocity std", "a number > 0", parts[3]);
+                        SpecError::new("noise", s, e)
+                    })?;
                 (parts[..3].join(","), Some(v))
             }
             _ => (s.to_string(), None),
         };
         let std = v2x_protocol::parse_std(&stds).map_err(|e| {
-            format!("{e} (or realistic, or POS,SIZE,YAW_DEG,VEL with a velocity std in m/s)")
+            let forms = "mild, moderate, large, realistic, labels, POS,SIZE,YAW_DEG or \
+                         POS,SIZE,YAW_DEG,VEL with a velocity std in m/s";
+            SpecError::std("noise", s, e, forms)
         })?;
         let mut n = AgentNoise::custom(std);
         n.label = s.to_string();
@@ -170,7 +175,7 @@ pub struct NoiseSetting {
 impl NoiseSetting {
     /// Parses `PROFILE` (repeated for `n_agents`) or `P1+P2+...` (one per agent). `realistic`
     /// alone gives agent 2, the roadside unit of [`place_agents`], `realistic-rsu`.
-    pub fn parse(s: &str, n_agents: usize) -> Result<Self, String> {
+    pub fn parse(s: &str, n_agents: usize) -> Result<Self, SpecError> {
         if s == "realistic" {
             let mut agents = vec![AgentNoise::realistic(); n_agents.max(1)];
             if n_agents >= 2 {
@@ -201,7 +206,7 @@ impl NoiseSetting {
 
     /// Replaces the agents' faults: one spec for all, or one per agent joined by '+' (the last
     /// repeats).
-    pub fn set_faults(&mut self, spec: &str) -> Result<(), String> {
+    pub fn set_faults(&mut self, spec: &str) -> Result<(), SpecError> {
         self.set_each(spec, |agent, f| agent.faults = f)?;
         self.name = format!("{} faults {spec}", self.name);
         Ok(())
@@ -209,7 +214,7 @@ impl NoiseSetting {
 
     /// Sets the stds the agents state ([`Stated`]): one for all, or one per agent joined by
     /// '+' (the last repeats).
-    pub fn set_stated(&mut self, spec: &str) -> Result<(), String> {
+    pub fn set_stated(&mut self, spec: &str) -> Result<(), SpecError> {
         self.set_each(spec, |agent, s: Stated| agent.stated = s)?;
         self.name = format!("{} stating {spec}", self.name);
         Ok(())
@@ -217,11 +222,11 @@ impl NoiseSetting {
 
     /// Parses one value for all agents, or one per agent joined by '+' (the last repeats), and
     /// sets each agent's.
-    fn set_each<T: FromStr<Err = String> + Copy>(
+    fn set_each<T: FromStr<Err = SpecError> + Copy>(
         &mut self,
         spec: &str,
         set: impl Fn(&mut AgentNoise, T),
-    ) -> Result<(), String> {
+    ) -> Result<(), SpecError> {
         let parts: Vec<T> = spec.split('+').map(str::parse).collect::<Result<_, _>>()?;
         for (a, agent) in self.agents.iter_mut().enumerate() {
             set(agent, parts[a.min(parts.len() - 1)]);
@@ -507,6 +512,7 @@ const VELOCITY_STREAM: u64 = 0x7E10_C17E;
 mod tests {
     use super::*;
     use crate::dataset::GtObject;
+    use crate::spec::Problem;
     use v2x_protocol::Class;
 
     fn cap(draw: u64) -> Capture {
@@ -626,7 +632,10 @@ mod tests {
         assert!((s.error_bound() - expect).abs() < 1e-12);
         let m = NoiseSetting::parse("moderate", 4).unwrap();
         assert_eq!(m.agents.len(), 4);
-        assert!(NoiseSetting::parse("huge", 2).unwrap_err().contains("mild"));
+        let e = NoiseSetting::parse("huge", 2).unwrap_err();
+        assert!(matches!(e.problem, Problem::Form(f) if f.starts_with("mild, moderate, large")));
+        let e = NoiseSetting::parse("0.1,0.1,5,-1", 2).unwrap_err();
+        assert!(matches!(e.problem, Problem::Value(v) if v.field == "the velocity std"));
         let c = NoiseSetting::parse("0.2,0.1,3", 2).unwrap();
         assert!((c.agents[1].std.yaw - 3f64.to_radians()).abs() < 1e-12);
         assert_eq!(c.agents[1].velocity_std, 0.5);
@@ -642,9 +651,9 @@ mod tests {
         r.set_faults("none+fp=3").unwrap();
         assert_eq!(r.agents[0].faults, Faults::NONE);
         assert_eq!(r.agents[2].faults.false_positives, 3.0);
-        assert!(r.set_faults("flip=9").unwrap_err().contains("flip"));
-        assert!(NoiseSetting::parse("huge", 1)
-            .unwrap_err()
-            .contains("realistic"));
+        let e = r.set_faults("flip=9").unwrap_err();
+        assert!(matches!(e.problem, Problem::Value(v) if v.field == "flip"));
+        let e = NoiseSetting::parse("huge", 1).unwrap_err().to_string();
+        assert!(e.starts_with("invalid noise 'huge': expected mild, moderate, large, realistic"));
     }
 }

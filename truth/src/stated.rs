@@ -1,9 +1,10 @@
 //! What an agent says of its own errors: the stds its boxes carry, which need not be the ones
 //! its noise has (an over- or underconfident detector, or one that states none).
 
+use crate::spec::SpecError;
 use std::fmt;
 use std::str::FromStr;
-use v2x_protocol::{parse_std, Uncertainty};
+use v2x_protocol::{parse_std, InvalidValue, Uncertainty};
 
 /// The stds an agent states with each box.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
@@ -38,9 +39,9 @@ impl Stated {
 }
 
 impl FromStr for Stated {
-    type Err = String;
+    type Err = SpecError;
     /// `honest`, `none`, `xK` (K > 0), a profile name or POS,SIZE,YAW_DEG.
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, SpecError> {
         match s {
             "honest" => return Ok(Stated::Honest),
             "none" => return Ok(Stated::Nothing),
@@ -49,12 +50,18 @@ impl FromStr for Stated {
         if let Some(k) = s.strip_prefix('x') {
             return match k.parse::<f64>() {
                 Ok(k) if k > 0.0 && k.is_finite() => Ok(Stated::Scaled(k)),
-                _ => Err(format!("invalid stated std '{s}': xK needs a factor K > 0")),
+                _ => Err(SpecError::new(
+                    "stated std",
+                    s,
+                    InvalidValue::new("the factor K of xK", "> 0", k),
+                )),
             };
         }
-        parse_std(s)
-            .map(Stated::Fixed)
-            .map_err(|e| format!("{e} (or honest, none, or xK: the noise's own stds times K)"))
+        parse_std(s).map(Stated::Fixed).map_err(|e| {
+            let forms = "honest, none, xK (the noise's own stds times K), mild, moderate, large \
+                         or POS,SIZE,YAW_DEG";
+            SpecError::std("stated std", s, e, forms)
+        })
     }
 }
 

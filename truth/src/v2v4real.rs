@@ -17,7 +17,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use v2x_protocol::kitti::{self, KittiError};
 use v2x_protocol::nuscenes_json::Results;
-use v2x_protocol::{Detection, Uncertainty};
+use v2x_protocol::{Detection, Uncertainty, UnknownName};
 
 /// The two cars, in input order: the ego car and the other car.
 pub const CARS: [&str; 2] = ["ego", "1"];
@@ -49,12 +49,12 @@ impl Split {
 }
 
 impl std::str::FromStr for Split {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownName;
+    fn from_str(s: &str) -> Result<Self, UnknownName> {
         match s {
             "train" => Ok(Split::Train),
             "val" | "test" => Ok(Split::Val),
-            _ => Err(format!("split '{s}': expected train or val")),
+            _ => Err(UnknownName::new("split", s, ["train", "val"])),
         }
     }
 }

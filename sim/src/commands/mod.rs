@@ -32,7 +32,7 @@ pub(crate) fn evaluate_tracking(
     path: &std::path::Path,
     all_frames: bool,
 ) -> anyhow::Result<v2x_sim::tracking_eval::TrackingMetrics> {
-    let tracks = v2x_sim::tracking_eval::read_tracking(path).map_err(anyhow::Error::msg)?;
+    let tracks = v2x_sim::tracking_eval::read_tracking(path)?;
     let (m, note) = v2x_eval::file_eval::evaluate_tracking(gt, &tracks, path, all_frames)?;
     if let Some(note) = note {
         eprintln!("{note}");
@@ -74,16 +74,17 @@ pub(crate) fn faults_help() -> String {
     s
 }
 
-pub(crate) fn parse_list<T>(
+/// A comma-separated list, or `all`.
+pub(crate) fn parse_list<T, E: std::error::Error + Send + Sync + 'static>(
     s: &str,
     all: Vec<T>,
-    parse: impl Fn(&str) -> Result<T, String>,
+    parse: impl Fn(&str) -> Result<T, E>,
 ) -> anyhow::Result<Vec<T>> {
     if s == "all" {
         return Ok(all);
     }
     s.split(',')
-        .map(|x| parse(x.trim()).map_err(anyhow::Error::msg))
+        .map(|x| parse(x.trim()).map_err(anyhow::Error::from))
         .collect()
 }
 

@@ -350,7 +350,7 @@ fn track_then_score_tracks_and_boxes() {
         .args(["eval", "--tracking"])
         .args(town)
         .arg(dir.join("fused.json")));
-    assert!(!ok && err.contains("tracking_id: missing"), "{err}");
+    assert!(!ok && err.contains("field 'tracking_id': missing"), "{err}");
     let bare = dir.join("bare.json");
     std::fs::write(
         &bare,

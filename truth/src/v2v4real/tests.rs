@@ -55,5 +55,8 @@ fn splits_parse_by_name() {
     assert_eq!("train".parse::<Split>(), Ok(Split::Train));
     assert_eq!("val".parse::<Split>(), Ok(Split::Val));
     assert_eq!("test".parse::<Split>(), Ok(Split::Val));
-    assert!("dev".parse::<Split>().unwrap_err().contains("train or val"));
+    assert_eq!(
+        "dev".parse::<Split>().unwrap_err().expected,
+        ["train", "val"]
+    );
 }
