@@ -34,7 +34,7 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use std::collections::HashMap;
-use v2x_protocol::{wrap_angle, AgentKind, Detection};
+use v2x_protocol::{wrap_angle, AgentKind, Detection, InvalidValue};
 
 /// Parameters of the registration.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -97,7 +97,7 @@ impl Default for AlignParams {
 
 impl AlignParams {
     /// Checks that every parameter is in its domain; the error names the parameter.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidValue> {
         let positive = [
             ("gate_m", self.gate_m),
             ("inlier_m", self.inlier_m),
@@ -107,7 +107,7 @@ impl AlignParams {
         ];
         for (name, v) in positive {
             if !(v > 0.0 && v.is_finite()) {
-                return Err(format!("{name} {v}: expected a finite value > 0"));
+                return Err(InvalidValue::new(name, "a finite value > 0", v));
             }
         }
         for (name, v) in [
@@ -120,14 +120,12 @@ impl AlignParams {
             ("turn_chi2", self.turn_chi2),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
-                return Err(format!("{name} {v}: expected a finite value >= 0"));
+                return Err(InvalidValue::new(name, "a finite value >= 0", v));
             }
         }
         if self.min_matches < 2 {
-            return Err(format!(
-                "min_matches {}: a turn needs at least 2 matches",
-                self.min_matches
-            ));
+            let expected = "at least 2 (a turn needs 2 matches)";
+            return Err(InvalidValue::new("min_matches", expected, self.min_matches));
         }
         Ok(())
     }

@@ -73,9 +73,26 @@ pub enum FilesError {
     /// A KITTI-layout folder or file.
     #[error(transparent)]
     Kitti(#[from] KittiError),
-    /// The inputs do not suit the job.
-    #[error("{0}")]
-    Inputs(String),
+    /// Files and folders given together.
+    #[error(
+        "give every input as a results file, or every input as a folder of KITTI rows \
+         (NNNN.txt per sequence): not both"
+    )]
+    MixedInputs,
+    /// Tracking of inputs without capture times.
+    #[error(
+        "tracking needs every input to carry capture times \
+         (meta.v2x_timestamps with one entry per sample, as `v2x-sim gen` writes it)"
+    )]
+    NoCaptureTimes,
+    /// The output cannot be written.
+    #[error("cannot write {}: {error}", path.display())]
+    Write {
+        /// The output file.
+        path: PathBuf,
+        /// Why.
+        error: std::io::Error,
+    },
 }
 
 /// The layout the fused or tracked output is written in.
@@ -144,11 +161,7 @@ pub fn read_inputs(paths: &[PathBuf], missing: MissingStd) -> Result<Inputs, Fil
     let mut sequences = BTreeSet::new();
     let folders = paths.iter().filter(|p| p.is_dir()).count();
     if folders != 0 && folders != paths.len() {
-        return Err(FilesError::Inputs(
-            "give every input as a results file, or every input as a folder of KITTI rows \
-             (NNNN.txt per sequence): not both"
-                .into(),
-        ));
+        return Err(FilesError::MixedInputs);
     }
     for p in paths {
         if p.is_dir() {
@@ -474,7 +487,10 @@ fn write_json(output: &std::path::Path, doc: &Value) -> Result<(), FilesError> {
         output,
         serde_json::to_string(doc).expect("JSON values always serialize"),
     )
-    .map_err(|e| FilesError::Inputs(format!("cannot write {}: {e}", output.display())))
+    .map_err(|error| FilesError::Write {
+        path: output.to_path_buf(),
+        error,
+    })
 }
 
 /// What `v2x-fuser fuse` did.

@@ -16,6 +16,7 @@ use crate::tracker::TrackerParams;
 use crate::Method;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::path::PathBuf;
+use v2x_protocol::InvalidValue;
 
 /// A setting out of its range: its scenario key, its flag and what is wrong.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -202,11 +203,13 @@ impl Default for StdSettings {
 }
 
 /// Splits AGENT=FILE.
-pub fn parse_model_arg(s: &str) -> Result<(String, PathBuf), String> {
+pub fn parse_model_arg(s: &str) -> Result<(String, PathBuf), InvalidValue> {
     match s.split_once('=') {
         Some((a, f)) if !a.is_empty() && !f.is_empty() => Ok((a.to_owned(), f.into())),
-        _ => Err(format!(
-            "'{s}': expected AGENT=FILE, e.g. agent2=rsu-model.json"
+        _ => Err(InvalidValue::new(
+            "std model",
+            "AGENT=FILE, e.g. agent2=rsu-model.json",
+            s,
         )),
     }
 }
@@ -247,7 +250,7 @@ impl StdSettings {
             };
             let text =
                 std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read: {e}")))?;
-            let m = ErrorModel::from_json(&text).map_err(bad)?;
+            let m = ErrorModel::from_json(&text).map_err(|e| bad(e.to_string()))?;
             if models.0.insert(agent.clone(), m).is_some() {
                 return Err(bad("given twice".into()));
             }
@@ -327,7 +330,7 @@ impl RegistrationSettings {
             ..Default::default()
         };
         p.validate()
-            .map_err(|e| SettingsError::new("registration", "--align", e))?;
+            .map_err(|e| SettingsError::new("registration", "--align", e.to_string()))?;
         Ok(p)
     }
 }
@@ -495,7 +498,7 @@ impl AdmissionSettings {
                 } else {
                     "area_radius_m"
                 },
-                &e,
+                &e.to_string(),
             );
         }
         ingest.max_clock_skew_us =

@@ -261,9 +261,14 @@ impl Cell {
         }
     }
 
-    fn check(&self, at: &str) -> Result<(), String> {
+    fn check(&self, at: &str) -> Result<(), ModelError> {
+        let bad = |field: &str, value: f64, expected: String| ModelError::Cell {
+            field: format!("{at}.{field}"),
+            value,
+            expected,
+        };
         if let Some(b) = self.bias.values().find(|b| !(b.abs() <= MAX_BIAS)) {
-            return Err(format!("{at}.bias: {b} is not a bias within +-{MAX_BIAS}"));
+            return Err(bad("bias", b, format!("a bias within +-{MAX_BIAS}")));
         }
         for (name, f) in [
             ("std", &self.std),
@@ -271,14 +276,52 @@ impl Cell {
             ("std_high", &self.std_high),
         ] {
             if let Some(s) = f.values().find(|s| !(*s >= 0.0 && s.is_finite())) {
-                return Err(format!("{at}.{name}: {s} is not a std"));
+                return Err(bad(name, s, "a std".into()));
             }
         }
         if self.count < 2 {
-            return Err(format!("{at}.count: a cell needs at least 2 boxes"));
+            let n = self.count as f64;
+            return Err(bad("count", n, "at least 2 (boxes in a cell)".into()));
         }
         Ok(())
     }
+}
+
+/// Why a model file cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// Not JSON, or not a model's fields.
+    #[error("{0}")]
+    Json(String),
+    /// Another format than this build's.
+    #[error("format: '{0}' is not '{FORMAT}' (write the model with `v2x-sim calibrate`)")]
+    Format(String),
+    /// Score edges out of order or outside (0, 1).
+    #[error("score_edges: must ascend strictly within (0, 1)")]
+    ScoreEdges,
+    /// A class that does not exist.
+    #[error("classes: unknown class '{0}'")]
+    UnknownClass(String),
+    /// A cell's value outside its domain.
+    #[error("{field}: {value} is not {expected}")]
+    Cell {
+        /// The field, e.g. `classes.car.all.std`.
+        field: String,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        expected: String,
+    },
+    /// Not one score bin more than the score edges.
+    #[error("classes.{class}.by_score: {bins} bins for {edges} score edges (expected {})", edges + 1)]
+    Bins {
+        /// The class.
+        class: String,
+        /// Bins given.
+        bins: usize,
+        /// Score edges.
+        edges: usize,
+    },
 }
 
 impl ErrorModel {
@@ -333,30 +376,27 @@ impl ErrorModel {
     }
 
     /// Reads a model from its JSON text, every field checked.
-    pub fn from_json(text: &str) -> Result<ErrorModel, String> {
-        let m: ErrorModel = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    pub fn from_json(text: &str) -> Result<ErrorModel, ModelError> {
+        let m: ErrorModel =
+            serde_json::from_str(text).map_err(|e| ModelError::Json(e.to_string()))?;
         if m.format != FORMAT {
-            return Err(format!(
-                "format: '{}' is not '{FORMAT}' (write the model with `v2x-sim calibrate`)",
-                m.format
-            ));
+            return Err(ModelError::Format(m.format));
         }
         let edges_ok = m.score_edges.iter().all(|e| *e > 0.0 && *e < 1.0)
             && m.score_edges.windows(2).all(|w| w[0] < w[1]);
         if !edges_ok {
-            return Err("score_edges: must ascend strictly within (0, 1)".into());
+            return Err(ModelError::ScoreEdges);
         }
         m.all.check("all")?;
         for (name, c) in &m.classes {
-            Class::from_name(name).ok_or_else(|| format!("classes: unknown class '{name}'"))?;
+            Class::from_name(name).ok_or_else(|| ModelError::UnknownClass(name.clone()))?;
             c.all.check(&format!("classes.{name}.all"))?;
             if c.by_score.len() != m.score_edges.len() + 1 {
-                return Err(format!(
-                    "classes.{name}.by_score: {} bins for {} score edges (expected {})",
-                    c.by_score.len(),
-                    m.score_edges.len(),
-                    m.score_edges.len() + 1
-                ));
+                return Err(ModelError::Bins {
+                    class: name.clone(),
+                    bins: c.by_score.len(),
+                    edges: m.score_edges.len(),
+                });
             }
             for (k, cell) in c.by_score.iter().enumerate() {
                 if let Some(cell) = cell {

@@ -15,7 +15,7 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-use v2x_protocol::{Detection, Provenance};
+use v2x_protocol::{Detection, InvalidValue, Provenance};
 
 /// The colour of fused boxes.
 pub const FUSED: [f64; 3] = [0.1, 0.8, 0.2];
@@ -292,14 +292,14 @@ impl Viz {
 }
 
 /// Parses `[ADDR:]PORT` (default address 127.0.0.1).
-pub fn parse_listen(s: &str) -> Result<(String, u16), String> {
+pub fn parse_listen(s: &str) -> Result<(String, u16), InvalidValue> {
     let (host, port) = match s.rsplit_once(':') {
         Some((h, p)) => (h.to_string(), p),
         None => ("127.0.0.1".to_string(), s),
     };
     let port: u16 = port
         .parse()
-        .map_err(|_| format!("'{s}': expected [ADDR:]PORT, e.g. 8765 or 0.0.0.0:8765"))?;
+        .map_err(|_| InvalidValue::new("listen", "[ADDR:]PORT, e.g. 8765 or 0.0.0.0:8765", s))?;
     Ok((host, port))
 }
 

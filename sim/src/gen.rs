@@ -12,6 +12,7 @@ use crate::dair::Dair;
 use crate::dataset::GroundTruth;
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use v2x_protocol::nuscenes_json::{default_meta, Results};
+use v2x_protocol::InvalidValue;
 use v2x_truth::v2v4real::{V2v4real, AGENTS};
 
 /// When an agent captures.
@@ -23,50 +24,50 @@ pub struct Timing {
     pub phase_ms: f64,
 }
 
+/// A comma-separated list of numbers for `agents` agents: one for all, or one each.
+fn per_agent(s: Option<&str>, flag: &str, agents: usize) -> Result<Vec<Option<f64>>, InvalidValue> {
+    let Some(s) = s else {
+        return Ok(vec![None; agents]);
+    };
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().ok())
+        .collect::<Option<_>>()
+        .ok_or_else(|| InvalidValue::new(flag, "numbers separated by commas", s))?;
+    match v.len() {
+        1 => Ok(vec![Some(v[0]); agents]),
+        n if n == agents => Ok(v.into_iter().map(Some).collect()),
+        n => Err(InvalidValue::new(
+            flag,
+            format!("one value, or one per agent ({agents})"),
+            format!("{n} values"),
+        )),
+    }
+}
+
 impl Timing {
     /// Per-agent timings from comma-separated lists (one value applies to every agent).
     pub fn parse(
         hz: Option<&str>,
         phase_ms: Option<&str>,
         agents: usize,
-    ) -> Result<Vec<Timing>, String> {
-        fn list(s: Option<&str>, what: &str, agents: usize) -> Result<Vec<Option<f64>>, String> {
-            let Some(s) = s else {
-                return Ok(vec![None; agents]);
-            };
-            let v: Vec<f64> = s
-                .split(',')
-                .map(|x| {
-                    x.trim()
-                        .parse::<f64>()
-                        .map_err(|_| format!("{what}: '{x}' is not a number"))
-                })
-                .collect::<Result<_, _>>()?;
-            match v.len() {
-                1 => Ok(vec![Some(v[0]); agents]),
-                n if n == agents => Ok(v.into_iter().map(Some).collect()),
-                n => Err(format!(
-                    "{what}: {n} values for {agents} agents (give one, or one per agent)"
-                )),
-            }
-        }
-        let hz = list(hz, "--agent-hz", agents)?;
-        let phase = list(phase_ms, "--phase-ms", agents)?;
+    ) -> Result<Vec<Timing>, InvalidValue> {
+        let hz = per_agent(hz, "--agent-hz", agents)?;
+        let phase = per_agent(phase_ms, "--phase-ms", agents)?;
         hz.into_iter()
             .zip(phase)
             .enumerate()
             .map(|(i, (hz, phase))| {
-                if hz.is_some_and(|h| !(h > 0.0 && h <= 1000.0)) {
-                    return Err(format!(
-                        "--agent-hz of agent {}: must be in (0, 1000]",
-                        i + 1
-                    ));
+                let of = |flag: &str| format!("{flag} of agent {}", i + 1);
+                if let Some(h) = hz.filter(|h| !(*h > 0.0 && *h <= 1000.0)) {
+                    return Err(InvalidValue::new(of("--agent-hz"), "in (0, 1000]", h));
                 }
                 let phase_ms = phase.unwrap_or(0.0);
                 if !(0.0..60_000.0).contains(&phase_ms) {
-                    return Err(format!(
-                        "--phase-ms of agent {}: must be in [0, 60000)",
-                        i + 1
+                    return Err(InvalidValue::new(
+                        of("--phase-ms"),
+                        "in [0, 60000)",
+                        phase_ms,
                     ));
                 }
                 Ok(Timing { hz, phase_ms })
@@ -285,8 +286,18 @@ mod tests {
         };
         assert!(gap(&gt.objects_at(0, t0 + 25_000)) < 0.01);
         assert!(gap(&gt.frames[0].objects) > 0.1);
-        assert!(Timing::parse(Some("10,20,30"), None, 2).is_err());
-        assert!(Timing::parse(None, Some("-5"), 2).is_err());
+        let e = Timing::parse(Some("10,20,30"), None, 2).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--agent-hz must be one value, or one per agent (2) (got 3 values)"
+        );
+        let e = Timing::parse(None, Some("-5"), 2).unwrap_err();
+        assert_eq!(
+            (e.field.as_str(), e.got.as_str()),
+            ("--phase-ms of agent 1", "-5")
+        );
+        let e = Timing::parse(Some("10,x"), None, 2).unwrap_err();
+        assert_eq!((e.field.as_str(), e.got.as_str()), ("--agent-hz", "10,x"));
     }
 
     #[test]

@@ -705,7 +705,7 @@ mod tests {
         assert!(bad(
             "[fuser.registration]\ntau_s = -1\n[[agents]]\nname = \"a\"\nnoise = \"mild\""
         )
-        .contains("fuser.registration: tau_s -1"));
+        .contains("fuser.registration: tau_s must be a finite value > 0 (got -1)"));
         let s = Scenario::parse(
             "[fuser]\nalign = true\n[fuser.registration]\nchi2 = 30\nmin_matches = 5\n[[agents]]\nname = \"a\"\nnoise = \"mild\"",
             "x.toml",

@@ -32,7 +32,7 @@ pub mod results;
 
 use crate::dataset::{GroundTruth, GtFrame, GtObject, Motion, Recorded};
 use crate::noise::{recorded_view, AgentNoise};
-pub use corners::{corners, from_corners, CornerBox, Corners};
+pub use corners::{corners, from_corners, CornerBox, CornerError, Corners};
 pub use pose::Pose;
 use serde_json::Value;
 use std::collections::{BTreeMap, HashMap};

@@ -2,7 +2,7 @@
 //! brings at most its budget of boxes. The area is given, or learned from where most agents are.
 
 use super::{Ingest, Note};
-use v2x_protocol::Frame;
+use v2x_protocol::{Frame, InvalidValue};
 
 /// Where the fuser stands: boxes whose centre lies outside are dropped at admission.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,39 +36,39 @@ impl Area {
     }
 
     /// Parses `X,Y,RADIUS` (m, map frame) into a given area.
-    pub fn parse(s: &str) -> Result<Area, String> {
+    pub fn parse(s: &str) -> Result<Area, InvalidValue> {
+        let bad = || InvalidValue::new("area", "X,Y,RADIUS in metres", s);
         let v: Vec<f64> = s
             .split(',')
             .map(|p| p.trim().parse::<f64>())
             .collect::<Result<_, _>>()
-            .map_err(|_| format!("area '{s}': expected X,Y,RADIUS in metres"))?;
-        match v[..] {
-            [x, y, r] => {
-                let a = Area::Given {
-                    center: [x, y],
-                    radius_m: r,
-                };
-                a.validate().map(|()| a)
-            }
-            _ => Err(format!("area '{s}': expected X,Y,RADIUS in metres")),
-        }
+            .map_err(|_| bad())?;
+        let [x, y, r] = v[..] else {
+            return Err(bad());
+        };
+        let a = Area::Given {
+            center: [x, y],
+            radius_m: r,
+        };
+        a.validate().map(|()| a)
     }
 
     /// Checks the values: a finite centre and a finite radius > 0.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidValue> {
         let r = self.radius_m();
         if !(r.is_finite() && r > 0.0) {
-            return Err(format!(
-                "the area's radius must be finite and > 0 (got {r})"
-            ));
+            return Err(InvalidValue::new("the area's radius", "finite and > 0", r));
         }
         if let Area::Given { center, .. } = self {
             if !center
                 .iter()
                 .all(|c| v2x_protocol::limits::coord_in_range(*c))
             {
-                return Err(format!(
-                    "the area's centre {center:?} is out of the map's range"
+                let got = format!("{center:?}");
+                return Err(InvalidValue::new(
+                    "the area's centre",
+                    "within the map's range",
+                    got,
                 ));
             }
         }

@@ -21,11 +21,9 @@ pub fn track_results(
     agents: &[Results],
     opts: &OfflineOptions,
     params: TrackerParams,
-) -> Result<Tracks, String> {
+) -> Result<Tracks, FilesError> {
     if agents.is_empty() || !agents.iter().all(|r| capture_times(r).is_some()) {
-        return Err("tracking needs every input to carry capture times \
-                    (meta.v2x_timestamps with one entry per sample, as `v2x-sim gen` writes it)"
-            .into());
+        return Err(FilesError::NoCaptureTimes);
     }
     if params.guided {
         return Ok(track_through(method, agents, opts, params));
@@ -105,7 +103,7 @@ pub fn track_files(
     let read = read_inputs(inputs, missing)?;
     let opts = &read.tracking_options(opts);
     let tracks = if read.sequences.is_empty() {
-        track_results(method, &read.agents, opts, params).map_err(FilesError::Inputs)?
+        track_results(method, &read.agents, opts, params)?
     } else {
         track_sequences(method, &read.agents, opts, params)?
     };
@@ -157,7 +155,7 @@ pub fn track_sequences(
         stats: TrackStats::default(),
     };
     for parts in per_seq.into_values() {
-        let t = track_results(method, &parts, opts, params).map_err(FilesError::Inputs)?;
+        let t = track_results(method, &parts, opts, params)?;
         all.results.samples.extend(t.results.samples);
         all.ids.extend(t.ids);
         all.stats.births += t.stats.births;

@@ -142,24 +142,32 @@ fn files_round_trip_and_bad_ones_are_named() {
         assert_ne!(t, text, "{from}");
         ErrorModel::from_json(&t).unwrap_err()
     };
-    assert!(bad(FORMAT, "v2x-std-model/9").contains("format"));
-    assert!(bad("\"car\"", "\"tank\"").contains("unknown class 'tank'"));
-    assert!(bad("\"count\": 30", "\"count\": 1").contains("all.count"));
-    assert!(bad("\"matched_by\"", "\"colour\": 1, \"matched_by\"").contains("colour"));
+    let format = "v2x-std-model/9".to_string();
+    assert_eq!(bad(FORMAT, "v2x-std-model/9"), ModelError::Format(format));
+    let tank = ModelError::UnknownClass("tank".into());
+    assert_eq!(bad("\"car\"", "\"tank\""), tank);
+    let e = bad("\"count\": 30", "\"count\": 1");
+    assert!(
+        matches!(e, ModelError::Cell { field, value, .. } if field == "all.count" && value == 1.0)
+    );
+    let e = bad("\"matched_by\"", "\"colour\": 1, \"matched_by\"");
+    assert!(matches!(e, ModelError::Json(m) if m.contains("colour")));
     let mut neg = m.clone();
     neg.classes.get_mut("car").unwrap().all.std.yaw = -1.0;
     let t = serde_json::to_string(&neg).unwrap();
-    assert!(ErrorModel::from_json(&t)
-        .unwrap_err()
-        .contains("classes.car.all.std"));
+    let e = ErrorModel::from_json(&t).unwrap_err();
+    assert!(matches!(e, ModelError::Cell { field, .. } if field == "classes.car.all.std"));
     let mut edges = m.clone();
     edges.score_edges.reverse();
     let t = serde_json::to_string(&edges).unwrap();
-    assert!(ErrorModel::from_json(&t)
-        .unwrap_err()
-        .contains("score_edges"));
+    assert_eq!(ErrorModel::from_json(&t), Err(ModelError::ScoreEdges));
     let mut bins = m;
     bins.classes.get_mut("car").unwrap().by_score.pop();
     let t = serde_json::to_string(&bins).unwrap();
-    assert!(ErrorModel::from_json(&t).unwrap_err().contains("by_score"));
+    let e = ModelError::Bins {
+        class: "car".into(),
+        bins: 2,
+        edges: 2,
+    };
+    assert_eq!(ErrorModel::from_json(&t), Err(e));
 }

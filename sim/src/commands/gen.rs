@@ -132,8 +132,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         agent_hz.as_deref(),
         phase_ms.as_deref(),
         setting.agents.len(),
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let files = v2x_sim::gen::generate(&gt, &setting, &timings, seed, range);
     for (a, r) in files.iter().enumerate() {

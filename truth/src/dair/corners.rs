@@ -47,12 +47,31 @@ const EDGES: EdgeGroups = [
     [(4, 0), (5, 1), (6, 2), (7, 3)],
 ];
 
+/// Why eight corners are not a box's.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CornerError {
+    /// A coordinate is NaN or infinite.
+    #[error("a corner is not a finite number")]
+    NotFinite,
+    /// The four parallel edges of one dimension disagree in length.
+    #[error("the corners are not a box: its {dimension} edges measure {lengths:.3?} m")]
+    Edges {
+        /// `length`, `width` or `height`.
+        dimension: &'static str,
+        /// The four edges' lengths (m).
+        lengths: Vec<f64>,
+    },
+    /// Length and width are not square.
+    #[error("the corners are not a box: its length and width edges are not square")]
+    NotSquare,
+}
+
 /// The box of eight corners whose edges are `groups`: every group of four parallel edges must
 /// agree in length within 5 cm + 5%, and length must stand square to width within about 3
 /// degrees.
-pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, String> {
+pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, CornerError> {
     if c.iter().flatten().any(|v| !v.is_finite()) {
-        return Err("a corner is not a finite number".into());
+        return Err(CornerError::NotFinite);
     }
     let sub = |a: usize, b: usize| -> [f64; 3] { std::array::from_fn(|k| c[a][k] - c[b][k]) };
     let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -65,11 +84,10 @@ pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, String> {
             .iter()
             .any(|l| (l - mean).abs() > 0.05 + 0.05 * mean)
         {
-            return Err(format!(
-                "the corners are not a box: its {} edges measure {:.3?} m",
-                ["length", "width", "height"][g],
-                lengths
-            ));
+            return Err(CornerError::Edges {
+                dimension: ["length", "width", "height"][g],
+                lengths,
+            });
         }
         size[g] = mean;
         for &(a, b) in edges {
@@ -82,7 +100,7 @@ pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, String> {
     let (l, w) = (mean_edge[0], mean_edge[1]);
     let dot = l.iter().zip(w).map(|(a, b)| a * b).sum::<f64>();
     if size[0] > 0.0 && size[1] > 0.0 && (dot / (size[0] * size[1])).abs() > 0.05 {
-        return Err("the corners are not a box: its length and width edges are not square".into());
+        return Err(CornerError::NotSquare);
     }
     let center = std::array::from_fn(|k| c.iter().map(|p| p[k]).sum::<f64>() / 8.0);
     Ok(CornerBox {
@@ -93,7 +111,7 @@ pub fn box_of(c: &Corners, groups: &EdgeGroups) -> Result<CornerBox, String> {
 }
 
 /// The box whose corners, in [`corners`]' order, these are, or why they are not a box's.
-pub fn from_corners(c: &Corners) -> Result<CornerBox, String> {
+pub fn from_corners(c: &Corners) -> Result<CornerBox, CornerError> {
     box_of(c, &EDGES)
 }
 
@@ -126,9 +144,19 @@ mod tests {
     fn corners_that_are_no_box_are_refused() {
         let mut c = corners([0.0; 3], [4.0, 2.0, 1.5], 0.3);
         c[5][0] += 1.0;
-        assert!(from_corners(&c).unwrap_err().contains("not a box"));
+        let e = from_corners(&c).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CornerError::Edges {
+                    dimension: "length",
+                    ..
+                }
+            ),
+            "{e}"
+        );
         c = corners([0.0; 3], [4.0, 2.0, 1.5], 0.3);
         c[2][1] = f64::NAN;
-        assert!(from_corners(&c).is_err());
+        assert_eq!(from_corners(&c), Err(CornerError::NotFinite));
     }
 }

@@ -10,7 +10,7 @@
 //! mean, sizes = the mean length of each group of parallel edges, heading = the direction of the
 //! edges from the back face (the first four) to the front face.
 
-use super::corners::{box_of, CornerBox, Corners, EdgeGroups};
+use super::corners::{box_of, CornerBox, CornerError, Corners, EdgeGroups};
 use super::{err, number, DairError};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -50,8 +50,8 @@ const MMDET_EDGES: EdgeGroups = [
 ];
 
 /// A box from mmdetection3d's corners, or why they are not one.
-pub fn from_mmdet_corners(c: &Corners) -> Result<CornerBox, String> {
-    box_of(c, &MMDET_EDGES).map_err(|e| format!("{e} (in mmdetection3d's corner order)"))
+pub fn from_mmdet_corners(c: &Corners) -> Result<CornerBox, CornerError> {
+    box_of(c, &MMDET_EDGES)
 }
 
 /// One frame's results object.
@@ -101,8 +101,12 @@ fn frame_boxes(path: &Path, frame: &str, v: &Value) -> Result<Vec<LocalBox>, Dai
             ));
         }
         let c: Corners = std::array::from_fn(|p| [v[3 * p], v[3 * p + 1], v[3 * p + 2]]);
-        let CornerBox { center, size, yaw } =
-            from_mmdet_corners(&c).map_err(|e| fail("boxes_3d", format!("box {i}: {e}")))?;
+        let CornerBox { center, size, yaw } = from_mmdet_corners(&c).map_err(|e| {
+            fail(
+                "boxes_3d",
+                format!("box {i}: {e} (in mmdetection3d's corner order)"),
+            )
+        })?;
         if size.iter().any(|s| !limits::size_in_range(*s)) {
             return Err(fail(
                 "boxes_3d",
