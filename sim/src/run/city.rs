@@ -10,13 +10,14 @@ use super::roles::{absorb, agent_role, agent_view, regional_fuser_role, FuserOut
 use super::summary::{summarize, AgentSide, RegionReport, Summary};
 use super::{free_port, stopped, Schedule};
 use crate::dataset::GroundTruth;
-use crate::scenario::{RegionsSpec, Scenario};
+use crate::scenario::{RegionFuserSpec, RegionsSpec, Scenario};
 use anyhow::Context;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::now_us;
 use v2x_fuser::node::Latency;
+use v2x_fuser::region::Region;
 use v2x_protocol::keys::FuserKeys;
 use v2x_protocol::net::{open_session, ZenohArgs};
 
@@ -165,17 +166,7 @@ pub async fn run_city_local(
         reports.push(RegionReport::of(&f.tile, &f.router, &o));
         outcomes.push(o);
     }
-    let mut totals = BTreeMap::new();
-    for ((a, r), session) in scenario.agents.iter().zip(results).zip(&sessions) {
-        totals.insert(
-            a.name.clone(),
-            AgentSide {
-                totals: r.with_context(|| format!("agent {}", a.name))?,
-                sent: meter::snapshot(session, &a.name).await,
-                socket_bytes: None,
-            },
-        );
-    }
+    let totals = agent_sides(scenario, results, &sessions).await?;
     for s in sessions {
         let _ = s.close().await;
     }
@@ -187,6 +178,26 @@ pub async fn run_city_local(
     let mut summary = summarize(scenario, gt, &schedule, &outcome, &totals, wall_s);
     summary.regions = reports.clone();
     Ok((summary, outcome, reports))
+}
+
+/// Each agent's totals and what its session sent, by name.
+async fn agent_sides(
+    scenario: &Scenario,
+    results: Vec<anyhow::Result<v2x_agent::AgentTotals>>,
+    sessions: &[zenoh::Session],
+) -> anyhow::Result<BTreeMap<String, AgentSide>> {
+    let mut totals = BTreeMap::new();
+    for ((a, r), session) in scenario.agents.iter().zip(results).zip(sessions) {
+        totals.insert(
+            a.name.clone(),
+            AgentSide {
+                totals: r.with_context(|| format!("agent {}", a.name))?,
+                sent: meter::snapshot(session, &a.name).await,
+                socket_bytes: None,
+            },
+        );
+    }
+    Ok(totals)
 }
 
 /// The city's routers: each listens on a free port and every other one meshes with the first;
@@ -298,7 +309,6 @@ pub async fn run_city_roles(
     stop: watch::Receiver<bool>,
 ) -> anyhow::Result<CityRoles> {
     let regions = scenario.regions.as_ref().context("not a city scenario")?;
-    let ns = &scenario.namespace;
     let mut routers = Vec::new();
     for r in &regions.routers {
         if roles.contains(&format!("router-{}", r.name)) {
@@ -319,90 +329,13 @@ pub async fn run_city_roles(
         .zip(regions.regions())
         .enumerate()
         .filter(|(_, (f, _))| roles.contains(&format!("fuser-{}", f.tile)))
-        .map(|(k, (f, region))| {
-            let stop = stop.clone();
-            async move {
-                let args = ZenohArgs {
-                    mode: Some(f.zenoh.mode.clone().unwrap_or_else(|| "client".into())),
-                    ..f.zenoh.clone()
-                };
-                let session = open_retrying(&args)
-                    .await
-                    .with_context(|| format!("the fuser of tile {}", f.tile))?;
-                let epoch = match k {
-                    0 => now_us() + 3_000_000,
-                    _ => super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?,
-                };
-                let end = super::fuser_end_us(scenario, schedule, epoch);
-                eprintln!(
-                    "fuser of tile {}: running for {:.1} s",
-                    f.tile,
-                    end.saturating_sub(now_us()) as f64 / 1e6
-                );
-                let until = async move {
-                    tokio::select! {
-                        _ = tokio::time::sleep(Duration::from_micros(end.saturating_sub(now_us()))) => {}
-                        _ = stopped(stop) => {}
-                    }
-                };
-                let o = regional_fuser_role(
-                    &session,
-                    scenario,
-                    schedule,
-                    epoch,
-                    Some(region),
-                    k == 0,
-                    None,
-                    until,
-                )
-                .await?;
-                let _ = session.close().await;
-                anyhow::Ok((
-                    f.tile.clone(),
-                    RegionReport::of(&f.tile, &f.router, &o),
-                    o,
-                ))
-            }
-        });
+        .map(|(k, (f, region))| city_fuser(scenario, schedule, k, f, region, stop.clone()));
     let agents = scenario
         .agents
         .iter()
         .enumerate()
         .filter(|(_, a)| roles.contains(&a.name))
-        .map(|(idx, a)| {
-            let stop = stop.clone();
-            async move {
-                let args = super::secure::role_args(scenario, super::secure::Role::Agent(&a.name))?;
-                // Its router may start after it: retry for a while.
-                let deadline = tokio::time::Instant::now() + CONNECT_FOR;
-                let session = loop {
-                    let role = super::secure::Role::Agent(&a.name);
-                    match meter::open_role_session(&args, scenario, role).await {
-                        Ok(s) => break s,
-                        Err(e) if tokio::time::Instant::now() >= deadline => {
-                            return Err(e.context(format!("agent {}", a.name)))
-                        }
-                        Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
-                    }
-                };
-                let epoch = super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?;
-                let totals = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
-                let sent = meter::snapshot(&session, &a.name).await;
-                let _ = session.close().await;
-                eprintln!(
-                    "agent {}: sent {} frames in {} parts ({} dropped by the link), {} payload bytes",
-                    a.name, totals.frames, totals.parts, totals.dropped, totals.payload_bytes
-                );
-                anyhow::Ok((
-                    a.name.clone(),
-                    AgentSide {
-                        totals,
-                        sent,
-                        socket_bytes: None,
-                    },
-                ))
-            }
-        });
+        .map(|(idx, _)| city_agent(scenario, gt, schedule, idx, stop.clone()));
     let (fusers, agents) = tokio::join!(
         futures::future::join_all(fusers),
         futures::future::join_all(agents)
@@ -418,4 +351,92 @@ pub async fn run_city_roles(
         fusers: fusers.into_iter().collect::<anyhow::Result<_>>()?,
         agents: agents.into_iter().collect::<anyhow::Result<_>>()?,
     })
+}
+
+/// The `k`th regional fuser of a city on its own host: it connects (retrying), fixes the shared
+/// start (the first) or asks for it, and runs until the schedule's end or a stop.
+async fn city_fuser(
+    scenario: &Scenario,
+    schedule: &Schedule,
+    k: usize,
+    f: &RegionFuserSpec,
+    region: Region,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<(String, RegionReport, FuserOutcome)> {
+    let ns = &scenario.namespace;
+    let args = ZenohArgs {
+        mode: Some(f.zenoh.mode.clone().unwrap_or_else(|| "client".into())),
+        ..f.zenoh.clone()
+    };
+    let session = open_retrying(&args)
+        .await
+        .with_context(|| format!("the fuser of tile {}", f.tile))?;
+    let epoch = match k {
+        0 => now_us() + 3_000_000,
+        _ => super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?,
+    };
+    let end = super::fuser_end_us(scenario, schedule, epoch);
+    eprintln!(
+        "fuser of tile {}: running for {:.1} s",
+        f.tile,
+        end.saturating_sub(now_us()) as f64 / 1e6
+    );
+    let until = async move {
+        tokio::select! {
+            _ = tokio::time::sleep(Duration::from_micros(end.saturating_sub(now_us()))) => {}
+            _ = stopped(stop) => {}
+        }
+    };
+    let o = regional_fuser_role(
+        &session,
+        scenario,
+        schedule,
+        epoch,
+        Some(region),
+        k == 0,
+        None,
+        until,
+    )
+    .await?;
+    let _ = session.close().await;
+    Ok((f.tile.clone(), RegionReport::of(&f.tile, &f.router, &o), o))
+}
+
+/// Agent `idx` of a city on its own host: it connects to its router (retrying, the router may
+/// start after it), asks for the shared start and sends until the schedule's end or a stop.
+async fn city_agent(
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    idx: usize,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<(String, AgentSide)> {
+    let a = &scenario.agents[idx];
+    let role = || super::secure::Role::Agent(&a.name);
+    let args = super::secure::role_args(scenario, role())?;
+    let deadline = tokio::time::Instant::now() + CONNECT_FOR;
+    let session = loop {
+        match meter::open_role_session(&args, scenario, role()).await {
+            Ok(s) => break s,
+            Err(e) if tokio::time::Instant::now() >= deadline => {
+                return Err(e.context(format!("agent {}", a.name)))
+            }
+            Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
+        }
+    };
+    let ns = &scenario.namespace;
+    let epoch = super::epoch::query_epoch(&session, ns, Duration::from_secs(60)).await?;
+    let totals = agent_role(&session, scenario, gt, schedule, idx, epoch, stop).await?;
+    let sent = meter::snapshot(&session, &a.name).await;
+    let _ = session.close().await;
+    eprintln!(
+        "agent {}: sent {} frames in {} parts ({} dropped by the link), {} payload bytes",
+        a.name, totals.frames, totals.parts, totals.dropped, totals.payload_bytes
+    );
+    let side = AgentSide {
+        totals,
+        sent,
+        socket_bytes: None,
+    };
+    Ok((a.name.clone(), side))
 }

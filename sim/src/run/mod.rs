@@ -269,21 +269,7 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
     if let Some(regions) = &scenario.regions {
         return run_city_command(&args, &scenario, regions, &gt).await;
     }
-    let secure = scenario.security.mode == SecurityMode::Mtls;
-    for r in &args.roles {
-        let is_agent = scenario.agents.iter().any(|a| &a.name == r);
-        if !(r == "fuser" || (secure && r == "router") || is_agent) {
-            let mut names: Vec<_> = scenario.agents.iter().map(|a| a.name.as_str()).collect();
-            names.insert(0, "fuser");
-            if secure {
-                names.insert(0, "router");
-            }
-            bail!(
-                "--role {r}: not a role of this scenario (roles: {})",
-                names.join(", ")
-            );
-        }
-    }
+    check_roles(&scenario, &args.roles)?;
     let schedule = Schedule::of(&gt, scenario.duration_s);
     let viz = args.viz.open().await?;
     let stop = stop_on_signal();
@@ -306,47 +292,94 @@ pub async fn run_command(cmd: RunCommand) -> anyhow::Result<()> {
         )
         .await?
     };
-    if let (Some(v), Some((_, outcome))) = (&viz, &summary_and_outcome) {
-        // The ground truth of every scheduled frame, on the capture clock of the run.
-        for &i in &schedule.frames {
-            let f = &gt.frames[i];
-            let wall = schedule.wall_us(outcome.epoch_us, f.timestamp_us, scenario.speed);
-            let boxes: Vec<_> = f
-                .objects
-                .iter()
-                .map(crate::dataset::GtObject::as_detection)
-                .collect();
-            v.boxes(
-                "/ground_truth",
-                "gt",
-                wall,
-                &boxes,
-                v2x_fuser::viz::GROUND_TRUTH,
-            );
-        }
-    }
     if let Some(v) = &viz {
+        if let Some((_, outcome)) = &summary_and_outcome {
+            show_ground_truth(v, &scenario, &gt, &schedule, outcome);
+        }
         v.close()?;
     }
-    if let Some((summary, outcome)) = summary_and_outcome {
-        if let Some(path) = &args.record {
-            let r = recorded(&gt, &schedule, &outcome);
-            write_results(path, &r, &gt.tokens)?;
-            eprintln!(
-                "recorded {} fused frames -> {}",
-                r.samples.len(),
-                path.display()
+    let Some((summary, outcome)) = summary_and_outcome else {
+        return Ok(());
+    };
+    if let Some(path) = &args.record {
+        record(path, &gt, &schedule, &outcome)?;
+    }
+    if let Some(path) = &args.timeline {
+        let tl = series::timeline(&scenario, &gt, &schedule, &outcome);
+        tl.write(path)?;
+        eprintln!("timeline of {} s -> {}", tl.seconds.len(), path.display());
+    }
+    print_summary(&summary, args.format)
+}
+
+/// Refuses a `--role` that is not one of the scenario's, listing those that are.
+fn check_roles(scenario: &Scenario, roles: &[String]) -> anyhow::Result<()> {
+    let secure = scenario.security.mode == SecurityMode::Mtls;
+    for r in roles {
+        let is_agent = scenario.agents.iter().any(|a| &a.name == r);
+        if !(r == "fuser" || (secure && r == "router") || is_agent) {
+            let mut names: Vec<_> = scenario.agents.iter().map(|a| a.name.as_str()).collect();
+            names.insert(0, "fuser");
+            if secure {
+                names.insert(0, "router");
+            }
+            bail!(
+                "--role {r}: not a role of this scenario (roles: {})",
+                names.join(", ")
             );
         }
-        if let Some(path) = &args.timeline {
-            let tl = series::timeline(&scenario, &gt, &schedule, &outcome);
-            tl.write(path)?;
-            eprintln!("timeline of {} s -> {}", tl.seconds.len(), path.display());
-        }
-        match args.format {
-            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&summary)?),
-            RunFormat::Table => print_table(&summary),
-        }
+    }
+    Ok(())
+}
+
+/// Shows the ground truth of every scheduled frame, on the capture clock of the run.
+fn show_ground_truth(
+    v: &v2x_fuser::viz::Viz,
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+) {
+    for &i in &schedule.frames {
+        let f = &gt.frames[i];
+        let wall = schedule.wall_us(outcome.epoch_us, f.timestamp_us, scenario.speed);
+        let boxes: Vec<_> = f
+            .objects
+            .iter()
+            .map(crate::dataset::GtObject::as_detection)
+            .collect();
+        v.boxes(
+            "/ground_truth",
+            "gt",
+            wall,
+            &boxes,
+            v2x_fuser::viz::GROUND_TRUTH,
+        );
+    }
+}
+
+/// Writes the fused output as a results file (`--record`).
+fn record(
+    path: &std::path::Path,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    outcome: &FuserOutcome,
+) -> anyhow::Result<()> {
+    let r = recorded(gt, schedule, outcome);
+    write_results(path, &r, &gt.tokens)?;
+    eprintln!(
+        "recorded {} fused frames -> {}",
+        r.samples.len(),
+        path.display()
+    );
+    Ok(())
+}
+
+/// Prints the run's summary in the chosen format.
+fn print_summary(summary: &Summary, format: RunFormat) -> anyhow::Result<()> {
+    match format {
+        RunFormat::Json => println!("{}", serde_json::to_string_pretty(summary)?),
+        RunFormat::Table => print_table(summary),
     }
     Ok(())
 }
@@ -383,62 +416,58 @@ async fn run_city_command(
         let (summary, outcome, _) = city::run_city_local(scenario, gt, stop).await?;
         (Some(summary), Some(outcome))
     } else {
-        let start = std::time::Instant::now();
-        let here = city::run_city_roles(scenario, gt, &schedule, &args.roles, stop).await?;
-        if here.fusers.is_empty() {
-            if !here.agents.is_empty() {
-                report_agents_alone(scenario, &schedule, &here.agents, args.format)?;
-            }
-            (None, None)
-        } else {
-            let all_here = here.fusers.len() == regions.fusers.len();
-            let reports: Vec<_> = here.fusers.iter().map(|(_, r, _)| r.clone()).collect();
-            let outcome = city::join(here.fusers.into_iter().map(|(_, _, o)| o).collect());
-            if all_here {
-                // Every region ran here: the city's summary.
-                let mut s = summarize(
-                    scenario,
-                    gt,
-                    &schedule,
-                    &outcome,
-                    &here.agents,
-                    start.elapsed().as_secs_f64(),
-                );
-                s.regions = reports;
-                (Some(s), Some(outcome))
-            } else {
-                // Some regions: their own figures (scored, the regions' recordings joined, by
-                // `v2x-sim eval`).
-                match args.format {
-                    RunFormat::Json => println!(
-                        "{}",
-                        serde_json::to_string_pretty(&serde_json::json!({
-                            "namespace": scenario.namespace,
-                            "regions": reports,
-                        }))?
-                    ),
-                    RunFormat::Table => summary::print_regions(&reports),
-                }
-                (None, Some(outcome))
-            }
-        }
+        city_roles_here(args, scenario, regions, gt, &schedule, stop).await?
     };
     if let (Some(path), Some(outcome)) = (&args.record, &outcome) {
-        let r = recorded(gt, &schedule, outcome);
-        write_results(path, &r, &gt.tokens)?;
-        eprintln!(
-            "recorded {} fused frames -> {}",
-            r.samples.len(),
-            path.display()
-        );
+        record(path, gt, &schedule, outcome)?;
     }
-    if let Some(s) = summary {
-        match args.format {
-            RunFormat::Json => println!("{}", serde_json::to_string_pretty(&s)?),
-            RunFormat::Table => print_table(&s),
+    match summary {
+        Some(s) => print_summary(&s, args.format),
+        None => Ok(()),
+    }
+}
+
+/// The named roles of a city scenario run here: the city's summary when every region ran here,
+/// else the regions' own figures printed, and the joined outcome of the fusers that ran here.
+async fn city_roles_here(
+    args: &RunArgs,
+    scenario: &Scenario,
+    regions: &crate::scenario::RegionsSpec,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    stop: watch::Receiver<bool>,
+) -> anyhow::Result<(Option<Summary>, Option<FuserOutcome>)> {
+    let start = std::time::Instant::now();
+    let here = city::run_city_roles(scenario, gt, schedule, &args.roles, stop).await?;
+    if here.fusers.is_empty() {
+        if !here.agents.is_empty() {
+            report_agents_alone(scenario, schedule, &here.agents, args.format)?;
         }
+        return Ok((None, None));
     }
-    Ok(())
+    let all_here = here.fusers.len() == regions.fusers.len();
+    let reports: Vec<_> = here.fusers.iter().map(|(_, r, _)| r.clone()).collect();
+    let outcome = city::join(here.fusers.into_iter().map(|(_, _, o)| o).collect());
+    if all_here {
+        // Every region ran here: the city's summary.
+        let elapsed = start.elapsed().as_secs_f64();
+        let mut s = summarize(scenario, gt, schedule, &outcome, &here.agents, elapsed);
+        s.regions = reports;
+        return Ok((Some(s), Some(outcome)));
+    }
+    // Some regions: their own figures (scored, the regions' recordings joined, by
+    // `v2x-sim eval`).
+    match args.format {
+        RunFormat::Json => println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "namespace": scenario.namespace,
+                "regions": reports,
+            }))?
+        ),
+        RunFormat::Table => summary::print_regions(&reports),
+    }
+    Ok((None, Some(outcome)))
 }
 
 /// Runs the named roles with the scenario's endpoints; returns the summary if the fuser ran here.
@@ -455,10 +484,7 @@ async fn run_roles(
     let run_fuser = roles.iter().any(|r| r == "fuser");
     // The router first (its clients connect to it), until the run ends or is stopped.
     let router = if roles.iter().any(|r| r == "router") {
-        let args = secure::role_args(scenario, Role::Router)?;
-        let session = meter::open_role_session(&args, scenario, Role::Router).await?;
-        eprintln!("router: running with access control");
-        Some(session)
+        Some(open_router(scenario).await?)
     } else {
         None
     };
@@ -511,17 +537,16 @@ async fn run_roles(
     if outcome.is_none() && !totals.is_empty() {
         report_agents_alone(scenario, schedule, &totals, format)?;
     }
-    Ok(outcome.map(|o| {
-        let s = summarize(
-            scenario,
-            gt,
-            schedule,
-            &o,
-            &totals,
-            start.elapsed().as_secs_f64(),
-        );
-        (s, o)
-    }))
+    let elapsed = start.elapsed().as_secs_f64();
+    Ok(outcome.map(|o| (summarize(scenario, gt, schedule, &o, &totals, elapsed), o)))
+}
+
+/// The router's session, with the scenario's access control.
+async fn open_router(scenario: &Scenario) -> anyhow::Result<zenoh::Session> {
+    let args = secure::role_args(scenario, Role::Router)?;
+    let session = meter::open_role_session(&args, scenario, Role::Router).await?;
+    eprintln!("router: running with access control");
+    Ok(session)
 }
 
 /// The fuser's role in a run: its session, the run's shared start 3 s ahead, and the fuser until
