@@ -354,35 +354,7 @@ pub async fn run_max_load(
 async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driven> {
     let port = free_port()?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
-    // Single fuser: it listens and the agents connect to it as clients. Regions: a router
-    // listens and every fuser and agent is its client.
-    let (router, fuser_args, agent_args) = match layout.tiling {
-        // Agents are clients: peers would also mesh with each other, a connection per pair.
-        None => (
-            None,
-            ZenohArgs::loopback(std::slice::from_ref(&endpoint), &[]),
-            ZenohArgs {
-                mode: Some("client".into()),
-                connect: vec![endpoint.clone()],
-                ..Default::default()
-            },
-        ),
-        Some(_) => {
-            let router = open_session(&ZenohArgs {
-                mode: Some("router".into()),
-                listen: vec![endpoint.clone()],
-                no_multicast_scouting: true,
-                ..Default::default()
-            })
-            .await?;
-            let client = ZenohArgs {
-                mode: Some("client".into()),
-                connect: vec![endpoint.clone()],
-                ..Default::default()
-            };
-            (Some(router), client.clone(), client)
-        }
-    };
+    let (router, fuser_args, agent_args) = sessions_of(&endpoint, layout.tiling.is_some()).await?;
     let mut fusers = Vec::new();
     for cfg in layout.fusers.iter().cloned() {
         let session = open_session(&fuser_args).await?;
@@ -402,7 +374,6 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
     tokio::time::sleep(Duration::from_millis(500)).await;
     let frames = (args.seconds * args.hz).round() as usize;
     let period = Duration::from_secs_f64(1.0 / args.hz);
-    let noise = NoiseProfile::Mild.std();
     let rss_start = rss_mib();
     let cpu0 = cpu_seconds();
     let wall0 = Instant::now();
@@ -410,52 +381,20 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
     let mut cpm_first = 0.0;
     for k in 0..frames {
         tokio::time::sleep_until(start + period * k as u32).await;
-        let t = k as f64 / args.hz;
-        // With several sites, each site's objects come back every 6 s, so that they stay near it.
-        let (t_scene, sites) = match layout.sites.len() {
-            1 => (t, 1),
-            n => (t % 6.0, n),
-        };
-        let truths: Vec<_> = (0..sites)
-            .map(|b| scene(args.objects, t_scene, 11 + b as u64))
-            .collect();
-        // The detectors' output is drawn before its capture time, so that end-to-end latency is
-        // the system's alone, not the drawing's (about 6 ms at 64 agents of 200 boxes).
-        let drawn: Vec<_> = (0..agents.len())
-            .map(|i| {
-                let (site, truth) = (layout.sites[i % sites], &truths[i % sites]);
-                noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64))
-            })
-            .collect();
+        let drawn = draw(args, &layout, agents.len(), k);
         if k == 0 {
             cpm_first = drawn
                 .iter()
-                .map(|detections| {
-                    v2x_cpm::message_bytes(
-                        &Frame {
-                            agent: String::new(),
-                            kind: AgentKind::Vehicle,
-                            seq: 0,
-                            capture_us: now_us(),
-                            origin: [0.0; 3],
-                            detections: detections.clone(),
-                        }
-                        .with_centroid_origin(),
-                    ) as f64
+                .map(|d| {
+                    let f = frame(now_us(), d.clone()).with_centroid_origin();
+                    v2x_cpm::message_bytes(&f) as f64
                 })
                 .sum::<f64>()
                 / drawn.len().max(1) as f64;
         }
         let capture = now_us();
         for (agent, detections) in agents.iter_mut().zip(drawn) {
-            agent.send(Frame {
-                agent: String::new(),
-                kind: AgentKind::Vehicle,
-                seq: 0,
-                capture_us: capture,
-                origin: [0.0; 3],
-                detections,
-            })?;
+            agent.send(frame(capture, detections))?;
         }
     }
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -493,6 +432,66 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
             cpm_bytes_per_frame: cpm_first,
         },
     })
+}
+
+/// The sessions of a load: a single fuser listens on `endpoint` and the agents connect to it as
+/// clients; with regions a router listens and every fuser and agent is its client. The router
+/// (with regions), the fusers' and the agents' settings.
+async fn sessions_of(
+    endpoint: &str,
+    regions: bool,
+) -> anyhow::Result<(Option<zenoh::Session>, ZenohArgs, ZenohArgs)> {
+    // Agents are clients: peers would also mesh with each other, a connection per pair.
+    let client = ZenohArgs {
+        mode: Some("client".into()),
+        connect: vec![endpoint.to_string()],
+        ..Default::default()
+    };
+    if !regions {
+        let fuser = ZenohArgs::loopback(&[endpoint.to_string()], &[]);
+        return Ok((None, fuser, client));
+    }
+    let router = open_session(&ZenohArgs {
+        mode: Some("router".into()),
+        listen: vec![endpoint.to_string()],
+        no_multicast_scouting: true,
+        ..Default::default()
+    })
+    .await?;
+    Ok((Some(router), client.clone(), client))
+}
+
+/// Every agent's boxes at frame `k`, drawn before its capture time, so that end-to-end latency
+/// is the system's alone, not the drawing's (about 6 ms at 64 agents of 200 boxes).
+fn draw(args: &LoadArgs, layout: &Layout, agents: usize, k: usize) -> Vec<Vec<Detection>> {
+    let noise = NoiseProfile::Mild.std();
+    let t = k as f64 / args.hz;
+    // With several sites, each site's objects come back every 6 s, so that they stay near it.
+    let (t_scene, sites) = match layout.sites.len() {
+        1 => (t, 1),
+        n => (t % 6.0, n),
+    };
+    let truths: Vec<_> = (0..sites)
+        .map(|b| scene(args.objects, t_scene, 11 + b as u64))
+        .collect();
+    (0..agents)
+        .map(|i| {
+            let (site, truth) = (layout.sites[i % sites], &truths[i % sites]);
+            noisy_boxes(truth, site, &noise, mix(5, i as u64, k as u64))
+        })
+        .collect()
+}
+
+/// A vehicle's frame of `detections` captured at `capture_us` (the agent names and numbers it).
+fn frame(capture_us: u64, detections: Vec<Detection>) -> Frame {
+    Frame {
+        agent: String::new(),
+        kind: AgentKind::Vehicle,
+        seq: 0,
+        capture_us,
+        origin: [0.0; 3],
+        detections,
+    }
 }
 
 /// Starts the load's agents (every fourth a roadside unit), each waiting for a fuser of its site:

@@ -342,6 +342,28 @@ impl State {
         }
     }
 
+    /// How long the loop may sleep: until the next deadline, at most a second (housekeeping).
+    fn wait(&self) -> Duration {
+        let next = match (self.windows.next_deadline(), self.parts.next_deadline()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        next.map_or(Duration::from_secs(1), |d| {
+            Duration::from_micros(d.saturating_sub(self.clock.now_us())).min(Duration::from_secs(1))
+        })
+    }
+
+    /// After every event: the parts whose time is up admitted, the windows that are ready
+    /// queued for the worker, and housekeeping.
+    fn tick(&mut self, jobs: &mpsc::Sender<worker::Job>) {
+        let now = self.clock.now_us();
+        let expired = self.parts.expire(now);
+        self.admit_parts(expired, now);
+        let ready = self.close_ready(now);
+        self.enqueue(ready, jobs);
+        self.housekeeping();
+    }
+
     /// Forgets idle agents (once a second) and logs the interval's summaries.
     fn housekeeping(&mut self) {
         let now = self.clock.now_us();
@@ -495,46 +517,12 @@ pub async fn run(
     let clock = Clock::start();
     let (job_tx, job_rx) = mpsc::channel(cfg.queue);
     let (done_tx, mut done_rx) = mpsc::unbounded_channel();
-    let tracks = match cfg.track {
-        Some(_) => Some(declare_frames(session, &fk.tracks, "tracks publisher").await?),
-        None => None,
-    };
-    // A regional fuser that tracks hears its neighbours' tracks, to keep ids across borders.
-    let (heard, _handover) = match (cfg.scope(), cfg.track) {
-        (Scope::Tile(r), Some(_)) if cfg.handover => {
-            let (heard, subs) = handover::subscribe(session, &ns, &r).await?;
-            (Some(heard), subs)
-        }
-        _ => (None, Vec::new()),
-    };
-    let fusion = worker::Fusion {
-        steps: crate::pipeline::Steps {
-            method: cfg.method,
-            detector: cfg.detector,
-            motion: cfg.motion,
-            align: cfg.align,
-            learn: cfg.learn,
-            models: std::sync::Arc::new(cfg.models.clone()),
-        },
-        track: cfg.track,
-        scope: cfg.scope(),
-        heard,
-    };
-    let worker = tokio::spawn(worker::run(
-        fusion, publisher, tracks, clock, job_rx, done_tx,
-    ));
+    let (worker, _handover) =
+        start_worker(session, &cfg, publisher, clock, job_rx, done_tx).await?;
     let mut st = State::new(&cfg, clock, &subscribed);
     log_start(&cfg, &st.stats.method);
     tokio::pin!(shutdown);
     loop {
-        // Wake for the next deadline, and at least once a second for housekeeping.
-        let next = match (st.windows.next_deadline(), st.parts.next_deadline()) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
-        let wait = next.map_or(Duration::from_secs(1), |d| {
-            Duration::from_micros(d.saturating_sub(st.clock.now_us())).min(Duration::from_secs(1))
-        });
         tokio::select! {
             s = det.recv() => match s {
                 Some(s) => st.on_sample(&s),
@@ -552,16 +540,11 @@ pub async fn run(
             d = done_rx.recv() => if let Some(d) = d {
                 st.on_done(d, &mut on_fused);
             },
-            _ = tokio::time::sleep(wait) => {}
+            _ = tokio::time::sleep(st.wait()) => {}
             _ = &mut shutdown => break,
         }
-        let now = st.clock.now_us();
-        let expired = st.parts.expire(now);
-        st.admit_parts(expired, now);
         st.stats.inbox_overflow = overflow.load(std::sync::atomic::Ordering::Relaxed);
-        let ready = st.close_ready(now);
-        st.enqueue(ready, &job_tx);
-        st.housekeeping();
+        st.tick(&job_tx);
     }
     st.flush(job_tx).await;
     while let Some(d) = done_rx.recv().await {
@@ -574,6 +557,49 @@ pub async fn run(
     let mut stats = st.snapshot();
     stats.fusion_samples = std::mem::take(&mut st.fusion);
     Ok(stats)
+}
+
+/// Starts the worker that fuses, tracks and publishes the closed windows; with the subscriptions
+/// to the neighbours' tracks of a regional fuser that hands tracks over.
+async fn start_worker(
+    session: &zenoh::Session,
+    cfg: &NodeConfig,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    clock: Clock,
+    jobs: mpsc::Receiver<worker::Job>,
+    done: mpsc::UnboundedSender<worker::Done>,
+) -> anyhow::Result<(
+    tokio::task::JoinHandle<()>,
+    Vec<zenoh::pubsub::Subscriber<()>>,
+)> {
+    let fk = cfg.scope().keys(&cfg.ns);
+    let tracks = match cfg.track {
+        Some(_) => Some(declare_frames(session, &fk.tracks, "tracks publisher").await?),
+        None => None,
+    };
+    // A regional fuser that tracks hears its neighbours' tracks, to keep ids across borders.
+    let (heard, handover) = match (cfg.scope(), cfg.track) {
+        (Scope::Tile(r), Some(_)) if cfg.handover => {
+            let (heard, subs) = handover::subscribe(session, &cfg.ns, &r).await?;
+            (Some(heard), subs)
+        }
+        _ => (None, Vec::new()),
+    };
+    let fusion = worker::Fusion {
+        steps: crate::pipeline::Steps {
+            method: cfg.method,
+            detector: cfg.detector,
+            motion: cfg.motion,
+            align: cfg.align,
+            learn: cfg.learn,
+            models: std::sync::Arc::new(cfg.models.clone()),
+        },
+        track: cfg.track,
+        scope: cfg.scope(),
+        heard,
+    };
+    let worker = tokio::spawn(worker::run(fusion, publisher, tracks, clock, jobs, done));
+    Ok((worker, handover))
 }
 
 /// Refuses a configuration the node cannot run with.

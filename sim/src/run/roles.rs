@@ -102,7 +102,7 @@ pub async fn agent_role(
     mut stop: watch::Receiver<bool>,
 ) -> anyhow::Result<AgentTotals> {
     let spec = &scenario.agents[idx];
-    let mut agent = Agent::start(
+    let agent = Agent::start(
         session,
         &scenario.namespace,
         &spec.name,
@@ -112,27 +112,11 @@ pub async fn agent_role(
     )
     .await?
     .counting_cpm();
-    if spec.cpm {
-        agent = agent.sending_cpm(scenario.geo());
-    }
-    match &scenario.regions {
-        None => agent.wait_for_subscriber(Duration::from_secs(30)).await?,
-        Some(r) => {
-            // Per tile: wait for the fuser of the tile the agent starts in, if it has one.
-            let tiling = r.tiling();
-            agent = agent.with_tiling(tiling);
-            let first = agent_captures(scenario, gt, schedule, idx).first().copied();
-            if let Some(t) = first {
-                let (_, place) = agent_view(scenario, gt, schedule, idx, 0, t, &spec.agent_noise());
-                let home = tiling.tile_of(place);
-                if r.regions().iter().any(|g| g.tile == home) {
-                    agent
-                        .wait_for_subscriber_in(home, Duration::from_secs(30))
-                        .await?;
-                }
-            }
-        }
-    }
+    let agent = match spec.cpm {
+        true => agent.sending_cpm(scenario.geo()),
+        false => agent,
+    };
+    let mut agent = wait_for_fuser(agent, scenario, gt, schedule, idx).await?;
     let mut timeline = spec.timeline(&scenario.events);
     let mut state = timeline.at(0);
     for (j, t) in agent_captures(scenario, gt, schedule, idx)
@@ -181,6 +165,35 @@ pub async fn agent_role(
     ))
     .await;
     Ok(agent.counters().totals())
+}
+
+/// Waits, 30 s at most, until the agent's fuser hears it: the single fuser, or per tile the fuser
+/// of the tile the agent starts in, if it has one (the agent then publishes per tile).
+async fn wait_for_fuser(
+    mut agent: Agent,
+    scenario: &Scenario,
+    gt: &GroundTruth,
+    schedule: &Schedule,
+    idx: usize,
+) -> anyhow::Result<Agent> {
+    let Some(r) = &scenario.regions else {
+        agent.wait_for_subscriber(Duration::from_secs(30)).await?;
+        return Ok(agent);
+    };
+    let tiling = r.tiling();
+    agent = agent.with_tiling(tiling);
+    let first = agent_captures(scenario, gt, schedule, idx).first().copied();
+    if let Some(t) = first {
+        let noise = scenario.agents[idx].agent_noise();
+        let (_, place) = agent_view(scenario, gt, schedule, idx, 0, t, &noise);
+        let home = tiling.tile_of(place);
+        if r.regions().iter().any(|g| g.tile == home) {
+            agent
+                .wait_for_subscriber_in(home, Duration::from_secs(30))
+                .await?;
+        }
+    }
+    Ok(agent)
 }
 
 /// Every agent role of a scenario, each on its own session, until its schedule ends or `stop`.
@@ -323,11 +336,33 @@ pub async fn regional_fuser_role(
     };
     let (sampling, sampled) = watch::channel(false);
     let sampler = super::meter::sample_every_second(session.clone(), sampled);
+    let mut outcome = run_segments(session, &cfg, scenario, schedule, epoch_us, stop).await?;
+    if let Some(a) = answer {
+        a.abort();
+    }
+    let _ = sampling.send(true);
+    outcome.traffic = sampler.await.unwrap_or_default();
+    // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
+    // was not going to come.
+    let stopped = now_us().saturating_sub((scenario.fuser.settings.max_wait_ms * 1000.0) as u64);
+    outcome.reached_us = schedule.data_us(epoch_us, stopped, scenario.speed);
+    Ok(outcome)
+}
+
+/// The node until `stop`, restarted afresh (after its downtime) at each scripted restart: its
+/// counters over every run, what it fused and tracked, and when it restarted.
+async fn run_segments(
+    session: &zenoh::Session,
+    cfg: &NodeConfig,
+    scenario: &Scenario,
+    schedule: &Schedule,
+    epoch_us: u64,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<FuserOutcome> {
     let mut fused = BTreeMap::new();
     let mut tracks = BTreeMap::new();
     let mut windows = BTreeMap::new();
     let speed = scenario.speed;
-    // The node runs until `stop`, restarted afresh (after its downtime) at each scripted restart.
     let restarts = fuser_restarts(&scenario.events);
     let mut restarts_us = Vec::new();
     let mut stats: Option<NodeStats> = None;
@@ -386,23 +421,14 @@ pub async fn regional_fuser_role(
         stats.e2e_latency_ms = node::Latency::of(&e2e);
         stats.fusion_latency_ms = node::Latency::of(&stats.fusion_samples);
     }
-    if let Some(a) = answer {
-        a.abort();
-    }
-    let _ = sampling.send(true);
-    let traffic = sampler.await.unwrap_or_default();
-    // The fuser stops max_wait after the last frame at the earliest: what it had not seen by then
-    // was not going to come.
-    let stopped = now_us().saturating_sub((scenario.fuser.settings.max_wait_ms * 1000.0) as u64);
-    let reached_us = schedule.data_us(epoch_us, stopped, speed);
     Ok(FuserOutcome {
         stats,
         fused,
         tracks,
         windows,
-        reached_us,
+        reached_us: 0,
         epoch_us,
-        traffic,
+        traffic: Vec::new(),
         restarts_us,
         router_traffic: Vec::new(),
     })
