@@ -2,12 +2,13 @@
 //! Python object per box. Every value is checked at the edge, as a results file's are.
 
 use crate::options::method;
-use numpy::ndarray::{ArrayView2, Dimension};
+use numpy::ndarray::{ArrayView1, ArrayView2, Dimension};
 use numpy::{Element, PyArray, PyArray1, PyArray2, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
+use v2x_fuser::fusion::Sourced;
 use v2x_protocol::{limits, wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 
 /// The keys an agent's dict may hold.
@@ -174,73 +175,148 @@ impl<'py> Agent<'py> {
         if let Some(v) = velocity_std {
             cols("velocity_std", v, 2)?;
         }
+        let v = Views {
+            center,
+            size,
+            std,
+            yaw,
+            label,
+            score,
+            id,
+            velocity,
+            velocity_std,
+        };
         // Pushed one by one into a vector of the right size: a collect through `Result`
         // cannot know it, and regrowing moves every box again.
         let mut out = Vec::with_capacity(n);
         for i in 0..n {
-            let row = |key: &str, what: &str| err(k, key, format!("row {i}: {what}"));
-            let c = [center[[i, 0]], center[[i, 1]], center[[i, 2]]];
-            if !c.iter().all(|x| limits::coord_in_range(*x)) {
-                return Err(row("center", "coordinates must be finite, within 1e9 m"));
-            }
-            let s = [size[[i, 0]], size[[i, 1]], size[[i, 2]]];
-            if !s.iter().all(|x| limits::size_in_range(*x)) {
-                return Err(row("size", "sizes must lie between 0.01 and 1000 m"));
-            }
-            let mut st = [0.0; 7];
-            for (j, v) in st.iter_mut().enumerate() {
-                *v = std[[i, j]];
-            }
-            let st = Uncertainty::from_array(st);
-            if !st.is_valid() {
-                return Err(row("std", "stds must be finite, at least 1e-4"));
-            }
-            if !yaw[i].is_finite() {
-                return Err(row("yaw", "not finite"));
-            }
-            let class = u8::try_from(label[i])
-                .ok()
-                .and_then(Class::from_code)
-                .ok_or_else(|| row("label", "a class code is 0 to 9 (an index into CLASSES)"))?;
-            if !(0.0..=1.0).contains(&score[i]) {
-                return Err(row("score", "expected a number in [0, 1]"));
-            }
-            let id = match id.map(|a| a[i]) {
-                None | Some(-1) => NO_ID,
-                Some(v) => u32::try_from(v)
-                    .ok()
-                    .filter(|v| *v != NO_ID)
-                    .ok_or_else(|| row("id", "ids are 0 to 4294967294, or -1 for none"))?,
-            };
-            let velocity = match velocity.map(|v| [v[[i, 0]], v[[i, 1]]]) {
-                None => None,
-                Some(v) if v.iter().all(|x| x.is_nan()) => None,
-                Some(v) => {
-                    if !v.iter().all(|x| limits::vel_in_range(*x)) {
-                        return Err(row("velocity", "must lie within 100 m/s (NaN: none)"));
-                    }
-                    let std = velocity_std
-                        .map(|s| [s[[i, 0]], s[[i, 1]]])
-                        .ok_or_else(|| row("velocity_std", "missing (velocity is given)"))?;
-                    if !std.iter().all(|s| limits::std_in_range(*s)) {
-                        return Err(row("velocity_std", "stds must be finite, at least 1e-4"));
-                    }
-                    Some(Velocity { v, std })
-                }
-            };
-            out.push(Detection {
-                class,
-                center: c,
-                size: s,
-                yaw: wrap_angle(yaw[i]),
-                score: score[i],
-                std: st,
-                pos_cov: None,
-                velocity,
-                id,
-            });
+            out.push(
+                v.row(i)
+                    .map_err(|(key, what)| err(k, key, format!("row {i}: {what}")))?,
+            );
         }
         Ok(out)
+    }
+}
+
+/// One agent's arrays, read-only, their shapes checked.
+struct Views<'a> {
+    center: ArrayView2<'a, f64>,
+    size: ArrayView2<'a, f64>,
+    std: ArrayView2<'a, f64>,
+    yaw: ArrayView1<'a, f64>,
+    label: ArrayView1<'a, i64>,
+    score: ArrayView1<'a, f64>,
+    id: Option<ArrayView1<'a, i64>>,
+    velocity: Option<ArrayView2<'a, f64>>,
+    velocity_std: Option<ArrayView2<'a, f64>>,
+}
+
+impl Views<'_> {
+    /// Box `i`, every value checked; an error names the key and what is wrong.
+    fn row(&self, i: usize) -> Result<Detection, (&'static str, &'static str)> {
+        let (center, size, std) = (&self.center, &self.size, &self.std);
+        let c = [center[[i, 0]], center[[i, 1]], center[[i, 2]]];
+        if !c.iter().all(|x| limits::coord_in_range(*x)) {
+            return Err(("center", "coordinates must be finite, within 1e9 m"));
+        }
+        let s = [size[[i, 0]], size[[i, 1]], size[[i, 2]]];
+        if !s.iter().all(|x| limits::size_in_range(*x)) {
+            return Err(("size", "sizes must lie between 0.01 and 1000 m"));
+        }
+        let mut st = [0.0; 7];
+        for (j, v) in st.iter_mut().enumerate() {
+            *v = std[[i, j]];
+        }
+        let st = Uncertainty::from_array(st);
+        if !st.is_valid() {
+            return Err(("std", "stds must be finite, at least 1e-4"));
+        }
+        if !self.yaw[i].is_finite() {
+            return Err(("yaw", "not finite"));
+        }
+        let class = u8::try_from(self.label[i])
+            .ok()
+            .and_then(Class::from_code)
+            .ok_or(("label", "a class code is 0 to 9 (an index into CLASSES)"))?;
+        if !(0.0..=1.0).contains(&self.score[i]) {
+            return Err(("score", "expected a number in [0, 1]"));
+        }
+        let id = match self.id.map(|a| a[i]) {
+            None | Some(-1) => NO_ID,
+            Some(v) => u32::try_from(v)
+                .ok()
+                .filter(|v| *v != NO_ID)
+                .ok_or(("id", "ids are 0 to 4294967294, or -1 for none"))?,
+        };
+        Ok(Detection {
+            class,
+            center: c,
+            size: s,
+            yaw: wrap_angle(self.yaw[i]),
+            score: self.score[i],
+            std: st,
+            pos_cov: None,
+            velocity: self.velocity(i)?,
+            id,
+        })
+    }
+
+    /// Box `i`'s velocity: none without the key or where its row is NaN.
+    fn velocity(&self, i: usize) -> Result<Option<Velocity>, (&'static str, &'static str)> {
+        let v = match self.velocity.map(|v| [v[[i, 0]], v[[i, 1]]]) {
+            None => return Ok(None),
+            Some(v) if v.iter().all(|x| x.is_nan()) => return Ok(None),
+            Some(v) => v,
+        };
+        if !v.iter().all(|x| limits::vel_in_range(*x)) {
+            return Err(("velocity", "must lie within 100 m/s (NaN: none)"));
+        }
+        let std = self
+            .velocity_std
+            .map(|s| [s[[i, 0]], s[[i, 1]]])
+            .ok_or(("velocity_std", "missing (velocity is given)"))?;
+        if !std.iter().all(|s| limits::std_in_range(*s)) {
+            return Err(("velocity_std", "stds must be finite, at least 1e-4"));
+        }
+        Ok(Some(Velocity { v, std }))
+    }
+}
+
+/// The fused boxes' output arrays, as slices.
+struct Columns<'a> {
+    center: &'a mut [f64],
+    size: &'a mut [f64],
+    std: &'a mut [f64],
+    velocity: &'a mut [f64],
+    velocity_std: &'a mut [f64],
+    yaw: &'a mut [f64],
+    score: &'a mut [f64],
+    label: &'a mut [i64],
+    id: &'a mut [i64],
+    sources: &'a mut [bool],
+}
+
+impl Columns<'_> {
+    /// Writes each fused box into its row; `sources` has a column per agent, of `agents`.
+    fn fill(self, fused: &[Sourced], agents: usize) {
+        for (i, s) in fused.iter().enumerate() {
+            let d = &s.det;
+            self.center[3 * i..3 * i + 3].copy_from_slice(&d.center);
+            self.size[3 * i..3 * i + 3].copy_from_slice(&d.size);
+            self.std[7 * i..7 * i + 7].copy_from_slice(&d.std.as_array());
+            if let Some(vel) = d.velocity {
+                self.velocity[2 * i..2 * i + 2].copy_from_slice(&vel.v);
+                self.velocity_std[2 * i..2 * i + 2].copy_from_slice(&vel.std);
+            }
+            for a in s.sources.iter() {
+                self.sources[agents * i + a] = true;
+            }
+            self.yaw[i] = d.yaw;
+            self.score[i] = d.score;
+            self.label[i] = d.class.code() as i64;
+            self.id[i] = if d.id == NO_ID { -1 } else { d.id as i64 };
+        }
     }
 }
 
@@ -287,53 +363,22 @@ pub fn fuse_arrays<'py>(
     {
         // SAFETY: the arrays were made just above, contiguous and distinct, and Python sees
         // none of them until they are returned; the GIL is held.
-        let (c, sz, st, v, vs, y, sc, lb, ids, src) = unsafe {
-            (
-                center.as_slice_mut(),
-                size.as_slice_mut(),
-                std.as_slice_mut(),
-                velocity.as_slice_mut(),
-                velocity_std.as_slice_mut(),
-                yaw.as_slice_mut(),
-                score.as_slice_mut(),
-                label.as_slice_mut(),
-                id.as_slice_mut(),
-                sources.as_slice_mut(),
-            )
-        };
         let contiguous = "made contiguous";
-        let (c, sz, st, v, vs, y, sc) = (
-            c.expect(contiguous),
-            sz.expect(contiguous),
-            st.expect(contiguous),
-            v.expect(contiguous),
-            vs.expect(contiguous),
-            y.expect(contiguous),
-            sc.expect(contiguous),
-        );
-        let (lb, ids, src) = (
-            lb.expect(contiguous),
-            ids.expect(contiguous),
-            src.expect(contiguous),
-        );
-        let k = agents.len();
-        for (i, s) in fused.iter().enumerate() {
-            let d = &s.det;
-            c[3 * i..3 * i + 3].copy_from_slice(&d.center);
-            sz[3 * i..3 * i + 3].copy_from_slice(&d.size);
-            st[7 * i..7 * i + 7].copy_from_slice(&d.std.as_array());
-            if let Some(vel) = d.velocity {
-                v[2 * i..2 * i + 2].copy_from_slice(&vel.v);
-                vs[2 * i..2 * i + 2].copy_from_slice(&vel.std);
+        let columns = unsafe {
+            Columns {
+                center: center.as_slice_mut().expect(contiguous),
+                size: size.as_slice_mut().expect(contiguous),
+                std: std.as_slice_mut().expect(contiguous),
+                velocity: velocity.as_slice_mut().expect(contiguous),
+                velocity_std: velocity_std.as_slice_mut().expect(contiguous),
+                yaw: yaw.as_slice_mut().expect(contiguous),
+                score: score.as_slice_mut().expect(contiguous),
+                label: label.as_slice_mut().expect(contiguous),
+                id: id.as_slice_mut().expect(contiguous),
+                sources: sources.as_slice_mut().expect(contiguous),
             }
-            for a in s.sources.iter() {
-                src[k * i + a] = true;
-            }
-            y[i] = d.yaw;
-            sc[i] = d.score;
-            lb[i] = d.class.code() as i64;
-            ids[i] = if d.id == NO_ID { -1 } else { d.id as i64 };
-        }
+        };
+        columns.fill(&fused, agents.len());
     }
     let out = PyDict::new(py);
     for (key, value) in [
