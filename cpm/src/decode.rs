@@ -203,49 +203,9 @@ fn detection(
     o: &PerceivedObject,
     at: [f64; 3],
 ) -> Result<Result<Detection, &'static str>, DecodeError> {
-    let bad = |field, message| DecodeError::Object {
-        index: i,
-        field,
-        message,
-    };
-    let p = &o.position;
-    let z = p
-        .z_coordinate
-        .as_ref()
-        .ok_or(bad("zCoordinate", "is missing"))?;
-    let mut center = [0.0; 3];
-    let mut pos_std = [0.0; 3];
-    for (k, (c, field)) in [
-        (&p.x_coordinate, "xCoordinate"),
-        (&p.y_coordinate, "yCoordinate"),
-        (z, "zCoordinate"),
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        if !(-131_071..=131_070).contains(&c.value.0) {
-            return Err(bad(field, "is out of range"));
-        }
-        center[k] = at[k] + value(c.value.0 as i64, 0.01);
-        pos_std[k] = std_of(c.confidence.0 as i64, 0.01, 4094, 4096)
-            .ok_or(bad(field, "has no confidence"))?;
-    }
-    let dims = [
-        (&o.object_dimension_x, "objectDimensionX"),
-        (&o.object_dimension_y, "objectDimensionY"),
-        (&o.object_dimension_z, "objectDimensionZ"),
-    ];
-    let mut size = [0.0; 3];
-    let mut size_std = [0.0; 3];
-    for (k, (d, field)) in dims.into_iter().enumerate() {
-        let d = d.as_ref().ok_or(bad(field, "is missing"))?;
-        if !(1..=254).contains(&d.value.0) {
-            return Err(bad(field, "is unavailable or out of range"));
-        }
-        size[k] = value(d.value.0 as i64, 0.1);
-        size_std[k] =
-            std_of(d.confidence.0 as i64, 0.1, 30, 32).ok_or(bad(field, "has no confidence"))?;
-    }
+    let bad = |field, message| bad(i, field, message);
+    let (center, pos_std) = position(i, o, at)?;
+    let (size, size_std) = dimensions(i, o)?;
     let angle = &o
         .angles
         .as_ref()
@@ -264,31 +224,7 @@ fn detection(
         }
         _ => None,
     };
-    let classes = o
-        .classification
-        .as_ref()
-        .ok_or(bad("classification", "is missing"))?;
-    let best = classes
-        .0
-        .iter()
-        .max_by_key(|c| {
-            if c.confidence.0 <= 100 {
-                c.confidence.0
-            } else {
-                0
-            }
-        })
-        .ok_or(bad("classification", "is empty"))?;
-    let score = if best.confidence.0 <= 100 {
-        best.confidence.0 as f64 / 100.0
-    } else if let Some(q) = &o.object_perception_quality {
-        q.0 as f64 / 15.0
-    } else {
-        return Err(bad(
-            "classification",
-            "has no confidence and no perception quality",
-        ));
-    };
+    let (best, score) = classification(i, o)?;
     let id = o.object_id.as_ref().ok_or(bad("objectId", "is missing"))?.0;
     let Some(class) = classes::from_cpm(&best.object_class, size[0], size[1]) else {
         return Ok(Err("a class the project has no name for"));
@@ -308,6 +244,105 @@ fn detection(
         velocity,
         id: if id == u16::MAX { NO_ID } else { id as u32 },
     }))
+}
+
+/// What is wrong with a field of object `index`.
+fn bad(index: usize, field: &'static str, message: &'static str) -> DecodeError {
+    DecodeError::Object {
+        index,
+        field,
+        message,
+    }
+}
+
+/// Object `i`'s centre in the map (the message's reference position `at` added) and its stds.
+fn position(
+    i: usize,
+    o: &PerceivedObject,
+    at: [f64; 3],
+) -> Result<([f64; 3], [f64; 3]), DecodeError> {
+    let p = &o.position;
+    let z = p
+        .z_coordinate
+        .as_ref()
+        .ok_or(bad(i, "zCoordinate", "is missing"))?;
+    let mut center = [0.0; 3];
+    let mut pos_std = [0.0; 3];
+    for (k, (c, field)) in [
+        (&p.x_coordinate, "xCoordinate"),
+        (&p.y_coordinate, "yCoordinate"),
+        (z, "zCoordinate"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        if !(-131_071..=131_070).contains(&c.value.0) {
+            return Err(bad(i, field, "is out of range"));
+        }
+        center[k] = at[k] + value(c.value.0 as i64, 0.01);
+        pos_std[k] = std_of(c.confidence.0 as i64, 0.01, 4094, 4096).ok_or(bad(
+            i,
+            field,
+            "has no confidence",
+        ))?;
+    }
+    Ok((center, pos_std))
+}
+
+/// Object `i`'s length, width and height and their stds.
+fn dimensions(i: usize, o: &PerceivedObject) -> Result<([f64; 3], [f64; 3]), DecodeError> {
+    let dims = [
+        (&o.object_dimension_x, "objectDimensionX"),
+        (&o.object_dimension_y, "objectDimensionY"),
+        (&o.object_dimension_z, "objectDimensionZ"),
+    ];
+    let mut size = [0.0; 3];
+    let mut size_std = [0.0; 3];
+    for (k, (d, field)) in dims.into_iter().enumerate() {
+        let d = d.as_ref().ok_or(bad(i, field, "is missing"))?;
+        if !(1..=254).contains(&d.value.0) {
+            return Err(bad(i, field, "is unavailable or out of range"));
+        }
+        size[k] = value(d.value.0 as i64, 0.1);
+        size_std[k] =
+            std_of(d.confidence.0 as i64, 0.1, 30, 32).ok_or(bad(i, field, "has no confidence"))?;
+    }
+    Ok((size, size_std))
+}
+
+/// Object `i`'s most confident class and its score (the perception quality's when the class
+/// has no confidence).
+fn classification(
+    i: usize,
+    o: &PerceivedObject,
+) -> Result<(&ObjectClassWithConfidence, f64), DecodeError> {
+    let classes = o
+        .classification
+        .as_ref()
+        .ok_or(bad(i, "classification", "is missing"))?;
+    let best = classes
+        .0
+        .iter()
+        .max_by_key(|c| {
+            if c.confidence.0 <= 100 {
+                c.confidence.0
+            } else {
+                0
+            }
+        })
+        .ok_or(bad(i, "classification", "is empty"))?;
+    let score = if best.confidence.0 <= 100 {
+        best.confidence.0 as f64 / 100.0
+    } else if let Some(q) = &o.object_perception_quality {
+        q.0 as f64 / 15.0
+    } else {
+        return Err(bad(
+            i,
+            "classification",
+            "has no confidence and no perception quality",
+        ));
+    };
+    Ok((best, score))
 }
 
 /// A velocity from its two components; `None` when either is unavailable or out of range.

@@ -200,28 +200,7 @@ fn perceived_object(i: usize, d: &Detection, at: [f64; 3]) -> Result<PerceivedOb
             confidence: ObjectDimensionConfidence(confidence(d.std.size[k], 0.1, 30, 31) as u8),
         })
     };
-    let velocity = match &d.velocity {
-        None => None,
-        Some(v) => {
-            let component = |k: usize, field| {
-                let n = code(v.v[k], 0.01);
-                if !(-16_382..=16_381).contains(&n) {
-                    return Err(out(field, v.v[k], "-163.82..163.81 m/s"));
-                }
-                Ok(VelocityComponent {
-                    value: VelocityComponentValue(n as i16),
-                    confidence: SpeedConfidence(confidence(v.std[k], 0.01, 125, 126) as u8),
-                })
-            };
-            Some(Velocity3dWithConfidence::cartesianVelocity(
-                VelocityCartesian {
-                    x_velocity: component(0, "vx")?,
-                    y_velocity: component(1, "vy")?,
-                    z_velocity: None,
-                },
-            ))
-        }
-    };
+    let velocity = d.velocity.map(|v| velocity(i, &v)).transpose()?;
     let degrees = d.yaw.to_degrees().rem_euclid(360.0);
     let yaw = code(degrees, 0.1) % 3600;
     let score = (d.score * 100.0).round().clamp(1.0, 100.0) as u8;
@@ -261,6 +240,32 @@ fn perceived_object(i: usize, d: &Detection, at: [f64; 3]) -> Result<PerceivedOb
         }])),
         map_position: None,
     })
+}
+
+/// Box `i`'s velocity, its components within the message's range.
+fn velocity(i: usize, v: &v2x_protocol::Velocity) -> Result<Velocity3dWithConfidence, EncodeError> {
+    let component = |k: usize, field| {
+        let n = code(v.v[k], 0.01);
+        if !(-16_382..=16_381).contains(&n) {
+            return Err(EncodeError::Object {
+                index: i,
+                field,
+                value: v.v[k],
+                range: "-163.82..163.81 m/s",
+            });
+        }
+        Ok(VelocityComponent {
+            value: VelocityComponentValue(n as i16),
+            confidence: SpeedConfidence(confidence(v.std[k], 0.01, 125, 126) as u8),
+        })
+    };
+    Ok(Velocity3dWithConfidence::cartesianVelocity(
+        VelocityCartesian {
+            x_velocity: component(0, "vx")?,
+            y_velocity: component(1, "vy")?,
+            z_velocity: None,
+        },
+    ))
 }
 
 /// Bytes of the CPMs that carry a frame's boxes: one message per [`MAX_OBJECTS`] boxes (one for
