@@ -400,19 +400,11 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
     tokio::time::sleep(Duration::from_millis(300)).await;
     let wall = wall0.elapsed().as_secs_f64();
     let cpu = cpu_seconds() - cpu0;
-    let (stops, tasks): (Vec<_>, Vec<_>) = fusers.into_iter().unzip();
-    for stop in stops {
-        let _ = stop.send(());
-    }
-    let mut stats = Vec::new();
-    for task in tasks {
-        stats.push(task.await??);
-    }
+    let stats = stop_fusers(fusers).await?;
     let rss_end = rss_mib();
-    let (payload, published) = agents.iter().fold((0, 0), |(b, n), a| {
-        let t = a.counters().totals();
-        (b + t.payload_bytes, n + t.published)
-    });
+    let totals = agents.iter().map(|a| a.counters().totals());
+    let (payload, published) =
+        totals.fold((0, 0), |(b, n), t| (b + t.payload_bytes, n + t.published));
     drop(agents);
     for s in sessions {
         let _ = s.close().await;
@@ -432,6 +424,24 @@ async fn drive(args: &LoadArgs, ns: &str, layout: Layout) -> anyhow::Result<Driv
             cpm_bytes_per_frame: cpm_first,
         },
     })
+}
+
+/// Stops the fusers and waits for each one's statistics.
+async fn stop_fusers(
+    fusers: Vec<(
+        tokio::sync::oneshot::Sender<()>,
+        tokio::task::JoinHandle<anyhow::Result<node::NodeStats>>,
+    )>,
+) -> anyhow::Result<Vec<node::NodeStats>> {
+    let (stops, tasks): (Vec<_>, Vec<_>) = fusers.into_iter().unzip();
+    for stop in stops {
+        let _ = stop.send(());
+    }
+    let mut stats = Vec::new();
+    for task in tasks {
+        stats.push(task.await??);
+    }
+    Ok(stats)
 }
 
 /// The sessions of a load: a single fuser listens on `endpoint` and the agents connect to it as

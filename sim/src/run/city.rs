@@ -127,16 +127,16 @@ pub async fn run_city_local(
             }
             tokio::time::sleep(Duration::from_secs_f64(max_wait / 1000.0 + 0.3)).await;
         };
-        let scenario = scenario.clone();
-        let schedule = schedule.clone();
+        let (scenario, schedule) = (scenario.clone(), schedule.clone());
         fusers.push(tokio::spawn(async move {
+            let first = k == 0;
             let o = regional_fuser_role(
                 &session,
                 &scenario,
                 &schedule,
                 epoch,
                 Some(region),
-                k == 0,
+                first,
                 None,
                 until,
             )
@@ -147,13 +147,7 @@ pub async fn run_city_local(
     }
     wait_for_fusers(&routers[0], scenario, regions).await?;
     let homes = agent_routers(scenario, regions, gt, &schedule);
-    let mut sessions = Vec::new();
-    for (a, &r) in scenario.agents.iter().zip(&homes) {
-        let session =
-            meter::open_role_session(&client(r), scenario, super::secure::Role::Agent(&a.name))
-                .await?;
-        sessions.push(session);
-    }
+    let sessions = agent_sessions(scenario, &homes, &endpoints).await?;
     let results = super::roles::all_agents(&sessions, scenario, gt, &schedule, epoch, &stop).await;
     let _ = done_tx.send(true);
     let mut outcomes = Vec::new();
@@ -178,6 +172,25 @@ pub async fn run_city_local(
     let mut summary = summarize(scenario, gt, &schedule, &outcome, &totals, wall_s);
     summary.regions = reports.clone();
     Ok((summary, outcome, reports))
+}
+
+/// Each agent's session, a client of its home router (of those listening on `endpoints`).
+async fn agent_sessions(
+    scenario: &Scenario,
+    homes: &[usize],
+    endpoints: &[String],
+) -> anyhow::Result<Vec<zenoh::Session>> {
+    let mut sessions = Vec::new();
+    for (a, &r) in scenario.agents.iter().zip(homes) {
+        let args = ZenohArgs {
+            mode: Some("client".into()),
+            connect: vec![endpoints[r].clone()],
+            ..Default::default()
+        };
+        let role = super::secure::Role::Agent(&a.name);
+        sessions.push(meter::open_role_session(&args, scenario, role).await?);
+    }
+    Ok(sessions)
 }
 
 /// Each agent's totals and what its session sent, by name.

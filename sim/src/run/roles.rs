@@ -400,10 +400,7 @@ async fn run_segments(
         .await?;
         stats = Some(match stats {
             None => s,
-            Some(mut all) => {
-                absorb(&mut all, s);
-                all
-            }
+            Some(all) => absorbed(all, s),
         });
         if stopped || segment == restarts.len() {
             break;
@@ -421,17 +418,24 @@ async fn run_segments(
         stats.e2e_latency_ms = node::Latency::of(&e2e);
         stats.fusion_latency_ms = node::Latency::of(&stats.fusion_samples);
     }
+    let (reached_us, traffic, router_traffic) = (0, Vec::new(), Vec::new());
     Ok(FuserOutcome {
         stats,
         fused,
         tracks,
         windows,
-        reached_us: 0,
+        reached_us,
         epoch_us,
-        traffic: Vec::new(),
+        traffic,
         restarts_us,
-        router_traffic: Vec::new(),
+        router_traffic,
     })
+}
+
+/// [`absorb`] by value.
+fn absorbed(mut all: NodeStats, later: NodeStats) -> NodeStats {
+    absorb(&mut all, later);
+    all
 }
 
 /// Adds a later run of the node's counters (or another region's) to the earlier runs'
