@@ -422,22 +422,7 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
     let sample_data = Table::load(&dir, "sample_data", false)?;
     let ego_pose = Table::load(&dir, "ego_pose", false)?;
 
-    let mut cat_name: HashMap<&str, &str> = HashMap::new();
-    for i in 0..category.rows.len() {
-        cat_name.insert(category.str(i, "token")?, category.str(i, "name")?);
-    }
-    let mut inst_cat: HashMap<&str, &str> = HashMap::new();
-    for i in 0..instance.rows.len() {
-        let c = instance.str(i, "category_token")?;
-        if !cat_name.contains_key(c) {
-            return Err(instance.err(
-                i,
-                "category_token",
-                &format!("'{c}' is not in category.json"),
-            ));
-        }
-        inst_cat.insert(instance.str(i, "token")?, c);
-    }
+    let category_of = instance_categories(&category, &instance)?;
     let mut scene_index: HashMap<&str, usize> = HashMap::new();
     let mut scenes = Vec::new();
     for i in 0..scene.rows.len() {
@@ -470,32 +455,20 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
             .get(s)
             .ok_or_else(|| ann.err(i, "sample_token", &format!("'{s}' is not in sample.json")))?;
         let inst = ann.str(i, "instance_token")?;
-        let cat = inst_cat.get(inst).ok_or_else(|| {
+        let name = *category_of.get(inst).ok_or_else(|| {
             ann.err(
                 i,
                 "instance_token",
                 &format!("'{inst}' is not in instance.json"),
             )
         })?;
-        let name = cat_name[cat];
         let Some(class) = Class::from_category(name) else {
             *skipped.entry(name.to_string()).or_default() += 1;
             continue;
         };
-        let center = ann.nums::<3>(i, "translation")?;
-        let [w, l, h] = ann.nums::<3>(i, "size")?;
-        if w <= 0.0 || l <= 0.0 || h <= 0.0 {
-            return Err(ann.err(i, "size", "sizes must be positive"));
-        }
-        let q = ann.nums::<4>(i, "rotation")?;
-        frames[f].objects.push(GtObject {
-            id: tokens.intern(inst),
-            class,
-            center,
-            size: [l, w, h],
-            yaw: wrap_angle(quaternion_yaw(q)),
-            velocity: None,
-        });
+        frames[f]
+            .objects
+            .push(annotation(&ann, i, tokens.intern(inst), class)?);
     }
     let tracks = tracks_with_velocities(&mut frames, scenes.len());
     frames.sort_by(|a, b| {
@@ -509,6 +482,45 @@ pub fn load_nuscenes(dataroot: &Path, version: &str) -> Result<GroundTruth, Load
         motion: Motion::Tracks(tracks),
         recorded: None,
     })
+}
+
+/// Annotation `i` as the object `id` of `class`, its size checked.
+fn annotation(ann: &Table, i: usize, id: u32, class: Class) -> Result<GtObject, LoadError> {
+    let center = ann.nums::<3>(i, "translation")?;
+    let [w, l, h] = ann.nums::<3>(i, "size")?;
+    if w <= 0.0 || l <= 0.0 || h <= 0.0 {
+        return Err(ann.err(i, "size", "sizes must be positive"));
+    }
+    let q = ann.nums::<4>(i, "rotation")?;
+    Ok(GtObject {
+        id,
+        class,
+        center,
+        size: [l, w, h],
+        yaw: wrap_angle(quaternion_yaw(q)),
+        velocity: None,
+    })
+}
+
+/// Each instance's category name, by instance token.
+fn instance_categories<'t>(
+    category: &'t Table,
+    instance: &'t Table,
+) -> Result<HashMap<&'t str, &'t str>, LoadError> {
+    let mut name_of: HashMap<&str, &str> = HashMap::new();
+    for i in 0..category.rows.len() {
+        name_of.insert(category.str(i, "token")?, category.str(i, "name")?);
+    }
+    let mut out = HashMap::new();
+    for i in 0..instance.rows.len() {
+        let c = instance.str(i, "category_token")?;
+        let name = name_of.get(c).ok_or_else(|| {
+            let what = format!("'{c}' is not in category.json");
+            instance.err(i, "category_token", &what)
+        })?;
+        out.insert(instance.str(i, "token")?, *name);
+    }
+    Ok(out)
 }
 
 /// Ego positions by sample token, through the key-frame `sample_data` records, when both
