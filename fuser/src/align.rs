@@ -670,37 +670,10 @@ impl Aligner {
                 z
             });
             if let Some(z) = &z {
-                match self.filters.get_mut(name) {
-                    Some(f) => f.update(z),
-                    // the first measurement starts the filter (nothing is known before it)
-                    None => {
-                        let m = z.motion;
-                        let x = Vector3::new(m.to[0] - m.from[0], m.to[1] - m.from[1], m.theta);
-                        let f = Filter {
-                            x,
-                            p: z.cov,
-                            pivot: m.from,
-                            t_us: now,
-                            measured_us: now,
-                        };
-                        self.filters.insert(name.to_string(), f);
-                    }
-                }
-                self.filters.get_mut(name).expect("there").measured_us = now;
+                self.measured(name, z, now);
             }
             if let Some(f) = self.filters.get(name) {
-                let (chi2, turn_chi2) = (f.shift_chi2(), f.turn_chi2());
-                let reg = Registration {
-                    pivot: f.pivot,
-                    shift_m: [f.x[0], f.x[1]],
-                    turn_rad: f.x[2],
-                    std: [f.p[(0, 0)].sqrt(), f.p[(1, 1)].sqrt(), f.p[(2, 2)].sqrt()],
-                    matches: z.map_or(0, |z| z.motion.matches),
-                    chi2,
-                    turn_chi2,
-                    applied: chi2 > p.chi2,
-                    turn_applied: turn_chi2 > p.turn_chi2,
-                };
+                let reg = f.registration(z.map_or(0, |z| z.motion.matches), &p);
                 if reg.applied || reg.turn_applied {
                     let r = reg.applied_motion();
                     for d in &mut out[k] {
@@ -712,6 +685,52 @@ impl Aligner {
             done.push(k);
         }
         (out, regs)
+    }
+}
+
+impl Aligner {
+    /// Updates agent `name`'s filter with a measurement at `now`; the first one starts it
+    /// (nothing is known before it).
+    fn measured(&mut self, name: &str, z: &Measurement, now: u64) {
+        match self.filters.get_mut(name) {
+            Some(f) => f.update(z),
+            None => {
+                let m = z.motion;
+                let x = Vector3::new(m.to[0] - m.from[0], m.to[1] - m.from[1], m.theta);
+                let f = Filter {
+                    x,
+                    p: z.cov,
+                    pivot: m.from,
+                    t_us: now,
+                    measured_us: now,
+                };
+                self.filters.insert(name.to_string(), f);
+            }
+        }
+        self.filters.get_mut(name).expect("there").measured_us = now;
+    }
+}
+
+impl Filter {
+    /// The registration the filter holds, applied where its test passes; `matches` pairs of
+    /// boxes measured it this window.
+    fn registration(&self, matches: usize, p: &AlignParams) -> Registration {
+        let (chi2, turn_chi2) = (self.shift_chi2(), self.turn_chi2());
+        Registration {
+            pivot: self.pivot,
+            shift_m: [self.x[0], self.x[1]],
+            turn_rad: self.x[2],
+            std: [
+                self.p[(0, 0)].sqrt(),
+                self.p[(1, 1)].sqrt(),
+                self.p[(2, 2)].sqrt(),
+            ],
+            matches,
+            chi2,
+            turn_chi2,
+            applied: chi2 > p.chi2,
+            turn_applied: turn_chi2 > p.turn_chi2,
+        }
     }
 }
 
