@@ -265,92 +265,105 @@ fn pass(seqs: &mut [Vec<Frame>], threshold: f64) -> Pass {
         // Per label id, the matched track id of each frame it appears in (-1: none).
         let mut traj: BTreeMap<u32, Vec<i64>> = BTreeMap::new();
         for fr in frames {
-            p.n_gt += fr.gt.len();
-            let kept: Vec<Option<usize>> = {
-                let mut n = 0;
-                fr.tracks
-                    .iter()
-                    .map(|&(_, s)| {
-                        (s >= threshold).then(|| {
-                            n += 1;
-                            n - 1
-                        })
-                    })
-                    .collect()
-            };
-            let mut back = Vec::new();
-            let edges: Vec<Edge> = fr
-                .pairs
-                .iter()
-                .filter_map(|&(i, j, c)| kept[j].map(|k| (i, j, k, c)))
-                .map(|(i, j, k, c)| {
-                    back.push(j);
-                    Edge::new(i, k, c)
-                })
-                .collect();
-            let kept_n = kept.iter().flatten().count();
-            let mut matched = vec![-1i64; fr.gt.len()];
-            let mut hit = vec![false; fr.tracks.len()];
-            for (i, k) in assign(fr.gt.len(), kept_n, &edges) {
-                let e = edges
-                    .iter()
-                    .position(|e| e.ia() == i && e.ib() == k)
-                    .expect("an assigned pair is an edge");
-                let (id, score) = fr.tracks[back[e]];
-                hit[back[e]] = true;
-                fr.valid[back[e]] = true;
-                matched[i] = id as i64;
-                p.total_iou += 1.0 - edges[e].cost;
-                p.tp += 1;
-                p.scores.push(score);
-            }
-            p.fn_ += matched.iter().filter(|&&m| m < 0).count();
-            p.fp += (0..fr.tracks.len())
-                .filter(|&j| kept[j].is_some() && !hit[j] && fr.valid[j])
-                .count();
+            let matched = p.frame(fr, threshold);
             for (&gid, m) in fr.gt.iter().zip(matched) {
                 traj.entry(gid).or_default().push(m);
             }
         }
         p.trajectories += traj.len();
         for g in traj.values() {
-            if g.iter().all(|&m| m == -1) {
-                p.ml += 1;
-                continue;
-            }
-            let mut last_id = g[0];
-            let mut tracked = usize::from(g[0] >= 0);
-            let mut f = 0;
-            for k in 1..g.len() {
-                f = k;
-                if last_id != g[k] && last_id != -1 && g[k] != -1 && g[k - 1] != -1 {
-                    p.ids += 1;
-                }
-                if k < g.len() - 1
-                    && g[k - 1] != g[k]
-                    && last_id != -1
-                    && g[k] != -1
-                    && g[k + 1] != -1
-                {
-                    p.frag += 1;
-                }
-                if g[k] != -1 {
-                    tracked += 1;
-                    last_id = g[k];
-                }
-            }
-            if g.len() > 1 && g[f - 1] != g[f] && last_id != -1 && g[f] != -1 {
-                p.frag += 1;
-            }
-            let ratio = tracked as f64 / g.len() as f64;
-            if ratio > 0.8 {
-                p.mt += 1;
-            } else if ratio < 0.2 {
-                p.ml += 1;
-            }
+            p.trajectory(g);
         }
     }
     p
+}
+
+impl Pass {
+    /// Scores one frame's tracks of score at least `threshold`: per label, the matched track id
+    /// (-1: none).
+    fn frame(&mut self, fr: &mut Frame, threshold: f64) -> Vec<i64> {
+        let p = self;
+        p.n_gt += fr.gt.len();
+        let kept: Vec<Option<usize>> = {
+            let mut n = 0;
+            fr.tracks
+                .iter()
+                .map(|&(_, s)| {
+                    (s >= threshold).then(|| {
+                        n += 1;
+                        n - 1
+                    })
+                })
+                .collect()
+        };
+        let mut back = Vec::new();
+        let edges: Vec<Edge> = fr
+            .pairs
+            .iter()
+            .filter_map(|&(i, j, c)| kept[j].map(|k| (i, j, k, c)))
+            .map(|(i, j, k, c)| {
+                back.push(j);
+                Edge::new(i, k, c)
+            })
+            .collect();
+        let kept_n = kept.iter().flatten().count();
+        let mut matched = vec![-1i64; fr.gt.len()];
+        let mut hit = vec![false; fr.tracks.len()];
+        for (i, k) in assign(fr.gt.len(), kept_n, &edges) {
+            let e = edges
+                .iter()
+                .position(|e| e.ia() == i && e.ib() == k)
+                .expect("an assigned pair is an edge");
+            let (id, score) = fr.tracks[back[e]];
+            hit[back[e]] = true;
+            fr.valid[back[e]] = true;
+            matched[i] = id as i64;
+            p.total_iou += 1.0 - edges[e].cost;
+            p.tp += 1;
+            p.scores.push(score);
+        }
+        p.fn_ += matched.iter().filter(|&&m| m < 0).count();
+        p.fp += (0..fr.tracks.len())
+            .filter(|&j| kept[j].is_some() && !hit[j] && fr.valid[j])
+            .count();
+        matched
+    }
+
+    /// Counts one label's trajectory (its matched track id per frame): switches,
+    /// fragmentations, mostly tracked or mostly lost.
+    fn trajectory(&mut self, g: &[i64]) {
+        let p = self;
+        if g.iter().all(|&m| m == -1) {
+            p.ml += 1;
+            return;
+        }
+        let mut last_id = g[0];
+        let mut tracked = usize::from(g[0] >= 0);
+        let mut f = 0;
+        for k in 1..g.len() {
+            f = k;
+            if last_id != g[k] && last_id != -1 && g[k] != -1 && g[k - 1] != -1 {
+                p.ids += 1;
+            }
+            if k < g.len() - 1 && g[k - 1] != g[k] && last_id != -1 && g[k] != -1 && g[k + 1] != -1
+            {
+                p.frag += 1;
+            }
+            if g[k] != -1 {
+                tracked += 1;
+                last_id = g[k];
+            }
+        }
+        if g.len() > 1 && g[f - 1] != g[f] && last_id != -1 && g[f] != -1 {
+            p.frag += 1;
+        }
+        let ratio = tracked as f64 / g.len() as f64;
+        if ratio > 0.8 {
+            p.mt += 1;
+        } else if ratio < 0.2 {
+            p.ml += 1;
+        }
+    }
 }
 
 impl Pass {

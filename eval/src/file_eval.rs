@@ -210,13 +210,15 @@ pub fn evaluate_results(
     }
     let keep = |c: Class| opts.classes.as_ref().is_none_or(|k| k.contains(&c));
     let mut covered = vec![false; gt.frames.len()];
-    let mut acc = Accumulator::new();
-    let mut det = DetectionEval::new();
     let has_ids = results.samples.values().flatten().any(|d| d.id != NO_ID);
     let by_distance = match opts.how {
         Match::Id => false,
         Match::Distance => true,
         Match::Auto => !has_ids,
+    };
+    let mut scorer = match by_distance {
+        true => Scorer::Distance(DetectionEval::new()),
+        false => Scorer::Id(Accumulator::new()),
     };
     let mut t = Tally::default();
     for st in &samples {
@@ -235,50 +237,59 @@ pub fn evaluate_results(
         if !preds.is_empty() && (objects.len() as f64) < SPARSE_SHARE * preds.len() as f64 {
             t.sparse += preds.len();
         }
-        if by_distance {
-            det.add_frame(&objects, &preds);
-        } else {
-            acc.add_frame(&objects, &preds);
-        }
+        scorer.add_frame(&objects, &preds);
         t.scored += 1;
     }
     if opts.all_frames {
-        for (i, f) in gt.frames.iter().enumerate() {
-            if !covered[i] {
-                let objects: Vec<GtObject> = f
-                    .objects
-                    .iter()
-                    .filter(|o| keep(o.class))
-                    .cloned()
-                    .collect();
-                if by_distance {
-                    det.add_frame(&objects, &[]);
-                } else {
-                    acc.add_frame(&objects, &[]);
-                }
-                t.missed += 1;
-            }
+        for (f, _) in gt.frames.iter().zip(&covered).filter(|(_, c)| !**c) {
+            let objects: Vec<GtObject> = f
+                .objects
+                .iter()
+                .filter(|o| keep(o.class))
+                .cloned()
+                .collect();
+            scorer.add_frame(&objects, &[]);
+            t.missed += 1;
         }
     }
     let mut note = coverage_note(gt, path, opts, by_distance, &t);
-    let (evaluation, scored_classes) = if by_distance {
-        let classes = opts
-            .classes
-            .clone()
-            .unwrap_or_else(|| det.ground_truth_classes());
-        let m = det.summary_over(&classes);
-        if opts.classes.is_none() {
-            note += &format!(
-                "; the headline averages the classes the ground truth holds ({}; --classes to choose; mAP_all10 and NDS_all10 over all ten)",
-                m.classes.join(", ")
-            );
+    let (evaluation, scored_classes) = match scorer {
+        Scorer::Distance(det) => {
+            let classes = opts
+                .classes
+                .clone()
+                .unwrap_or_else(|| det.ground_truth_classes());
+            let m = det.summary_over(&classes);
+            if opts.classes.is_none() {
+                note += &format!(
+                    "; the headline averages the classes the ground truth holds ({}; --classes to choose; mAP_all10 and NDS_all10 over all ten)",
+                    m.classes.join(", ")
+                );
+            }
+            (Evaluation::Distance(m), Some(classes))
         }
-        (Evaluation::Distance(m), Some(classes))
-    } else {
-        (Evaluation::Id(acc.summary()), opts.classes.clone())
+        Scorer::Id(acc) => (Evaluation::Id(acc.summary()), opts.classes.clone()),
     };
     note += &classes_note(&t, scored_classes.as_deref());
     Ok((evaluation, note))
+}
+
+/// What scores the frames: matching by ground-truth id, or by distance (nuScenes).
+enum Scorer {
+    /// The paper's protocol.
+    Id(Accumulator),
+    /// The nuScenes detection benchmark.
+    Distance(DetectionEval),
+}
+
+impl Scorer {
+    /// Scores one frame's predictions against its objects.
+    fn add_frame(&mut self, objects: &[GtObject], preds: &[Detection]) {
+        match self {
+            Scorer::Id(acc) => acc.add_frame(objects, preds),
+            Scorer::Distance(det) => det.add_frame(objects, preds),
+        }
+    }
 }
 
 /// Reads a results file to score against `gt`: stated stds play no part, so boxes without them
