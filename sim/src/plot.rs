@@ -62,36 +62,16 @@ pub fn frame_svg(
     );
     let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
     let _ = writeln!(s, r#"<text x="10" y="20">{title}</text>"#);
-    let mut legend = vec![("ground truth", "#000000"), ("fused", "#2ca02c")];
-    for (i, _) in agents.iter().enumerate() {
-        legend.push((
-            [
-                "agent 1", "agent 2", "agent 3", "agent 4", "agent 5", "agent 6",
-            ][i.min(5)],
-            AGENT_COLOURS[i % AGENT_COLOURS.len()],
-        ));
-    }
-    for (k, (name, colour)) in legend.iter().enumerate() {
-        let x = 10.0 + 130.0 * k as f64;
-        let _ = writeln!(
-            s,
-            r#"<rect x="{x}" y="32" width="14" height="14" fill="{colour}"/><text x="{}" y="44">{name}</text>"#,
-            x + 18.0
-        );
-    }
+    legend(&mut s, agents.len());
     for o in &frame.objects {
-        let d = Detection {
-            class: o.class,
-            center: o.center,
-            size: o.size,
-            yaw: o.yaw,
-            score: 1.0,
-            std: v2x_protocol::Uncertainty::uniform(1.0, 1.0, 1.0),
-            pos_cov: None,
-            velocity: None,
-            id: o.id,
-        };
-        polygon(&mut s, d.bev_corners(), &tf, "#000000", 2.0, "");
+        polygon(
+            &mut s,
+            o.as_detection().bev_corners(),
+            &tf,
+            "#000000",
+            2.0,
+            "",
+        );
     }
     for (i, dets) in agents.iter().enumerate() {
         for d in dets {
@@ -125,4 +105,25 @@ pub fn frame_svg(
     }
     s.push_str("</svg>\n");
     s
+}
+
+/// The legend: the ground truth, the fused boxes and each of `agents` agents in its colour.
+fn legend(s: &mut String, agents: usize) {
+    let mut legend = vec![("ground truth", "#000000"), ("fused", "#2ca02c")];
+    for i in 0..agents {
+        legend.push((
+            [
+                "agent 1", "agent 2", "agent 3", "agent 4", "agent 5", "agent 6",
+            ][i.min(5)],
+            AGENT_COLOURS[i % AGENT_COLOURS.len()],
+        ));
+    }
+    for (k, (name, colour)) in legend.iter().enumerate() {
+        let x = 10.0 + 130.0 * k as f64;
+        let _ = writeln!(
+            s,
+            r#"<rect x="{x}" y="32" width="14" height="14" fill="{colour}"/><text x="{}" y="44">{name}</text>"#,
+            x + 18.0
+        );
+    }
 }

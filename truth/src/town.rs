@@ -408,44 +408,7 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
                 .wrapping_add(sc as u64),
         );
         let actors = scene_actors(&mut rng);
-        // Ids for every lap from 10 s before the scene to 10 s after it, so that captures
-        // off the frames (phases, offsets) find them. They are numbered in the order the laps
-        // first appear in the frames, then the others: the order in which a reader of the
-        // scene's results files meets their tokens.
-        let spans: Vec<(i64, i64)> = actors
-            .iter()
-            .map(|a| (a.lap(-10.0), a.lap(cfg.seconds + 10.0)))
-            .collect();
-        let mut order: Vec<(usize, i64)> = Vec::new();
-        let mut seen = std::collections::HashSet::new();
-        for k in 0..steps {
-            let t = k as f64 / cfg.hz;
-            for (j, a) in actors.iter().enumerate() {
-                if seen.insert((j, a.lap(t))) {
-                    order.push((j, a.lap(t)));
-                }
-            }
-        }
-        for (j, &(first, last)) in spans.iter().enumerate() {
-            for lap in first..=last {
-                if seen.insert((j, lap)) {
-                    order.push((j, lap));
-                }
-            }
-        }
-        let mut ids: Vec<(i64, Vec<u32>)> = spans
-            .iter()
-            .map(|&(first, last)| (first, vec![0; (last - first + 1) as usize]))
-            .collect();
-        for (j, lap) in order {
-            let token = if lap == 0 {
-                format!("syn-{sc:03}-obj{j:03}")
-            } else {
-                format!("syn-{sc:03}-obj{j:03}-lap{lap}")
-            };
-            let (first, laps) = &mut ids[j];
-            laps[(lap - *first) as usize] = tokens.intern(&token);
-        }
+        let ids = lap_ids(&actors, cfg, sc, &mut tokens);
         // Each scene sits at its own place on the map and time on the clock.
         let offset = [2000.0 * sc as f64, 0.0];
         let start_us = 1_600_000_000_000_000u64 + sc as u64 * 3_600_000_000;
@@ -486,6 +449,54 @@ pub fn generate(cfg: &TownConfig) -> GroundTruth {
         ),
         recorded: None,
     }
+}
+
+/// Each actor's object ids, per lap from 10 s before scene `sc` to 10 s after it, so that
+/// captures off the frames (phases, offsets) find them: (first lap, id per lap). They are
+/// numbered in the order the laps first appear in the frames, then the others: the order in
+/// which a reader of the scene's results files meets their tokens.
+fn lap_ids(
+    actors: &[Actor],
+    cfg: &TownConfig,
+    sc: usize,
+    tokens: &mut TokenTable,
+) -> Vec<(i64, Vec<u32>)> {
+    let steps = (cfg.seconds * cfg.hz).round().max(1.0) as usize;
+    let spans: Vec<(i64, i64)> = actors
+        .iter()
+        .map(|a| (a.lap(-10.0), a.lap(cfg.seconds + 10.0)))
+        .collect();
+    let mut order: Vec<(usize, i64)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for k in 0..steps {
+        let t = k as f64 / cfg.hz;
+        for (j, a) in actors.iter().enumerate() {
+            if seen.insert((j, a.lap(t))) {
+                order.push((j, a.lap(t)));
+            }
+        }
+    }
+    for (j, &(first, last)) in spans.iter().enumerate() {
+        for lap in first..=last {
+            if seen.insert((j, lap)) {
+                order.push((j, lap));
+            }
+        }
+    }
+    let mut ids: Vec<(i64, Vec<u32>)> = spans
+        .iter()
+        .map(|&(first, last)| (first, vec![0; (last - first + 1) as usize]))
+        .collect();
+    for (j, lap) in order {
+        let token = if lap == 0 {
+            format!("syn-{sc:03}-obj{j:03}")
+        } else {
+            format!("syn-{sc:03}-obj{j:03}-lap{lap}")
+        };
+        let (first, laps) = &mut ids[j];
+        laps[(lap - *first) as usize] = tokens.intern(&token);
+    }
+    ids
 }
 
 /// An actor that stands still, `off` m across and `s` m along a street with directions
