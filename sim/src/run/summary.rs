@@ -664,46 +664,7 @@ pub fn print_table(s: &Summary) {
         );
         println!();
     }
-    print!(
-        "{}",
-        markdown(
-            &[
-                ("agent", Left),
-                ("frames", Right),
-                ("objects/frame", Right),
-                ("payload B/frame", Right),
-                ("payload B/object", Right),
-                ("CPM B/frame", Right),
-                ("wire B/frame sent", Right),
-                ("Zenoh overhead B/msg", Right),
-                ("wire B/frame received", Right),
-                ("kbit/s", Right),
-                ("late", Right),
-                ("duplicate", Right),
-                ("invalid", Right),
-                ("dropped by link", Right),
-            ],
-            s.bandwidth.iter().map(|(n, b)| {
-                let c = &s.counts[n];
-                vec![
-                    n.clone(),
-                    b.frames.to_string(),
-                    format!("{:.1}", b.objects_per_frame),
-                    format!("{:.0}", b.payload_bytes_per_frame),
-                    format!("{:.1}", b.payload_bytes_per_object),
-                    cell(b.cpm_bytes_per_frame, 0),
-                    cell(b.wire_bytes_per_frame, 0),
-                    cell(b.overhead_bytes_per_message, 1),
-                    cell(b.received_wire_bytes_per_frame, 0),
-                    format!("{:.1}", b.kbit_s),
-                    c.late.to_string(),
-                    c.duplicate.to_string(),
-                    c.invalid.to_string(),
-                    c.dropped_by_link.to_string(),
-                ]
-            }),
-        )
-    );
+    print!("{}", bandwidth_table(s));
     println!("(late-fusion reference in the paper: 2^9 = 512 bytes per frame)");
     println!();
     let l = |x: &Latency| {
@@ -726,6 +687,47 @@ pub fn print_table(s: &Summary) {
         println!();
         print_regions(&s.regions);
     }
+}
+
+/// Each agent's bandwidth and frame counts, as a markdown table.
+fn bandwidth_table(s: &Summary) -> String {
+    markdown(
+        &[
+            ("agent", Left),
+            ("frames", Right),
+            ("objects/frame", Right),
+            ("payload B/frame", Right),
+            ("payload B/object", Right),
+            ("CPM B/frame", Right),
+            ("wire B/frame sent", Right),
+            ("Zenoh overhead B/msg", Right),
+            ("wire B/frame received", Right),
+            ("kbit/s", Right),
+            ("late", Right),
+            ("duplicate", Right),
+            ("invalid", Right),
+            ("dropped by link", Right),
+        ],
+        s.bandwidth.iter().map(|(n, b)| {
+            let c = &s.counts[n];
+            vec![
+                n.clone(),
+                b.frames.to_string(),
+                format!("{:.1}", b.objects_per_frame),
+                format!("{:.0}", b.payload_bytes_per_frame),
+                format!("{:.1}", b.payload_bytes_per_object),
+                cell(b.cpm_bytes_per_frame, 0),
+                cell(b.wire_bytes_per_frame, 0),
+                cell(b.overhead_bytes_per_message, 1),
+                cell(b.received_wire_bytes_per_frame, 0),
+                format!("{:.1}", b.kbit_s),
+                c.late.to_string(),
+                c.duplicate.to_string(),
+                c.invalid.to_string(),
+                c.dropped_by_link.to_string(),
+            ]
+        }),
+    )
 }
 
 fn f(v: Option<f64>) -> String {
