@@ -76,31 +76,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         {
             anyhow::bail!("--dataset v2v4real writes the two cars' own detections as they are: leave out --noise, --faults, --stated-std, --range, --agent-hz, --phase-ms and --agents");
         }
-        let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
-        std::fs::create_dir_all(&out)
-            .with_context(|| format!("cannot create {}", out.display()))?;
-        let files = v2x_sim::gen::generate_v2v4real(&d, &Default::default());
-        let tokens = v2x_protocol::nuscenes_json::TokenTable::new();
-        for (k, r) in files.iter().enumerate() {
-            let p = out.join(format!("agent{}.json", k + 1));
-            write_results(&p, r, &tokens)?;
-            eprintln!(
-                "wrote {} ({}: {} frames, {} boxes, stds from each box's score)",
-                p.display(),
-                if k == 0 {
-                    "the ego car"
-                } else {
-                    "car 1, in the ego car's frame"
-                },
-                r.samples.len(),
-                r.samples.values().map(Vec::len).sum::<usize>()
-            );
-        }
-        eprintln!(
-            "V2V4Real {} split: fuse them with `v2x-fuser fuse --detector`, or replay them with `v2x-agent`",
-            d.split
-        );
-        return Ok(());
+        return gen_v2v4real(&data, &out);
     }
     if data.is_dair() {
         if agent_hz.is_some() || phase_ms.is_some() || agents != 2 {
@@ -141,6 +117,34 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         eprintln!("wrote {} ({} noise)", p.display(), setting.agents[a].label);
     }
     eprintln!("{}", data.describe(&gt));
+    Ok(())
+}
+
+/// V2V4Real's two cars' own detections, written as they are.
+fn gen_v2v4real(data: &DataArgs, out: &std::path::Path) -> anyhow::Result<()> {
+    let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let files = v2x_sim::gen::generate_v2v4real(&d, &Default::default());
+    let tokens = v2x_protocol::nuscenes_json::TokenTable::new();
+    for (k, r) in files.iter().enumerate() {
+        let p = out.join(format!("agent{}.json", k + 1));
+        write_results(&p, r, &tokens)?;
+        eprintln!(
+            "wrote {} ({}: {} frames, {} boxes, stds from each box's score)",
+            p.display(),
+            if k == 0 {
+                "the ego car"
+            } else {
+                "car 1, in the ego car's frame"
+            },
+            r.samples.len(),
+            r.samples.values().map(Vec::len).sum::<usize>()
+        );
+    }
+    eprintln!(
+        "V2V4Real {} split: fuse them with `v2x-fuser fuse --detector`, or replay them with `v2x-agent`",
+        d.split
+    );
     Ok(())
 }
 
