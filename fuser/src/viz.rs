@@ -83,22 +83,7 @@ pub fn scene_with_sources(
                 position: Some(Vector3 { x, y, z }),
                 orientation: Some(yaw_quaternion(d.yaw)),
             };
-            let arrows = d
-                .velocity
-                .filter(|v| v.v[0].hypot(v.v[1]) > 0.05)
-                .map(|v| ArrowPrimitive {
-                    pose: Some(Pose {
-                        position: Some(Vector3 { x, y, z }),
-                        orientation: Some(yaw_quaternion(v.v[1].atan2(v.v[0]))),
-                    }),
-                    shaft_length: v.v[0].hypot(v.v[1]),
-                    shaft_diameter: 0.1,
-                    head_length: 0.4,
-                    head_diameter: 0.3,
-                    color: Some(colour(1.0)),
-                })
-                .into_iter()
-                .collect();
+            let arrows = velocity_arrow(d, colour(1.0)).into_iter().collect();
             SceneEntity {
                 timestamp: Some(timestamp(t_us)),
                 frame_id: "map".into(),
@@ -151,6 +136,24 @@ pub fn scene_with_sources(
         }],
         entities,
     }
+}
+
+/// An arrow for a box's velocity, from its centre, when it moves faster than 5 cm/s.
+fn velocity_arrow(d: &Detection, color: Color) -> Option<ArrowPrimitive> {
+    let [x, y, z] = d.center;
+    d.velocity
+        .filter(|v| v.v[0].hypot(v.v[1]) > 0.05)
+        .map(|v| ArrowPrimitive {
+            pose: Some(Pose {
+                position: Some(Vector3 { x, y, z }),
+                orientation: Some(yaw_quaternion(v.v[1].atan2(v.v[0]))),
+            }),
+            shaft_length: v.v[0].hypot(v.v[1]),
+            shaft_diameter: 0.1,
+            head_length: 0.4,
+            head_diameter: 0.3,
+            color: Some(color),
+        })
 }
 
 /// Why the visualization could not start.
