@@ -245,16 +245,7 @@ impl DetectionEval {
         let (mut ntp, mut nfp) = (0usize, 0usize);
         for &i in &order {
             let p = preds[i];
-            let mut best: Option<(usize, f64)> = None;
-            for (gi, g) in self.gt[p.frame].iter().enumerate() {
-                if g.class == class && !taken[p.frame][gi] {
-                    let d = centre_distance(g, &p.det);
-                    if best.is_none_or(|(_, m)| d < m) {
-                        best = Some((gi, d));
-                    }
-                }
-            }
-            match best {
+            match self.closest(p, class, &taken[p.frame]) {
                 Some((gi, d)) if d < th => {
                     taken[p.frame][gi] = true;
                     ntp += 1;
@@ -309,6 +300,20 @@ impl DetectionEval {
             tp: ntp,
             fp: nfp,
         }
+    }
+
+    /// The closest ground-truth box of `class` in `p`'s frame not yet `taken`, and its distance.
+    fn closest(&self, p: &Pred, class: Class, taken: &[bool]) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        for (gi, g) in self.gt[p.frame].iter().enumerate() {
+            if g.class == class && !taken[gi] {
+                let d = centre_distance(g, &p.det);
+                if best.is_none_or(|(_, m)| d < m) {
+                    best = Some((gi, d));
+                }
+            }
+        }
+        best
     }
 
     /// Every figure of the benchmark, the headline averaged over the ten classes as the devkit

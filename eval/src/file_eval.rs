@@ -193,21 +193,7 @@ pub fn evaluate_results(
     opts: &EvalOptions,
 ) -> Result<(Evaluation, String), EvalError> {
     let tracked = gt.tracked_across_frames();
-    if opts.timing == Timing::Capture && !tracked {
-        return Err(EvalError(format!(
-            "{}: --at capture interpolates the ground truth between frames, but no object in it is annotated in more than one frame; score each sample at its own frame (--at frame, the default)",
-            path.display()
-        )));
-    }
-    let (samples, unknown) = sample_times(gt, results, opts.replay, opts.timing);
-    if !unknown.is_empty() {
-        return Err(EvalError(format!(
-            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs --replay-start-at and --replay-speed)",
-            path.display(),
-            unknown.len(),
-            unknown[0]
-        )));
-    }
+    let samples = scorable_samples(gt, results, path, opts, tracked)?;
     let keep = |c: Class| opts.classes.as_ref().is_none_or(|k| k.contains(&c));
     let mut covered = vec![false; gt.frames.len()];
     let has_ids = results.samples.values().flatten().any(|d| d.id != NO_ID);
@@ -272,6 +258,33 @@ pub fn evaluate_results(
     };
     note += &classes_note(&t, scored_classes.as_deref());
     Ok((evaluation, note))
+}
+
+/// The file's samples with the time each is scored at; an error when one is not in the ground
+/// truth, or capture times are asked of ground truth that is not tracked across frames.
+fn scorable_samples(
+    gt: &GroundTruth,
+    results: &Results,
+    path: &Path,
+    opts: &EvalOptions,
+    tracked: bool,
+) -> Result<Vec<SampleTime>, EvalError> {
+    if opts.timing == Timing::Capture && !tracked {
+        return Err(EvalError(format!(
+            "{}: --at capture interpolates the ground truth between frames, but no object in it is annotated in more than one frame; score each sample at its own frame (--at frame, the default)",
+            path.display()
+        )));
+    }
+    let (samples, unknown) = sample_times(gt, results, opts.replay, opts.timing);
+    if !unknown.is_empty() {
+        return Err(EvalError(format!(
+            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs --replay-start-at and --replay-speed)",
+            path.display(),
+            unknown.len(),
+            unknown[0]
+        )));
+    }
+    Ok(samples)
 }
 
 /// What scores the frames: matching by ground-truth id, or by distance (nuScenes).
