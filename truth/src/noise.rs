@@ -343,12 +343,7 @@ pub fn detect(
     let f = &noise.faults;
     let mut g = move || -> f64 { StandardNormal.sample(&mut rng) };
     let mut gv = move || -> f64 { StandardNormal.sample(&mut vrng) };
-    let hidden = if f.occlusion > 0.0 {
-        let boxes: Vec<_> = objects.iter().map(|o| (o.center, o.size)).collect();
-        hidden(&boxes, position)
-    } else {
-        vec![false; objects.len()]
-    };
+    let hidden = occluded(objects, f, position);
     let sv = noise.velocity_std;
     let (stated, stated_v) = noise.stated.apply(*s, sv);
     // The noise drawn is scaled by 0 for an exact agent, so that the streams stay the same.
@@ -402,13 +397,23 @@ pub fn detect(
             &mut frng,
         ));
     }
-    let [dx, dy, dyaw] = f.pose_error(seed, agent, capture.scene, capture.t_us);
-    if dx != 0.0 || dy != 0.0 || dyaw != 0.0 {
+    let error = f.pose_error(seed, agent, capture.scene, capture.t_us);
+    if error != [0.0; 3] {
         for d in &mut out {
-            mislocate(d, position, [dx, dy, dyaw]);
+            mislocate(d, position, error);
         }
     }
     out
+}
+
+/// Per object, whether another hides it from `position` (none without occlusion faults).
+fn occluded(objects: &[GtObject], f: &Faults, position: [f64; 3]) -> Vec<bool> {
+    if f.occlusion > 0.0 {
+        let boxes: Vec<_> = objects.iter().map(|o| (o.center, o.size)).collect();
+        hidden(&boxes, position)
+    } else {
+        vec![false; objects.len()]
+    }
 }
 
 /// An agent's false positives of one capture (a Poisson count at its faults' rate): classes as
