@@ -79,18 +79,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if tracking {
         return tracking_table(&data, &pred, all_frames, format);
     }
-    let replay = match replay_start_at {
-        None => None,
-        Some(t) if t > 0.0 && t.is_finite() && replay_speed > 0.0 && replay_speed.is_finite() => {
-            Some(v2x_sim::cli::ReplayMap {
-                start_us: (t * 1e6) as u64,
-                speed: replay_speed,
-            })
-        }
-        Some(_) => {
-            bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
-        }
-    };
+    let replay = replay_map(replay_start_at, replay_speed)?;
     let dair = if data.is_dair() {
         Some(data.load_dair()?)
     } else {
@@ -143,6 +132,25 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// How a recording on the real clock maps to data time (`--replay-start-at`, `--replay-speed`).
+fn replay_map(
+    start_at: Option<f64>,
+    speed: f64,
+) -> anyhow::Result<Option<v2x_sim::cli::ReplayMap>> {
+    match start_at {
+        None => Ok(None),
+        Some(t) if t > 0.0 && t.is_finite() && speed > 0.0 && speed.is_finite() => {
+            Ok(Some(v2x_sim::cli::ReplayMap {
+                start_us: (t * 1e6) as u64,
+                speed,
+            }))
+        }
+        Some(_) => {
+            bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
+        }
+    }
 }
 
 /// The DAIR-V2X protocol beside the devkit-style figures, for one results file.
