@@ -342,20 +342,7 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
     for (i, rec) in records.iter().enumerate() {
         rows.push(read_pair(&src, i, rec, &mut gt)?);
     }
-    // Frames by scene (in order of first capture), then time.
-    let mut first: HashMap<String, u64> = HashMap::new();
-    for r in &rows {
-        let e = first.entry(r.scene.clone()).or_insert(r.pair.veh_us);
-        *e = (*e).min(r.pair.veh_us);
-    }
-    rows.sort_by(|a, b| {
-        (first[&a.scene], &a.scene, a.pair.veh_us, &a.pair.veh_frame).cmp(&(
-            first[&b.scene],
-            &b.scene,
-            b.pair.veh_us,
-            &b.pair.veh_frame,
-        ))
-    });
+    sort_by_scene(&mut rows);
     let mut rec = Recording::default();
     let mut corner_mismatches = 0;
     let mut seen = std::collections::HashSet::new();
@@ -390,6 +377,23 @@ pub fn load_dair(root: &Path, offset: bool) -> Result<Dair, DairError> {
         results: [None, None],
         corner_mismatches,
     })
+}
+
+/// Orders the pairs' rows by scene (in order of first capture), then time.
+fn sort_by_scene(rows: &mut [Row]) {
+    let mut first: HashMap<String, u64> = HashMap::new();
+    for r in rows.iter() {
+        let e = first.entry(r.scene.clone()).or_insert(r.pair.veh_us);
+        *e = (*e).min(r.pair.veh_us);
+    }
+    rows.sort_by(|a, b| {
+        (first[&a.scene], &a.scene, a.pair.veh_us, &a.pair.veh_frame).cmp(&(
+            first[&b.scene],
+            &b.scene,
+            b.pair.veh_us,
+            &b.pair.veh_frame,
+        ))
+    });
 }
 
 /// One side's own labels in the world (types the ground truth does not score are left out).

@@ -98,20 +98,7 @@ pub fn timeline(
     let agents: Vec<String> = scenario.agents.iter().map(|a| a.name.clone()).collect();
     let seconds = (schedule.duration_us() as f64 / 1e6).ceil() as u64;
     let mut rows: Vec<Second> = (0..seconds.max(1))
-        .map(|s| Second {
-            second: s,
-            windows: 0,
-            incomplete: 0,
-            e2e_p50_ms: None,
-            e2e_p95_ms: None,
-            precision: None,
-            recall: None,
-            mate_m: None,
-            frames: agents.iter().map(|a| (a.clone(), 0)).collect(),
-            objects: agents.iter().map(|a| (a.clone(), 0)).collect(),
-            payload_bytes: BTreeMap::new(),
-            wire_bytes: BTreeMap::new(),
-        })
+        .map(|s| Second::empty(s, &agents))
         .collect();
     let mut e2e: Vec<Vec<f64>> = vec![Vec::new(); rows.len()];
     let mut acc: Vec<Accumulator> = vec![Accumulator::new(); rows.len()];
@@ -168,6 +155,26 @@ pub fn timeline(
         agents,
         events: scenario.events.iter().map(EventMark::of).collect(),
         seconds: rows,
+    }
+}
+
+impl Second {
+    /// Second `second` before anything is counted: no frame of any of `agents`.
+    fn empty(second: u64, agents: &[String]) -> Second {
+        Second {
+            second,
+            windows: 0,
+            incomplete: 0,
+            e2e_p50_ms: None,
+            e2e_p95_ms: None,
+            precision: None,
+            recall: None,
+            mate_m: None,
+            frames: agents.iter().map(|a| (a.clone(), 0)).collect(),
+            objects: agents.iter().map(|a| (a.clone(), 0)).collect(),
+            payload_bytes: BTreeMap::new(),
+            wire_bytes: BTreeMap::new(),
+        }
     }
 }
 
