@@ -4,9 +4,12 @@
 use crate::ingest::IngestConfig;
 use crate::motion::MotionParams;
 use crate::region::Region;
+use crate::region::Scope;
 use crate::Method;
+use anyhow::anyhow;
 use std::sync::Arc;
 use std::time::Instant;
+use v2x_protocol::keys;
 use v2x_protocol::{Frame, Provenance};
 
 /// How the node runs.
@@ -55,6 +58,51 @@ pub struct NodeConfig {
     /// Where the map frame lies on the earth, to read agents' ETSI CPMs (docs/cpm.md); the
     /// agents must give the same.
     pub map_origin: v2x_cpm::Geo,
+}
+
+impl NodeConfig {
+    /// Refuses a configuration the node cannot run with.
+    pub(super) fn check(&self) -> anyhow::Result<()> {
+        let cfg = self;
+        keys::validate_chunk("namespace", &cfg.ns).map_err(|e| anyhow!(e))?;
+        let window_ok = cfg.window_ms > 0.0 && cfg.window_ms.is_finite();
+        let wait_ok = cfg.max_wait_ms >= 0.0 && cfg.max_wait_ms.is_finite();
+        if !window_ok || !wait_ok {
+            anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
+        }
+        if cfg.ingest.max_agents == 0 || cfg.queue == 0 || cfg.ingest.max_objects == 0 {
+            anyhow::bail!(
+                "the agent table, the fusion queue and the budget of boxes per agent must hold at least one entry"
+            );
+        }
+        cfg.ingest.area.validate().map_err(|e| anyhow!(e))?;
+        if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
+            anyhow::bail!(
+                "the agent table may hold at most {} agents (the most a fused frame can name)",
+                v2x_protocol::limits::MAX_WINDOW_AGENTS
+            );
+        }
+        Ok(())
+    }
+
+    /// Says what the node serves.
+    pub(super) fn log_start(&self, method: &str) {
+        let cfg = self;
+        let ns = &cfg.ns;
+        match cfg.scope() {
+            Scope::Whole => tracing::info!(
+                "fuser on v2x/{ns}: method {method}, window {} ms",
+                cfg.window_ms
+            ),
+            Scope::Tile(r) => tracing::info!(
+                "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {method}, window {} ms",
+                r.tile,
+                r.tiling.size_m(),
+                r.halo_m,
+                cfg.window_ms
+            ),
+        }
+    }
 }
 
 impl NodeConfig {

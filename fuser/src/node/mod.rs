@@ -493,7 +493,7 @@ pub async fn run(
     mut on_fused: impl FnMut(&Fused),
     shutdown: impl Future<Output = ()>,
 ) -> anyhow::Result<NodeStats> {
-    check(&cfg)?;
+    cfg.check()?;
     let ns = cfg.ns.clone();
     let fk = cfg.scope().keys(&ns);
     let overflow = Arc::new(std::sync::atomic::AtomicU64::new(0));
@@ -520,7 +520,7 @@ pub async fn run(
     let (worker, _handover) =
         start_worker(session, &cfg, publisher, clock, job_rx, done_tx).await?;
     let mut st = State::new(&cfg, clock, &subscribed);
-    log_start(&cfg, &st.stats.method);
+    cfg.log_start(&st.stats.method);
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
@@ -602,29 +602,6 @@ async fn start_worker(
     Ok((worker, handover))
 }
 
-/// Refuses a configuration the node cannot run with.
-fn check(cfg: &NodeConfig) -> anyhow::Result<()> {
-    keys::validate_chunk("namespace", &cfg.ns).map_err(|e| anyhow!(e))?;
-    let window_ok = cfg.window_ms > 0.0 && cfg.window_ms.is_finite();
-    let wait_ok = cfg.max_wait_ms >= 0.0 && cfg.max_wait_ms.is_finite();
-    if !window_ok || !wait_ok {
-        anyhow::bail!("the window must be > 0 ms and the wait >= 0 ms");
-    }
-    if cfg.ingest.max_agents == 0 || cfg.queue == 0 || cfg.ingest.max_objects == 0 {
-        anyhow::bail!(
-            "the agent table, the fusion queue and the budget of boxes per agent must hold at least one entry"
-        );
-    }
-    cfg.ingest.area.validate().map_err(|e| anyhow!(e))?;
-    if cfg.ingest.max_agents > v2x_protocol::limits::MAX_WINDOW_AGENTS {
-        anyhow::bail!(
-            "the agent table may hold at most {} agents (the most a fused frame can name)",
-            v2x_protocol::limits::MAX_WINDOW_AGENTS
-        );
-    }
-    Ok(())
-}
-
 /// Zenoh's errors say what failed, not where: each names its operation and key.
 fn z(what: &'static str, key: String) -> impl FnOnce(zenoh::Error) -> anyhow::Error {
     move |e| anyhow!("cannot declare the {what} on {key}: {e}")
@@ -678,22 +655,4 @@ async fn subscribe_detections(
         );
     }
     Ok((Inbox::Tiles { rx, _subs: subs }, tiles))
-}
-
-/// Says what the node serves.
-fn log_start(cfg: &NodeConfig, method: &str) {
-    let ns = &cfg.ns;
-    match cfg.scope() {
-        Scope::Whole => tracing::info!(
-            "fuser on v2x/{ns}: method {method}, window {} ms",
-            cfg.window_ms
-        ),
-        Scope::Tile(r) => tracing::info!(
-            "fuser of tile {} ({} m, halo {} m) on v2x/{ns}: method {method}, window {} ms",
-            r.tile,
-            r.tiling.size_m(),
-            r.halo_m,
-            cfg.window_ms
-        ),
-    }
 }
