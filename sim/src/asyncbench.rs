@@ -21,6 +21,7 @@ use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use crate::table::{
     cell, markdown,
     Align::{Left, Right},
+    Rows,
 };
 use rayon::prelude::*;
 use serde::Serialize;
@@ -213,52 +214,55 @@ pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
     Some((at50, (raw - comp) / (raw - sync)))
 }
 
-/// The rows as a Markdown table, with each method's recovery ([`recovery`]) under it.
-pub fn table(rows: &[AsyncRow]) -> String {
-    let mut s = markdown(
-        &[
-            ("rates", Left),
-            ("offset (ms)", Right),
-            ("compensation", Left),
-            ("method", Left),
-            ("precision", Right),
-            ("recall", Right),
-            ("mATE (m)", Right),
-            ("mAVE (m/s)", Right),
-            ("TP-only mATE", Right),
-        ],
-        rows.iter().map(|r| {
-            let m = &r.metrics;
-            vec![
-                r.rates.clone(),
-                r.offset_ms.to_string(),
-                (if r.compensation { "yes" } else { "no" }).to_string(),
-                r.method.clone(),
-                cell(m.precision, 4),
-                cell(m.recall, 4),
-                cell(m.all.m_ate, 3),
-                cell(m.all.m_ave, 3),
-                cell(m.tp_only.m_ate, 3),
-            ]
-        }),
-    );
-    let mut methods: Vec<&str> = Vec::new();
-    for r in rows {
-        if !methods.contains(&r.method.as_str()) {
-            methods.push(&r.method);
+impl Rows for [AsyncRow] {
+    /// The rows as a Markdown table, with each method's recovery ([`recovery`]) under it.
+    fn table(&self) -> String {
+        let rows = self;
+        let mut s = markdown(
+            &[
+                ("rates", Left),
+                ("offset (ms)", Right),
+                ("compensation", Left),
+                ("method", Left),
+                ("precision", Right),
+                ("recall", Right),
+                ("mATE (m)", Right),
+                ("mAVE (m/s)", Right),
+                ("TP-only mATE", Right),
+            ],
+            rows.iter().map(|r| {
+                let m = &r.metrics;
+                vec![
+                    r.rates.clone(),
+                    r.offset_ms.to_string(),
+                    (if r.compensation { "yes" } else { "no" }).to_string(),
+                    r.method.clone(),
+                    cell(m.precision, 4),
+                    cell(m.recall, 4),
+                    cell(m.all.m_ate, 3),
+                    cell(m.all.m_ave, 3),
+                    cell(m.tp_only.m_ate, 3),
+                ]
+            }),
+        );
+        let mut methods: Vec<&str> = Vec::new();
+        for r in rows {
+            if !methods.contains(&r.method.as_str()) {
+                methods.push(&r.method);
+            }
         }
-    }
-    for method in methods {
-        if let Some((at50, recovered)) = recovery(rows, method) {
-            s.push_str(&format!(
-                "\n{method}: compensated mATE at 50 ms = {:.1}% of the synchronous; {:.0}% of the 100 ms loss recovered",
-                100.0 * at50,
-                100.0 * recovered
-            ));
+        for method in methods {
+            if let Some((at50, recovered)) = recovery(rows, method) {
+                s.push_str(&format!(
+                    "\n{method}: compensated mATE at 50 ms = {:.1}% of the synchronous; {:.0}% of the 100 ms loss recovered",
+                    100.0 * at50,
+                    100.0 * recovered
+                ));
+            }
         }
+        s.push('\n');
+        s
     }
-    s.push('\n');
-    s
 }
 
 #[cfg(test)]

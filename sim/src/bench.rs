@@ -9,6 +9,7 @@ use crate::noise::{detect, place_agents, Capture, NoiseSetting};
 use crate::table::{
     cell, markdown, Align,
     Align::{Left, Right},
+    Rows,
 };
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
@@ -22,8 +23,8 @@ use v2x_protocol::Detection;
 mod tracking;
 pub(crate) use tracking::score_tracked;
 pub use tracking::{
-    run_tracking, seed_summary, seed_summary_table, tracking_cells, tracking_table, SeedSummary,
-    TrackingRow, TRACKING_COLUMNS,
+    run_tracking, seed_summary, tracking_cells, SeedSummary, SeedsReport, TrackingRow,
+    TRACKING_COLUMNS,
 };
 
 /// One row of the table.
@@ -162,6 +163,28 @@ pub struct DetectionRow {
     /// The nuScenes detection benchmark's figures.
     #[serde(flatten)]
     pub metrics: DetectionMetrics,
+}
+
+impl DetectionRow {
+    /// The row's name: `NOISE METHOD`, or the method alone without a noise setting.
+    fn name(&self) -> String {
+        match self.noise.is_empty() {
+            true => self.method.clone(),
+            false => format!("{} {}", self.noise, self.method),
+        }
+    }
+}
+
+impl Rows for [DetectionRow] {
+    fn table(&self) -> String {
+        let named: Vec<_> = self.iter().map(|r| (r.name(), &r.metrics)).collect();
+        detection_table(&named)
+    }
+
+    fn csv(&self) -> Option<String> {
+        let named: Vec<_> = self.iter().map(|r| (r.name(), &r.metrics)).collect();
+        Some(detection_csv(&named))
+    }
 }
 
 /// The distance-matched table (the nuScenes detection benchmark, `bench --profile`): under each
@@ -321,34 +344,64 @@ pub(crate) fn scenes(gt: &GroundTruth) -> Vec<Vec<usize>> {
     scenes
 }
 
-/// The rows as a Markdown table.
-pub fn table(rows: &[Row]) -> String {
-    markdown(
-        &[
-            ("noise", Left),
-            ("method", Left),
-            ("precision", Right),
-            ("recall", Right),
-            ("mATE (m)", Right),
-            ("mASE (m)", Right),
-            ("mAOE (deg)", Right),
-            ("TP-only mATE", Right),
-            ("TP-only mASE", Right),
-            ("TP-only mAOE", Right),
-        ],
-        rows.iter().map(|r| {
+impl Rows for [Row] {
+    /// The rows as a Markdown table.
+    fn table(&self) -> String {
+        let rows = self;
+        markdown(
+            &[
+                ("noise", Left),
+                ("method", Left),
+                ("precision", Right),
+                ("recall", Right),
+                ("mATE (m)", Right),
+                ("mASE (m)", Right),
+                ("mAOE (deg)", Right),
+                ("TP-only mATE", Right),
+                ("TP-only mASE", Right),
+                ("TP-only mAOE", Right),
+            ],
+            rows.iter().map(|r| {
+                let m = &r.metrics;
+                let mut cells = leading_cells(&r.noise, &r.method, m);
+                cells.extend([
+                    cell(m.all.m_ase, 3),
+                    cell(m.all.m_aoe, 2),
+                    cell(m.tp_only.m_ate, 3),
+                    cell(m.tp_only.m_ase, 3),
+                    cell(m.tp_only.m_aoe, 2),
+                ]);
+                cells
+            }),
+        )
+    }
+
+    /// The rows as CSV.
+    fn csv(&self) -> Option<String> {
+        let rows = self;
+        let mut s = String::from("noise,method,precision,recall,mATE,mASE,mAOE,tp,fp,fn,tp_only_mATE,tp_only_mASE,tp_only_mAOE\n");
+        let c = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
+        for r in rows {
             let m = &r.metrics;
-            let mut cells = leading_cells(&r.noise, &r.method, m);
-            cells.extend([
-                cell(m.all.m_ase, 3),
-                cell(m.all.m_aoe, 2),
-                cell(m.tp_only.m_ate, 3),
-                cell(m.tp_only.m_ase, 3),
-                cell(m.tp_only.m_aoe, 2),
-            ]);
-            cells
-        }),
-    )
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                r.noise,
+                r.method,
+                c(m.precision),
+                c(m.recall),
+                c(m.all.m_ate),
+                c(m.all.m_ase),
+                c(m.all.m_aoe),
+                m.tp,
+                m.fp,
+                m.fn_,
+                c(m.tp_only.m_ate),
+                c(m.tp_only.m_ase),
+                c(m.tp_only.m_aoe)
+            ));
+        }
+        Some(s)
+    }
 }
 
 /// A table row's first cells: the noise, the boxes' name, precision, recall and mATE.
@@ -363,7 +416,7 @@ fn leading_cells(noise: &str, name: &str, m: &Metrics) -> Vec<String> {
 }
 
 /// Distance-matched (nuScenes benchmark) figures as a Markdown table, one row per named result.
-pub fn detection_table(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
+fn detection_table(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
     let fixed = |v: f64, digits: usize| cell(Some(v), digits);
     markdown(
         &[
@@ -394,7 +447,7 @@ pub fn detection_table(rows: &[(String, &crate::detection_eval::DetectionMetrics
 }
 
 /// Distance-matched figures as CSV.
-pub fn detection_csv(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
+fn detection_csv(rows: &[(String, &crate::detection_eval::DetectionMetrics)]) -> String {
     let mut s =
         String::from("predictions,precision,recall,mAP,NDS,mATE,mASE,mAOE,mAVE,mAAE,tp,fp,fn\n");
     let c = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
@@ -413,32 +466,6 @@ pub fn detection_csv(rows: &[(String, &crate::detection_eval::DetectionMetrics)]
             m.tp,
             m.fp,
             m.fn_
-        ));
-    }
-    s
-}
-
-/// The rows as CSV.
-pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("noise,method,precision,recall,mATE,mASE,mAOE,tp,fp,fn,tp_only_mATE,tp_only_mASE,tp_only_mAOE\n");
-    let c = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
-    for r in rows {
-        let m = &r.metrics;
-        s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            r.noise,
-            r.method,
-            c(m.precision),
-            c(m.recall),
-            c(m.all.m_ate),
-            c(m.all.m_ase),
-            c(m.all.m_aoe),
-            m.tp,
-            m.fp,
-            m.fn_,
-            c(m.tp_only.m_ate),
-            c(m.tp_only.m_ase),
-            c(m.tp_only.m_aoe)
         ));
     }
     s
@@ -508,7 +535,7 @@ mod tests {
         assert!(plus.all.m_ate.unwrap() < get("agent1").all.m_ate.unwrap());
         // deterministic
         let again = run(&gt, &cfg, &|| {});
-        assert_eq!(table(&rows), table(&again));
+        assert_eq!(rows[..].table(), again[..].table());
     }
 
     /// The tracking rows of one method at one noise setting over two town scenes of 6 s at
@@ -574,7 +601,9 @@ mod tests {
             tracked.metrics.all.m_ate.unwrap(),
         );
         assert!(b < 0.7 * a, "tracked {b} single-frame {a}");
-        assert!(tracking_table(&rows).contains("| moderate | csba-wls+ tracked |"));
+        assert!(rows[..]
+            .table()
+            .contains("| moderate | csba-wls+ tracked |"));
     }
 
     #[test]
@@ -662,6 +691,8 @@ mod tests {
             .unwrap();
         assert_eq!(oracle.worst_amota_ratio, Some(1.0));
         assert_eq!(oracle.worst_ids_ratio, Some(1.0));
-        assert!(seed_summary_table(&summary).contains("| large | csba-wls+ tracked | 3 |"));
+        assert!(summary[..]
+            .table()
+            .contains("| large | csba-wls+ tracked | 3 |"));
     }
 }

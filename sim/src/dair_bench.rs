@@ -11,6 +11,7 @@ use crate::noise::NoiseSetting;
 use crate::table::{
     markdown,
     Align::{Left, Right},
+    Rows,
 };
 use crate::wire_bytes::{frame_bytes, Bytes};
 use rayon::prelude::*;
@@ -198,87 +199,91 @@ fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |v| format!("{v:.3}"))
 }
 
-/// The rows as a Markdown table (AP in percent, as DAIR-V2X reports it).
-pub fn table(rows: &[DairRow]) -> String {
-    let keys = rows.first().map(|r| ap_keys(&r.dair)).unwrap_or_default();
-    let aps: Vec<String> = keys
-        .iter()
-        .map(|(three_d, k)| format!("AP-{} {k}", if *three_d { "3D" } else { "BEV" }))
-        .collect();
-    let mut columns = vec![
-        ("agents / method", Left),
-        ("precision", Right),
-        ("recall", Right),
-        ("mAP", Right),
-        ("mATE (m)", Right),
-    ];
-    columns.extend(aps.iter().map(|h| (h.as_str(), Right)));
-    columns.extend([
-        ("bytes/frame", Right),
-        ("CPM bytes/frame", Right),
-        ("AB (official)", Right),
-    ]);
-    let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
-    markdown(
-        &columns,
-        rows.iter().map(|r| {
-            let mut cells = vec![
-                r.method.clone(),
-                opt(r.detection.precision),
-                opt(r.detection.recall),
-                format!("{:.4}", r.detection.m_ap),
-                format!("{:.3}", r.detection.m_ate),
-            ];
-            cells.extend(keys.iter().map(|k| ap_cell(&r.dair, k)));
-            cells.extend([
+impl Rows for [DairRow] {
+    /// The rows as a Markdown table (AP in percent, as DAIR-V2X reports it).
+    fn table(&self) -> String {
+        let rows = self;
+        let keys = rows.first().map(|r| ap_keys(&r.dair)).unwrap_or_default();
+        let aps: Vec<String> = keys
+            .iter()
+            .map(|(three_d, k)| format!("AP-{} {k}", if *three_d { "3D" } else { "BEV" }))
+            .collect();
+        let mut columns = vec![
+            ("agents / method", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mAP", Right),
+            ("mATE (m)", Right),
+        ];
+        columns.extend(aps.iter().map(|h| (h.as_str(), Right)));
+        columns.extend([
+            ("bytes/frame", Right),
+            ("CPM bytes/frame", Right),
+            ("AB (official)", Right),
+        ]);
+        let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
+        markdown(
+            &columns,
+            rows.iter().map(|r| {
+                let mut cells = vec![
+                    r.method.clone(),
+                    opt(r.detection.precision),
+                    opt(r.detection.recall),
+                    format!("{:.4}", r.detection.m_ap),
+                    format!("{:.3}", r.detection.m_ate),
+                ];
+                cells.extend(keys.iter().map(|k| ap_cell(&r.dair, k)));
+                cells.extend([
+                    bytes(r.bytes_per_frame),
+                    bytes(r.cpm_bytes_per_frame),
+                    bytes(r.official_ab),
+                ]);
+                cells
+            }),
+        )
+    }
+
+    /// The rows as CSV.
+    fn csv(&self) -> Option<String> {
+        let rows = self;
+        let keys = rows.first().map(|r| ap_keys(&r.dair)).unwrap_or_default();
+        let mut s = String::from("method,precision,recall,mAP,mATE");
+        for (three_d, k) in &keys {
+            s.push_str(&format!(",AP_{}_{k}", if *three_d { "3d" } else { "bev" }));
+        }
+        s.push_str(",bytes_per_frame,cpm_bytes_per_frame,official_ab\n");
+        for r in rows {
+            s.push_str(&format!(
+                "{},{},{},{},{}",
+                r.method,
+                r.detection
+                    .precision
+                    .map_or(String::new(), |v| v.to_string()),
+                r.detection.recall.map_or(String::new(), |v| v.to_string()),
+                r.detection.m_ap,
+                r.detection.m_ate
+            ));
+            for (three_d, k) in &keys {
+                let map = if *three_d {
+                    &r.dair.ap_3d
+                } else {
+                    &r.dair.ap_bev
+                };
+                s.push_str(&format!(
+                    ",{}",
+                    map.get(k).map_or(String::new(), |v| v.to_string())
+                ));
+            }
+            let bytes = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
+            s.push_str(&format!(
+                ",{},{},{}\n",
                 bytes(r.bytes_per_frame),
                 bytes(r.cpm_bytes_per_frame),
-                bytes(r.official_ab),
-            ]);
-            cells
-        }),
-    )
-}
-
-/// The rows as CSV.
-pub fn csv(rows: &[DairRow]) -> String {
-    let keys = rows.first().map(|r| ap_keys(&r.dair)).unwrap_or_default();
-    let mut s = String::from("method,precision,recall,mAP,mATE");
-    for (three_d, k) in &keys {
-        s.push_str(&format!(",AP_{}_{k}", if *three_d { "3d" } else { "bev" }));
-    }
-    s.push_str(",bytes_per_frame,cpm_bytes_per_frame,official_ab\n");
-    for r in rows {
-        s.push_str(&format!(
-            "{},{},{},{},{}",
-            r.method,
-            r.detection
-                .precision
-                .map_or(String::new(), |v| v.to_string()),
-            r.detection.recall.map_or(String::new(), |v| v.to_string()),
-            r.detection.m_ap,
-            r.detection.m_ate
-        ));
-        for (three_d, k) in &keys {
-            let map = if *three_d {
-                &r.dair.ap_3d
-            } else {
-                &r.dair.ap_bev
-            };
-            s.push_str(&format!(
-                ",{}",
-                map.get(k).map_or(String::new(), |v| v.to_string())
+                bytes(r.official_ab)
             ));
         }
-        let bytes = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
-        s.push_str(&format!(
-            ",{},{},{}\n",
-            bytes(r.bytes_per_frame),
-            bytes(r.cpm_bytes_per_frame),
-            bytes(r.official_ab)
-        ));
+        Some(s)
     }
-    s
 }
 
 #[cfg(test)]

@@ -131,7 +131,7 @@ fn scene(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::tracking_table;
+    use crate::table::Rows;
 
     #[test]
     fn handed_over_tracks_switch_as_one_fusers_and_regions_alone_switch_at_borders() {
@@ -158,7 +158,9 @@ mod tests {
             .iter()
             .map(|r| r.tracking.as_ref().unwrap().ids)
             .collect();
-        assert!(tracking_table(&rows).contains("| moderate | gt-wls tracked regions hand-over |"));
+        assert!(rows[..]
+            .table()
+            .contains("| moderate | gt-wls tracked regions hand-over |"));
         for way in [0, 3, 6] {
             let (one, alone, handed) = (ids[way], ids[way + 1], ids[way + 2]);
             // Here 8 switches at the borders, 0 handed over, 0 by one fuser.

@@ -1,4 +1,5 @@
-//! Markdown tables: the one writer behind every table the simulator prints.
+//! Tables: the one writer behind every table the simulator prints ([`markdown`]), and the one
+//! printer of a bench's rows in every format ([`Rows`], [`render`]).
 
 /// How a column's cells align: text to the left, figures to the right.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,6 +40,40 @@ fn line(s: &mut String, cells: impl IntoIterator<Item = String>) {
         s.push_str(" |");
     }
     s.push('\n');
+}
+
+/// How rows are printed.
+#[derive(Copy, Clone, Debug, clap::ValueEnum, PartialEq, Eq)]
+pub enum Format {
+    /// A Markdown table after a line that says what was run.
+    Table,
+    /// The rows as JSON.
+    Json,
+    /// The rows as CSV, where they have a CSV form (else the table).
+    Csv,
+}
+
+/// A bench's rows, in every form they print as.
+pub trait Rows: serde::Serialize {
+    /// The rows as a Markdown table.
+    fn table(&self) -> String;
+    /// The rows as CSV; `None` when they have no CSV form.
+    fn csv(&self) -> Option<String> {
+        None
+    }
+}
+
+/// The one printer of rows: as JSON, as CSV, or as a table after `heading` and a blank line.
+pub fn render<R: Rows + ?Sized>(
+    rows: &R,
+    format: Format,
+    heading: &str,
+) -> serde_json::Result<String> {
+    Ok(match (format, rows.csv()) {
+        (Format::Json, _) => serde_json::to_string_pretty(rows)? + "\n",
+        (Format::Csv, Some(csv)) => csv,
+        _ => format!("{heading}\n\n{}", rows.table()),
+    })
 }
 
 /// A cell: the value with `digits` decimals, or `-` when there is none.

@@ -6,6 +6,7 @@ use crate::bench::{in_order, FRAMES_PER_TASK};
 use crate::table::{
     markdown,
     Align::{Left, Right},
+    Rows,
 };
 use crate::wire_bytes::{frame_bytes, Bytes};
 use rayon::prelude::*;
@@ -262,42 +263,45 @@ pub fn score_detection_dir(d: &V2v4real, dir: &Path) -> Result<V2v4realMetrics, 
     Ok(eval.summary())
 }
 
-/// The tracked rows as a Markdown table (percent, as AB3DMOT's script prints them).
-pub fn tracked_table(rows: &[TrackedRow]) -> String {
-    let pct = |v: f64| format!("{:.2}", 100.0 * v);
-    markdown(
-        &[
-            ("tracks", Left),
-            ("sAMOTA", Right),
-            ("AMOTA", Right),
-            ("AMOTP", Right),
-            ("MOTA", Right),
-            ("MOTP", Right),
-            ("MT", Right),
-            ("ML", Right),
-            ("IDS", Right),
-            ("FRAG", Right),
-            ("recall", Right),
-            ("boxes/frame", Right),
-        ],
-        rows.iter().map(|r| {
-            let m = &r.metrics;
-            vec![
-                r.method.clone(),
-                pct(m.samota),
-                pct(m.amota),
-                pct(m.amotp),
-                pct(m.mota),
-                pct(m.motp),
-                pct(m.mt),
-                pct(m.ml),
-                m.ids.to_string(),
-                m.frag.to_string(),
-                pct(m.recall),
-                format!("{:.1}", r.boxes_per_frame),
-            ]
-        }),
-    )
+impl Rows for [TrackedRow] {
+    /// The tracked rows as a Markdown table (percent, as AB3DMOT's script prints them).
+    fn table(&self) -> String {
+        let rows = self;
+        let pct = |v: f64| format!("{:.2}", 100.0 * v);
+        markdown(
+            &[
+                ("tracks", Left),
+                ("sAMOTA", Right),
+                ("AMOTA", Right),
+                ("AMOTP", Right),
+                ("MOTA", Right),
+                ("MOTP", Right),
+                ("MT", Right),
+                ("ML", Right),
+                ("IDS", Right),
+                ("FRAG", Right),
+                ("recall", Right),
+                ("boxes/frame", Right),
+            ],
+            rows.iter().map(|r| {
+                let m = &r.metrics;
+                vec![
+                    r.method.clone(),
+                    pct(m.samota),
+                    pct(m.amota),
+                    pct(m.amotp),
+                    pct(m.mota),
+                    pct(m.motp),
+                    pct(m.mt),
+                    pct(m.ml),
+                    m.ids.to_string(),
+                    m.frag.to_string(),
+                    pct(m.recall),
+                    format!("{:.1}", r.boxes_per_frame),
+                ]
+            }),
+        )
+    }
 }
 
 /// Per-row accumulators, with each car's bytes.
@@ -390,31 +394,57 @@ fn ap_cells(m: &V2v4realMetrics) -> Vec<String> {
         .collect()
 }
 
-/// The rows as a Markdown table.
-pub fn table(rows: &[V2v4realRow]) -> String {
-    let heads = ap_headers();
-    let mut columns = vec![("boxes / method", Left)];
-    columns.extend(heads.iter().map(|h| (h.as_str(), Right)));
-    columns.extend([
-        ("boxes/frame", Right),
-        ("bytes/frame", Right),
-        ("CPM bytes/frame", Right),
-    ]);
-    markdown(
-        &columns,
-        rows.iter().map(|r| {
-            let mut cells = vec![r.method.clone()];
-            cells.extend(ap_cells(&r.ap));
-            cells.push(format!(
-                "{:.1}",
-                r.ap.predictions as f64 / r.ap.frames.max(1) as f64
-            ));
-            for b in [r.bytes_per_frame, r.cpm_bytes_per_frame] {
-                cells.push(b.map_or_else(|| "-".into(), |b| format!("{b:.0}")));
-            }
-            cells
-        }),
-    )
+impl Rows for [V2v4realRow] {
+    /// The rows as a Markdown table.
+    fn table(&self) -> String {
+        let rows = self;
+        let heads = ap_headers();
+        let mut columns = vec![("boxes / method", Left)];
+        columns.extend(heads.iter().map(|h| (h.as_str(), Right)));
+        columns.extend([
+            ("boxes/frame", Right),
+            ("bytes/frame", Right),
+            ("CPM bytes/frame", Right),
+        ]);
+        markdown(
+            &columns,
+            rows.iter().map(|r| {
+                let mut cells = vec![r.method.clone()];
+                cells.extend(ap_cells(&r.ap));
+                cells.push(format!(
+                    "{:.1}",
+                    r.ap.predictions as f64 / r.ap.frames.max(1) as f64
+                ));
+                for b in [r.bytes_per_frame, r.cpm_bytes_per_frame] {
+                    cells.push(b.map_or_else(|| "-".into(), |b| format!("{b:.0}")));
+                }
+                cells
+            }),
+        )
+    }
+}
+
+/// The V2V4Real bench: the detection table, then the tracking table after its own heading.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// AP per source.
+    pub detection: Vec<V2v4realRow>,
+    /// Tracked per method.
+    pub tracking: Vec<TrackedRow>,
+    /// What the tracking table holds and how long it took.
+    #[serde(skip)]
+    pub tracking_heading: String,
+}
+
+impl Rows for Report {
+    fn table(&self) -> String {
+        format!(
+            "{}\n{}\n\n{}",
+            self.detection.table(),
+            self.tracking_heading,
+            self.tracking.table()
+        )
+    }
 }
 
 #[cfg(test)]

@@ -183,27 +183,30 @@ pub fn tracking_cells(t: Option<&TrackingMetrics>) -> [String; 7] {
     ]
 }
 
-/// The tracking rows as a Markdown table.
-pub fn tracking_table(rows: &[TrackingRow]) -> String {
-    let mut columns = vec![
-        ("noise", Left),
-        ("boxes", Left),
-        ("precision", Right),
-        ("recall", Right),
-        ("mATE (m)", Right),
-        ("mAOE (deg)", Right),
-    ];
-    columns.extend(TRACKING_COLUMNS);
-    markdown(
-        &columns,
-        rows.iter().map(|r| {
-            let m = &r.metrics;
-            let mut cells = leading_cells(&r.noise, &r.method, m);
-            cells.push(cell(m.all.m_aoe, 2));
-            cells.extend(tracking_cells(r.tracking.as_ref()));
-            cells
-        }),
-    )
+impl Rows for [TrackingRow] {
+    /// The tracking rows as a Markdown table.
+    fn table(&self) -> String {
+        let rows = self;
+        let mut columns = vec![
+            ("noise", Left),
+            ("boxes", Left),
+            ("precision", Right),
+            ("recall", Right),
+            ("mATE (m)", Right),
+            ("mAOE (deg)", Right),
+        ];
+        columns.extend(TRACKING_COLUMNS);
+        markdown(
+            &columns,
+            rows.iter().map(|r| {
+                let m = &r.metrics;
+                let mut cells = leading_cells(&r.noise, &r.method, m);
+                cells.push(cell(m.all.m_aoe, 2));
+                cells.extend(tracking_cells(r.tracking.as_ref()));
+                cells
+            }),
+        )
+    }
 }
 
 /// A tracked row over several noise seeds: its AMOTA and identity switches (per 100 objects)
@@ -290,36 +293,56 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
     out
 }
 
-/// [`seed_summary`] as a Markdown table.
-pub fn seed_summary_table(rows: &[SeedSummary]) -> String {
-    let three = |v: [f64; 3], d: usize| format!("{:.d$} ({:.d$}-{:.d$})", v[0], v[1], v[2]);
-    let ratio = |v: Option<f64>| match v {
-        None => "-".into(),
-        Some(r) if r.is_infinite() => "inf".into(),
-        Some(r) => format!("{r:.3}"),
-    };
-    markdown(
-        &[
-            ("noise", Left),
-            ("tracks", Left),
-            ("seeds", Right),
-            ("AMOTA mean (low-high)", Right),
-            ("IDS / 100 objects mean (low-high)", Right),
-            ("worst AMOTA / gt-wls tracked", Right),
-            ("worst IDS / gt-wls tracked", Right),
-        ],
-        rows.iter().map(|r| {
-            vec![
-                r.noise.clone(),
-                r.method.clone(),
-                r.seeds.to_string(),
-                three(r.amota, 4),
-                three(r.ids_per_100, 2),
-                ratio(r.worst_amota_ratio),
-                ratio(r.worst_ids_ratio),
-            ]
-        }),
-    )
+/// The tracking table under several seeds: each seed's rows and their summary.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedsReport {
+    /// Each seed's rows.
+    pub per_seed: Vec<Vec<TrackingRow>>,
+    /// The seeds.
+    pub seeds: Vec<u64>,
+    /// The rows summarised over the seeds.
+    pub summary: Vec<SeedSummary>,
+}
+
+impl Rows for SeedsReport {
+    fn table(&self) -> String {
+        self.summary.table()
+    }
+}
+
+impl Rows for [SeedSummary] {
+    /// [`seed_summary`] as a Markdown table.
+    fn table(&self) -> String {
+        let rows = self;
+        let three = |v: [f64; 3], d: usize| format!("{:.d$} ({:.d$}-{:.d$})", v[0], v[1], v[2]);
+        let ratio = |v: Option<f64>| match v {
+            None => "-".into(),
+            Some(r) if r.is_infinite() => "inf".into(),
+            Some(r) => format!("{r:.3}"),
+        };
+        markdown(
+            &[
+                ("noise", Left),
+                ("tracks", Left),
+                ("seeds", Right),
+                ("AMOTA mean (low-high)", Right),
+                ("IDS / 100 objects mean (low-high)", Right),
+                ("worst AMOTA / gt-wls tracked", Right),
+                ("worst IDS / gt-wls tracked", Right),
+            ],
+            rows.iter().map(|r| {
+                vec![
+                    r.noise.clone(),
+                    r.method.clone(),
+                    r.seeds.to_string(),
+                    three(r.amota, 4),
+                    three(r.ids_per_100, 2),
+                    ratio(r.worst_amota_ratio),
+                    ratio(r.worst_ids_ratio),
+                ]
+            }),
+        )
+    }
 }
 
 /// Scores one frame's tracks of a scene: their boxes by id, their ids as the tracking

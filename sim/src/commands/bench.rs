@@ -11,6 +11,7 @@ use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::cli::DataArgs;
 use v2x_sim::dataset::GroundTruth;
 use v2x_sim::noise::NoiseSetting;
+use v2x_sim::table::render;
 
 /// The options of `v2x-sim bench`.
 #[derive(clap::Args)]
@@ -184,22 +185,16 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
     let start = Instant::now();
     let rows = v2x_sim::dair_bench::run(&d, &methods, &setting, args.seed, args.range);
-    match args.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Csv => print!("{}", v2x_sim::dair_bench::csv(&rows)),
-        Format::Table => {
-            let what = format!(
-                "noise {setting} over each side's own labels, seed {}",
-                args.seed
-            );
-            println!(
-                "{} ; {what}; devkit-style over the ground truth's classes, AP in % (DAIR-V2X protocol, vehicle frame); {:.1} s\n",
-                args.data.describe(&d.gt),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", v2x_sim::dair_bench::table(&rows));
-        }
-    }
+    let what = format!(
+        "noise {setting} over each side's own labels, seed {}",
+        args.seed
+    );
+    let heading = format!(
+        "{} ; {what}; devkit-style over the ground truth's classes, AP in % (DAIR-V2X protocol, vehicle frame); {:.1} s",
+        args.data.describe(&d.gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], args.format, &heading)?);
     Ok(())
 }
 
@@ -254,28 +249,21 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         }
     }
     tracked.push(v2x_sim::v2v4real_bench::ceiling(&d));
-    match args.format {
-        Format::Json => println!(
-            "{}",
-            serde_json::to_string_pretty(
-                &serde_json::json!({"detection": rows, "tracking": tracked})
-            )?
+    let report = v2x_sim::v2v4real_bench::Report {
+        detection: rows,
+        tracking: tracked,
+        tracking_heading: format!(
+            "Tracked as `v2x-fuser track` tracks the two cars' folders, scored by AB3DMOT's KITTI evaluation (3D IoU 0.25, percent); {:.1} s",
+            start.elapsed().as_secs_f64()
         ),
-        Format::Csv | Format::Table => {
-            println!(
-                "V2V4Real {} split: {} frames, {} labelled cars; AP of cars by V2V4Real's protocol (frames in order, VOC 2010); {detection_s:.1} s\n",
-                d.split,
-                d.frames.len(),
-                d.boxes(),
-            );
-            print!("{}", v2x_sim::v2v4real_bench::table(&rows));
-            println!(
-                "\nTracked as `v2x-fuser track` tracks the two cars' folders, scored by AB3DMOT's KITTI evaluation (3D IoU 0.25, percent); {:.1} s\n",
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", v2x_sim::v2v4real_bench::tracked_table(&tracked));
-        }
-    }
+    };
+    let heading = format!(
+        "V2V4Real {} split: {} frames, {} labelled cars; AP of cars by V2V4Real's protocol (frames in order, VOC 2010); {detection_s:.1} s",
+        d.split,
+        d.frames.len(),
+        d.boxes(),
+    );
+    print!("{}", render(&report, args.format, &heading)?);
     Ok(())
 }
 
@@ -295,19 +283,14 @@ fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Res
     let cfg = paper_settings(methods, "csba-wls+", noise, args.seed, args.range)?;
     let start = Instant::now();
     let rows = v2x_sim::region_bench::run_region_tracking(gt, &cfg, tiling, args.halo);
-    match args.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Table | Format::Csv => {
-            println!(
-                "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s\n",
-                args.data.describe(gt),
-                args.seed,
-                args.halo,
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", bench::tracking_table(&rows));
-        }
-    }
+    let heading = format!(
+        "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s",
+        args.data.describe(gt),
+        args.seed,
+        args.halo,
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], args.format, &heading)?);
     Ok(())
 }
 
@@ -320,18 +303,12 @@ fn regions(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> 
     let cfg = paper_settings(methods, "csba-wls+,csba-wls", noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_regions(gt, &cfg, tiling, halo);
-    match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Csv => print!("{}", bench::csv(&rows)),
-        Format::Table => {
-            println!(
-                "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s\n",
-                data.describe(gt),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", bench::table(&rows));
-        }
-    }
+    let heading = format!(
+        "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s",
+        data.describe(gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], format, &heading)?);
     Ok(())
 }
 
@@ -345,26 +322,19 @@ fn tracking_seeds(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
         per_seed.push(bench::run_tracking(gt, &cfg, Default::default()));
     }
     let summary = bench::seed_summary(&per_seed);
-    match args.format {
-        Format::Json => println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "seeds": args.seeds,
-                "summary": summary,
-                "per_seed": per_seed,
-            }))?
-        ),
-        Format::Table | Format::Csv => {
-            let seeds: Vec<String> = args.seeds.iter().map(u64::to_string).collect();
-            println!(
-                "{} ; noise seeds {}; id matching for the boxes, 2 m for tracking; {:.1} s\n",
-                data.describe(gt),
-                seeds.join(", "),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", bench::seed_summary_table(&summary));
-        }
-    }
+    let report = bench::SeedsReport {
+        per_seed,
+        seeds: args.seeds.clone(),
+        summary,
+    };
+    let seeds: Vec<String> = args.seeds.iter().map(u64::to_string).collect();
+    let heading = format!(
+        "{} ; noise seeds {}; id matching for the boxes, 2 m for tracking; {:.1} s",
+        data.describe(gt),
+        seeds.join(", "),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&report, args.format, &heading)?);
     Ok(())
 }
 
@@ -375,17 +345,12 @@ fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_tracking(gt, &cfg, Default::default());
-    match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Table | Format::Csv => {
-            println!(
-                "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s\n",
-                data.describe(gt),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", bench::tracking_table(&rows));
-        }
-    }
+    let heading = format!(
+        "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s",
+        data.describe(gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], format, &heading)?);
     Ok(())
 }
 
@@ -402,22 +367,12 @@ fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Resul
     let start = Instant::now();
     let params = v2x_fuser::align::AlignParams::default();
     let rows = bench::run_detection(gt, &cfg, args.align.then_some(&params), &|| {});
-    let named: Vec<(String, &v2x_sim::detection_eval::DetectionMetrics)> = rows
-        .iter()
-        .map(|r| (format!("{} {}", r.noise, r.method), &r.metrics))
-        .collect();
-    match format {
-        Format::Table => {
-            println!(
-                "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s\n",
-                data.describe(gt),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", bench::detection_table(&named));
-        }
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Csv => print!("{}", bench::detection_csv(&named)),
-    }
+    let heading = format!(
+        "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s",
+        data.describe(gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], format, &heading)?);
     Ok(())
 }
 
@@ -440,17 +395,12 @@ fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     };
     let start = Instant::now();
     let rows = v2x_sim::asyncbench::run(gt, &cfg, &setting);
-    match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Table | Format::Csv => {
-            println!(
-                "{} ; noise {setting}, seed {seed}; {:.1} s\n",
-                data.describe(gt),
-                start.elapsed().as_secs_f64()
-            );
-            print!("{}", v2x_sim::asyncbench::table(&rows));
-        }
-    }
+    let heading = format!(
+        "{} ; noise {setting}, seed {seed}; {:.1} s",
+        data.describe(gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], format, &heading)?);
     Ok(())
 }
 
@@ -482,14 +432,8 @@ fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let rows = bench::run(gt, &cfg, &|| bar.inc(1));
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
-    match format {
-        Format::Table => {
-            println!("{} ; noise seed {seed}; {:.1} s\n", data.describe(gt), secs);
-            print!("{}", bench::table(&rows));
-        }
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows)?),
-        Format::Csv => print!("{}", bench::csv(&rows)),
-    }
+    let heading = format!("{} ; noise seed {seed}; {:.1} s", data.describe(gt), secs);
+    print!("{}", render(&rows[..], format, &heading)?);
     if let (Some(frame), Some(out)) = (args.plot, &args.out) {
         let best: Method = "csba-wls+".parse().map_err(anyhow::Error::msg)?;
         for s in &cfg.settings {

@@ -8,6 +8,7 @@ use v2x_sim::cli::{evaluate_file, DataArgs, EvalOptions, Evaluation};
 use v2x_sim::table::{
     markdown,
     Align::{Left, Right},
+    Rows,
 };
 
 /// The options of `v2x-sim eval`.
@@ -105,15 +106,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     match evaluation {
         e if format == Format::Json => println!("{}", serde_json::to_string_pretty(&e)?),
         Evaluation::Distance(d) => {
-            let rows = [(pred.display().to_string(), &d)];
-            print!(
-                "{}",
-                if csv {
-                    bench::detection_csv(&rows)
-                } else {
-                    bench::detection_table(&rows)
-                }
-            );
+            let rows = [bench::DetectionRow {
+                noise: String::new(),
+                method: pred.display().to_string(),
+                metrics: d,
+            }];
+            print!("{}", table_or_csv(&rows[..], csv));
         }
         Evaluation::Id(m) => {
             let rows = [bench::Row {
@@ -121,17 +119,17 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
                 method: pred.display().to_string(),
                 metrics: m,
             }];
-            print!(
-                "{}",
-                if csv {
-                    bench::csv(&rows)
-                } else {
-                    bench::table(&rows)
-                }
-            );
+            print!("{}", table_or_csv(&rows[..], csv));
         }
     }
     Ok(())
+}
+
+/// The rows as CSV when asked and they have a CSV form, else as a table.
+fn table_or_csv<R: Rows + ?Sized>(rows: &R, csv: bool) -> String {
+    csv.then(|| rows.csv())
+        .flatten()
+        .unwrap_or_else(|| rows.table())
 }
 
 /// How a recording on the real clock maps to data time (`--replay-start-at`, `--replay-speed`).
@@ -185,8 +183,7 @@ fn dair_eval(
     }];
     match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&rows[0])?),
-        Format::Csv => print!("{}", v2x_sim::dair_bench::csv(&rows)),
-        Format::Table => print!("{}", v2x_sim::dair_bench::table(&rows)),
+        _ => print!("{}", table_or_csv(&rows[..], format == Format::Csv)),
     }
     Ok(())
 }
@@ -239,7 +236,7 @@ fn v2v4real(
         let row = v2x_sim::v2v4real_bench::score_track_dir(&d, dir)?;
         match format {
             Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
-            _ => print!("{}", v2x_sim::v2v4real_bench::tracked_table(&[row])),
+            _ => print!("{}", [row][..].table()),
         }
     } else {
         let m = v2x_sim::v2v4real_bench::score_detection_dir(&d, dir)?;

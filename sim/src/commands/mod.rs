@@ -1,7 +1,6 @@
 //! The subcommands of `v2x-sim`, one module each, and what they share.
 
 use anyhow::{bail, Context};
-use clap::ValueEnum;
 use std::path::PathBuf;
 use v2x_fuser::Method;
 use v2x_sim::bench::BenchConfig;
@@ -17,13 +16,7 @@ pub mod mcap;
 pub mod plot;
 pub mod wire;
 
-/// How a table is printed.
-#[derive(Copy, Clone, Debug, ValueEnum, PartialEq)]
-pub enum Format {
-    Table,
-    Json,
-    Csv,
-}
+pub use v2x_sim::table::Format;
 
 /// Scores a tracking results file over the ground truth's frames in time order: only the frames
 /// the file has, or with `all_frames` every frame (absent ones all missed).

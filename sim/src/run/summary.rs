@@ -655,7 +655,7 @@ pub fn print_table(s: &Summary) {
             metrics: m.clone(),
         });
     }
-    print!("{}", crate::bench::table(&rows));
+    print!("{}", crate::table::Rows::table(&rows[..]));
     println!();
     if let Some(t) = &s.tracking {
         println!(

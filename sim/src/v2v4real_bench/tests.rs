@@ -50,7 +50,9 @@ fn each_row_scores_as_worked_by_hand() {
     let cpm = |k: usize| rows[k].cpm_bytes_per_frame;
     assert!((cpm(5).unwrap() - cpm(0).unwrap() - cpm(1).unwrap()).abs() < 1e-9);
     assert!(cpm(0).unwrap() > 0.0 && cpm(2).is_none());
-    assert!(table(&rows).contains("| late fusion rule (BEV NMS 0.15) |"));
+    assert!(rows[..]
+        .table()
+        .contains("| late fusion rule (BEV NMS 0.15) |"));
 }
 
 #[test]
