@@ -417,20 +417,22 @@ fn arb_box() -> impl Strategy<Value = Detection> {
                 Class::TrafficCone | Class::Barrier => class.typical_size(),
                 _ => size,
             };
+            let std = Uncertainty {
+                pos,
+                size: sz,
+                yaw: y,
+            };
+            let velocity = vel.map(|(v, std)| Velocity { v, std });
             Detection {
+                id: id.unwrap_or(NO_ID),
                 class,
+                score,
                 center,
                 size,
                 yaw,
-                score,
-                std: Uncertainty {
-                    pos,
-                    size: sz,
-                    yaw: y,
-                },
+                std,
+                velocity,
                 pos_cov: None,
-                velocity: vel.map(|(v, std)| Velocity { v, std }),
-                id: id.unwrap_or(NO_ID),
             }
         })
 }
