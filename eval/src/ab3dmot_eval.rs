@@ -26,7 +26,7 @@
 
 use serde::Serialize;
 use std::collections::BTreeMap;
-use v2x_fuser::association::{assign, Edge};
+use v2x_fuser::maths::association::{assign, Edge};
 use v2x_protocol::Detection;
 
 /// The IoU-3D a label and a tracked box need to match.

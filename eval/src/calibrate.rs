@@ -1,12 +1,12 @@
 //! An agent's errors against the ground truth, from which its error model is fitted
-//! (`v2x-sim calibrate`, [`v2x_fuser::stdmodel`]): each box of its results file matched to the
+//! (`v2x-sim calibrate`, [`v2x_fuser::uncertainty::stdmodel`]): each box of its results file matched to the
 //! object it detected, by ground-truth id when the boxes carry ids, else to the nearest
 //! unclaimed object of its class within a distance (boxes taken by descending score, as the
 //! nuScenes benchmark matches), and the difference taken.
 
 use crate::file_eval::{read_scored, sample_times, EvalError, Match, ReplayMap, Timing};
 use std::path::Path;
-use v2x_fuser::stdmodel::ErrorSample;
+use v2x_fuser::uncertainty::stdmodel::ErrorSample;
 use v2x_protocol::{Detection, NO_ID};
 use v2x_truth::dataset::GroundTruth;
 

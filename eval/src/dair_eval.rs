@@ -20,7 +20,7 @@
 
 use serde::Serialize;
 use std::collections::BTreeMap;
-use v2x_fuser::geometry::{convex_hull, polygon_area, Pt};
+use v2x_fuser::maths::geometry::{convex_hull, polygon_area, Pt};
 use v2x_protocol::{Class, Detection};
 use v2x_truth::dair::{corners, Corners, Pose};
 use v2x_truth::dataset::GtObject;

@@ -33,7 +33,7 @@
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
-use v2x_fuser::association::{assign, Edge};
+use v2x_fuser::maths::association::{assign, Edge};
 use v2x_protocol::nuscenes_json::JsonError;
 use v2x_protocol::{Class, UnknownName};
 use v2x_truth::dataset::GtObject;

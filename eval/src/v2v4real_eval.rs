@@ -18,7 +18,7 @@
 use crate::dair_eval::View;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use v2x_fuser::geometry::{bev_iou, iou_3d};
+use v2x_fuser::maths::geometry::{bev_iou, iou_3d};
 use v2x_protocol::Detection;
 
 /// The IoU thresholds scored.

@@ -75,7 +75,7 @@ fn bench_methods(c: &mut Criterion) {
 /// Registration of agent 1 to agent 2 at 2 x 80 objects (per window, and filtered in steady
 /// state), beside the csba-wls+ step it precedes.
 fn bench_align(c: &mut Criterion) {
-    use v2x_fuser::align::{align, AlignParams, Aligner};
+    use v2x_fuser::time::align::{align, AlignParams, Aligner};
     let mut group = c.benchmark_group("align/2x80");
     group
         .warm_up_time(Duration::from_millis(500))

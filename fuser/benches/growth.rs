@@ -21,7 +21,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 use std::time::Instant;
-use v2x_fuser::association::eligible_pairs;
+use v2x_fuser::maths::association::eligible_pairs;
 use v2x_fuser::Method;
 use v2x_protocol::{Detection, NoiseProfile};
 

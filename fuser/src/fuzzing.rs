@@ -1,7 +1,7 @@
 //! Properties checked on arbitrary input, shared by the fuzz target `window` (`fuzz/`) and by the
 //! regression test that replays its corpus and every input that once failed.
 
-use crate::window::{Closed, Verdict, Windows};
+use crate::time::window::{Closed, Verdict, Windows};
 use std::collections::{BTreeSet, HashSet};
 use v2x_protocol::{AgentKind, Frame};
 

@@ -3,21 +3,21 @@
 //!
 //! When every file carries its capture times (the `v2x_timestamps` map of its `meta`, as
 //! `v2x-sim gen` writes it), frames are grouped the way the fuser node groups them, by capture
-//! time in windows of delta t ([`crate::window`]), and each window is motion-compensated to its
-//! latest capture time ([`crate::motion`]) before it is fused; the output sample of a window is
+//! time in windows of delta t ([`crate::time::window`]), and each window is motion-compensated to its
+//! latest capture time ([`crate::time::motion`]) before it is fused; the output sample of a window is
 //! the sample of that latest frame, and the output's `v2x_timestamps` gives each sample's
 //! reference time. Without capture times, boxes are grouped by sample token and fused as they
-//! are. With registration ([`crate::align`]), each window's agents are first aligned to the
+//! are. With registration ([`crate::time::align`]), each window's agents are first aligned to the
 //! reference agent: pooled over windows when grouping by time, per sample otherwise.
 
-use crate::align::{AlignParams, Registration};
-use crate::detector::DetectorParams;
-use crate::learn::{AgentReport, LearnParams};
-use crate::motion::MotionParams;
 use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
-use crate::stdmodel::{ErrorModel, Models};
+use crate::time::align::{AlignParams, Registration};
+use crate::time::motion::MotionParams;
+use crate::time::window::Windows;
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
-use crate::window::Windows;
+use crate::uncertainty::detector::DetectorParams;
+use crate::uncertainty::learn::{AgentReport, LearnParams};
+use crate::uncertainty::stdmodel::{ErrorModel, Models};
 use crate::Method;
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -137,7 +137,7 @@ fn detector_applies(from_detector: bool, opts: &OfflineOptions) -> bool {
 
 /// The hits that confirm a track: `given`, else 1 for a detector's boxes (`opts.detector`, or
 /// rows that [`Inputs::options`] gives the detector's treatment;
-/// [`crate::detector::CONFIRM_HITS`]), else the tracker's default.
+/// [`crate::uncertainty::detector::CONFIRM_HITS`]), else the tracker's default.
 pub fn confirm_hits(
     given: Option<u32>,
     paths: &[PathBuf],
@@ -146,7 +146,7 @@ pub fn confirm_hits(
 ) -> u32 {
     let detector = opts.detector.is_some() || detector_applies(from_detector(paths, missing), opts);
     given.unwrap_or(if detector {
-        crate::detector::CONFIRM_HITS
+        crate::uncertainty::detector::CONFIRM_HITS
     } else {
         TrackerParams::default().confirm_hits
     })
@@ -193,13 +193,13 @@ pub struct OfflineOptions {
     /// Registration of every agent to agent `reference` (an index into the inputs) by its boxes
     /// before association (`None`: agents' poses are trusted).
     pub align: Option<(AlignParams, usize)>,
-    /// Learn each agent's stds from its boxes as the windows pass ([`crate::learn`]; `None`:
+    /// Learn each agent's stds from its boxes as the windows pass ([`crate::uncertainty::learn`]; `None`:
     /// the stated ones are trusted). Needs capture times.
     pub learn: Option<LearnParams>,
     /// Calibrated error models by input (an index into the inputs), applied to that input's
-    /// boxes before anything else ([`crate::stdmodel`]).
+    /// boxes before anything else ([`crate::uncertainty::stdmodel`]).
     pub models: BTreeMap<usize, ErrorModel>,
-    /// The boxes are a detector's, with scores and no stds ([`crate::detector`]): they get the
+    /// The boxes are a detector's, with scores and no stds ([`crate::uncertainty::detector`]): they get the
     /// detector's stds (the first input is the receiver), and CSBA-3D groups are scored by the
     /// noisy-OR of their members with the tail dropped. `None`: the stds are the inputs' own.
     pub detector: Option<DetectorParams>,

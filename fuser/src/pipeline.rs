@@ -1,27 +1,27 @@
 //! One closed window through the steps every shell runs: the node's worker, offline fusion and
 //! tracking (and through them the benches and the Python package). Sans-IO:
 //!
-//! 1. **models**: each agent's calibrated error model (`crate::stdmodel`);
-//! 2. **learn**: the stds learned for each agent from its boxes so far (`crate::learn`);
+//! 1. **models**: each agent's calibrated error model (`crate::uncertainty::stdmodel`);
+//! 2. **learn**: the stds learned for each agent from its boxes so far (`crate::uncertainty::learn`);
 //! 3. **motion**: every frame predicted to the window's reference time, its latest capture
-//!    (`crate::motion`);
+//!    (`crate::time::motion`);
 //! 4. **detector stds**: a detector's boxes given stds from their scores, the receiver's without
-//!    the pose term (`crate::detector`), when the pipeline knows the receiver, unless step 1
+//!    the pose term (`crate::uncertainty::detector`), when the pipeline knows the receiver, unless step 1
 //!    gave them their agent's calibrated stds;
-//! 5. **registration**: every agent aligned to the reference agent (`crate::align`);
+//! 5. **registration**: every agent aligned to the reference agent (`crate::time::align`);
 //! 6. **fusion**: the method, a CSBA-3D method scoring a detector's groups by noisy-OR with its
-//!    tail dropped (`crate::detector::fuse_scored_sourced`).
+//!    tail dropped (`crate::uncertainty::detector::fuse_scored_sourced`).
 //!
 //! Steps 1-5 are [`Pipeline::prepare`] (a tracker through the tracks takes the lists from
 //! there); step 6 is [`Steps::fuse`]. A new per-window step goes here, once, for every shell.
 
-use crate::align::{reference_agent, AlignParams, Aligner, Registration};
-use crate::detector::{self, DetectorParams};
-use crate::fusion::Sourced;
-use crate::learn::{AgentReport, LearnParams, Learner};
-use crate::motion::{align_window, MotionParams};
-use crate::stdmodel::Models;
-use crate::window::Closed;
+use crate::maths::fusion::Sourced;
+use crate::time::align::{reference_agent, AlignParams, Aligner, Registration};
+use crate::time::motion::{align_window, MotionParams};
+use crate::time::window::Closed;
+use crate::uncertainty::detector::{self, DetectorParams};
+use crate::uncertainty::learn::{AgentReport, LearnParams, Learner};
+use crate::uncertainty::stdmodel::Models;
 use crate::Method;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -32,7 +32,7 @@ use v2x_protocol::{AgentKind, Detection};
 pub struct Steps {
     /// The fusion method.
     pub method: Method,
-    /// The boxes are a detector's ([`crate::detector`]): its group scores and tail, and with a
+    /// The boxes are a detector's ([`crate::uncertainty::detector`]): its group scores and tail, and with a
     /// receiver its stds.
     pub detector: Option<DetectorParams>,
     /// Motion compensation to the window's reference time (`None`: boxes as captured).
@@ -210,7 +210,7 @@ impl Pipeline {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stdmodel::{ErrorModel, ErrorSample};
+    use crate::uncertainty::stdmodel::{ErrorModel, ErrorSample};
     use v2x_protocol::{Class, Uncertainty};
 
     fn car(x: f64, score: f64) -> Detection {

@@ -7,12 +7,12 @@
 //! where its doc says otherwise; in a scenario it is the key of its name, the registration's
 //! under `[fuser.registration]`.
 
-use crate::align::AlignParams;
-use crate::ingest::{Area, IngestConfig};
-use crate::learn::LearnParams;
-use crate::motion::MotionParams;
-use crate::stdmodel::{ErrorModel, Models};
+use crate::intake::ingest::{Area, IngestConfig};
+use crate::time::align::AlignParams;
+use crate::time::motion::MotionParams;
 use crate::tracker::TrackerParams;
+use crate::uncertainty::learn::LearnParams;
+use crate::uncertainty::stdmodel::{ErrorModel, Models};
 use crate::Method;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::path::PathBuf;
@@ -94,7 +94,7 @@ pub struct FuserSettings {
 impl Default for FuserSettings {
     fn default() -> Self {
         FuserSettings {
-            method: Method::Csba(crate::association::CsbaParams::PLUS),
+            method: Method::Csba(crate::maths::association::CsbaParams::PLUS),
             window_ms: 100.0,
             max_wait_ms: 150.0,
             detector: false,
@@ -558,7 +558,9 @@ impl FuserSettings {
         let mut cfg = crate::node::NodeConfig::new(ns, self.method);
         cfg.window_ms = self.window_ms;
         cfg.max_wait_ms = self.max_wait_ms;
-        cfg.detector = self.detector.then(crate::detector::DetectorParams::default);
+        cfg.detector = self
+            .detector
+            .then(crate::uncertainty::detector::DetectorParams::default);
         self.admission.apply(&mut cfg.ingest)?;
         cfg.queue = self.admission.fusion_queue;
         cfg.log_interval_s = self.admission.log_interval_s;

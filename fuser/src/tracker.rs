@@ -21,8 +21,8 @@
 //! Confirmed tracks updated in the window are the output, with their `tracking_id`, velocity and
 //! covariance. Sans-IO: times and boxes in, tracks out.
 
-use crate::association::{assign, Edge};
-use crate::fusion::FLIP_SIGMAS;
+use crate::maths::association::{assign, Edge};
+use crate::maths::fusion::FLIP_SIGMAS;
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 

@@ -261,8 +261,8 @@ impl Viz {
         objects: usize,
         fusion_ms: f64,
         e2e_ms: f64,
-        registration: &std::collections::BTreeMap<String, crate::align::Registration>,
-        learned: &std::collections::BTreeMap<String, crate::learn::AgentReport>,
+        registration: &std::collections::BTreeMap<String, crate::time::align::Registration>,
+        learned: &std::collections::BTreeMap<String, crate::uncertainty::learn::AgentReport>,
     ) {
         let msg = serde_json::json!({
             "members": members,

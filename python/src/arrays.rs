@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
-use v2x_fuser::fusion::Sourced;
+use v2x_fuser::maths::fusion::Sourced;
 use v2x_protocol::{limits, wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 
 /// The keys an agent's dict may hold.

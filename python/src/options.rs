@@ -5,12 +5,12 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use v2x_fuser::align::AlignParams;
-use v2x_fuser::learn::LearnParams;
 use v2x_fuser::offline::OfflineOptions;
 use v2x_fuser::settings::{MotionSettings, SettingsError, StdSettings};
-use v2x_fuser::stdmodel::ErrorModel;
+use v2x_fuser::time::align::AlignParams;
 use v2x_fuser::tracker::TrackerParams;
+use v2x_fuser::uncertainty::learn::LearnParams;
+use v2x_fuser::uncertainty::stdmodel::ErrorModel;
 use v2x_fuser::Method;
 use v2x_protocol::nuscenes_json::MissingStd;
 
@@ -108,7 +108,7 @@ impl Options {
             models,
             detector: self
                 .detector
-                .then(v2x_fuser::detector::DetectorParams::default),
+                .then(v2x_fuser::uncertainty::detector::DetectorParams::default),
         };
         opts.set_time_scale(self.time_scale);
         Ok((method(&self.method)?, missing, opts))

@@ -25,7 +25,7 @@ use crate::table::{
 };
 use rayon::prelude::*;
 use serde::Serialize;
-use v2x_fuser::motion::{compensate, MotionParams};
+use v2x_fuser::time::motion::{compensate, MotionParams};
 use v2x_protocol::Detection;
 
 /// Agent 2's offsets behind agent 1 in the 10+10 Hz pairs (ms).

@@ -14,8 +14,8 @@ use crate::table::{
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use rayon::prelude::*;
 use serde::Serialize;
-use v2x_fuser::align::{reference_agent, AlignParams, Aligner};
-use v2x_fuser::region::{self, Tiling};
+use v2x_fuser::intake::region::{self, Tiling};
+use v2x_fuser::time::align::{reference_agent, AlignParams, Aligner};
 use v2x_fuser::tracker::{Tracked, Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
@@ -125,7 +125,7 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
 
 /// Regional fusion against one fuser on the same frames (`bench --tile-size`): per setting and
 /// method, the method as one fuser runs it and the union of its regional fusers' outputs, one
-/// region per tile some box lies in ([`v2x_fuser::region`]).
+/// region per tile some box lies in ([`v2x_fuser::intake::region`]).
 pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: f64) -> Vec<Row> {
     let mut rows = Vec::new();
     for setting in &cfg.settings {
@@ -189,7 +189,7 @@ impl Rows for [DetectionRow] {
 
 /// The distance-matched table (the nuScenes detection benchmark, `bench --profile`): under each
 /// setting, each single agent and each method, and with `align` each method again after the
-/// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::align`], filtered over
+/// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::time::align`], filtered over
 /// the frames of a scene.
 pub fn run_detection(
     gt: &GroundTruth,

@@ -200,12 +200,12 @@ pub fn generate_dair(
 /// (`docs/method.md` §11): the ego car is the receiver, car 1's add its pose.
 pub fn ready_cars(
     cars: &[Vec<Vec<v2x_protocol::Detection>>; 2],
-    p: &v2x_fuser::detector::DetectorParams,
+    p: &v2x_fuser::uncertainty::detector::DetectorParams,
 ) -> [Vec<Vec<v2x_protocol::Detection>>; 2] {
     let mut cars = cars.clone();
     for (k, car) in cars.iter_mut().enumerate() {
         for dets in car.iter_mut() {
-            v2x_fuser::detector::ready(p, dets, k == 0);
+            v2x_fuser::uncertainty::detector::ready(p, dets, k == 0);
         }
     }
     cars
@@ -216,7 +216,10 @@ pub fn ready_cars(
 /// given (`docs/method.md` §11; the ego car is the receiver), at the split's replay times
 /// ([`V2v4real::replay_times`]: 100 ms apart, sequences 3 s apart), so that `v2x-agent`
 /// replays the split in one go and `v2x-fuser fuse --detector` fuses it as the bench does.
-pub fn generate_v2v4real(d: &V2v4real, p: &v2x_fuser::detector::DetectorParams) -> Vec<Results> {
+pub fn generate_v2v4real(
+    d: &V2v4real,
+    p: &v2x_fuser::uncertainty::detector::DetectorParams,
+) -> Vec<Results> {
     let times = d.replay_times();
     let cars = ready_cars(&d.cars, p);
     (0..2)
@@ -302,8 +305,8 @@ mod tests {
 
     #[test]
     fn v2v4real_cars_become_files_that_fuse_as_their_folders_do() {
-        use v2x_fuser::detector::{stds, DetectorParams};
         use v2x_fuser::offline::{fuse_results, read_inputs, OfflineOptions};
+        use v2x_fuser::uncertainty::detector::{stds, DetectorParams};
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../truth/fixtures/v2v4real/AB3DMOT");
         let split = v2x_truth::v2v4real::Split::Train;

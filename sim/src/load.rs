@@ -15,8 +15,8 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 use v2x_agent::{now_us, Agent, Link};
+use v2x_fuser::intake::region::Region;
 use v2x_fuser::node::{self, Latency, NodeConfig};
-use v2x_fuser::region::Region;
 use v2x_fuser::Method;
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::tiles::{Tile, Tiling};
@@ -273,7 +273,7 @@ pub async fn run_regions(args: &LoadArgs) -> anyhow::Result<Vec<RegionRow>> {
                 cfg.region = Some(Region {
                     tiling,
                     tile,
-                    halo_m: v2x_fuser::region::DEFAULT_HALO_M,
+                    halo_m: v2x_fuser::intake::region::DEFAULT_HALO_M,
                 });
                 Ok(cfg)
             })

@@ -12,7 +12,7 @@ use crate::metrics::Accumulator;
 use crate::noise::NoiseSetting;
 use crate::tracking_eval::TrackingEval;
 use rayon::prelude::*;
-use v2x_fuser::region::Tiling;
+use v2x_fuser::intake::region::Tiling;
 use v2x_fuser::tracker::handover::RegionalTrackers;
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;

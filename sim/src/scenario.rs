@@ -10,7 +10,7 @@ use anyhow::{anyhow, bail};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use v2x_agent::Link;
-use v2x_fuser::region::Region;
+use v2x_fuser::intake::region::Region;
 use v2x_fuser::settings::FuserSettings;
 use v2x_fuser::Method;
 use v2x_protocol::net::ZenohArgs;
@@ -233,10 +233,10 @@ fn yes() -> bool {
 }
 
 fn default_tile() -> f64 {
-    v2x_fuser::region::DEFAULT_TILE_M
+    v2x_fuser::intake::region::DEFAULT_TILE_M
 }
 fn default_halo() -> f64 {
-    v2x_fuser::region::DEFAULT_HALO_M
+    v2x_fuser::intake::region::DEFAULT_HALO_M
 }
 
 impl RegionsSpec {
@@ -714,7 +714,10 @@ mod tests {
         .unwrap();
         let p = s.fuser.settings.align.registration.params().unwrap();
         assert_eq!((p.chi2, p.min_matches), (30.0, 5));
-        assert_eq!(p.tau_s, v2x_fuser::align::AlignParams::default().tau_s);
+        assert_eq!(
+            p.tau_s,
+            v2x_fuser::time::align::AlignParams::default().tau_s
+        );
         assert!(bad("[[agents]]\nname = \"a/b\"\nnoise = \"mild\"").contains("'/'"));
         let stated = |v: &str| {
             bad(&format!(
@@ -753,7 +756,7 @@ mod tests {
         .unwrap();
         assert_eq!(
             s.fuser.settings.admission.area,
-            Some(v2x_fuser::ingest::Area::Given {
+            Some(v2x_fuser::intake::ingest::Area::Given {
                 center: [5.0, 6.0],
                 radius_m: 70.0
             })
@@ -775,7 +778,7 @@ mod tests {
         };
         let s = Scenario::parse(&city("", "tile_m = 50.0"), "c.toml", None).unwrap();
         let r = s.regions.as_ref().unwrap();
-        assert_eq!(r.halo_m, v2x_fuser::region::DEFAULT_HALO_M);
+        assert_eq!(r.halo_m, v2x_fuser::intake::region::DEFAULT_HALO_M);
         assert_eq!(r.regions()[0].tile, Tile { x: 0, y: 0 });
         assert_eq!(r.tiling().size_m(), 50.0);
         let bad = |t: String| Scenario::parse(&t, "c.toml", None).unwrap_err().to_string();

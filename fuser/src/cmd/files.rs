@@ -81,7 +81,7 @@ impl FilesArgs {
             models: models_by_input(&self.stds, inputs)?,
             detector: self
                 .detector
-                .then(v2x_fuser::detector::DetectorParams::default),
+                .then(v2x_fuser::uncertainty::detector::DetectorParams::default),
         };
         opts.set_time_scale(self.motion.time_scale);
         let missing = match self.detector {

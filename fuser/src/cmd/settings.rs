@@ -13,7 +13,8 @@ pub(crate) fn flag_error(e: SettingsError) -> anyhow::Error {
 pub(crate) fn models_by_input(
     stds: &StdSettings,
     inputs: usize,
-) -> anyhow::Result<std::collections::BTreeMap<usize, v2x_fuser::stdmodel::ErrorModel>> {
+) -> anyhow::Result<std::collections::BTreeMap<usize, v2x_fuser::uncertainty::stdmodel::ErrorModel>>
+{
     stds.models()
         .map_err(flag_error)?
         .0
@@ -44,14 +45,16 @@ pub(crate) fn missing(
     let replaced = stds.learn_std || (inputs > 0 && stds.std_models.len() >= inputs);
     match (default_std, replaced) {
         (Some(u), _) => MissingStd::Default(u),
-        (None, true) => MissingStd::Default(v2x_fuser::learn::LearnParams::default().prior),
+        (None, true) => {
+            MissingStd::Default(v2x_fuser::uncertainty::learn::LearnParams::default().prior)
+        }
         (None, false) => MissingStd::Error,
     }
 }
 
 /// Prints what was learned of each agent's stds.
 pub(crate) fn print_learned(
-    learned: &std::collections::BTreeMap<String, v2x_fuser::learn::AgentReport>,
+    learned: &std::collections::BTreeMap<String, v2x_fuser::uncertainty::learn::AgentReport>,
 ) {
     for (agent, r) in learned {
         match &r.all.pos_xy {
@@ -77,16 +80,16 @@ pub(crate) struct RegionArgs {
     #[arg(long)]
     pub(crate) tile: Option<v2x_protocol::tiles::Tile>,
     /// Side of the map's square tiles (m), as the agents use.
-    #[arg(long, default_value_t = v2x_fuser::region::DEFAULT_TILE_M, requires = "tile")]
+    #[arg(long, default_value_t = v2x_fuser::intake::region::DEFAULT_TILE_M, requires = "tile")]
     pub(crate) tile_size: f64,
     /// How far beyond its tile a regional fuser takes boxes (m): at least the association's
     /// reach, so groups across the border are fused as one fuser would.
-    #[arg(long, default_value_t = v2x_fuser::region::DEFAULT_HALO_M, requires = "tile")]
+    #[arg(long, default_value_t = v2x_fuser::intake::region::DEFAULT_HALO_M, requires = "tile")]
     pub(crate) halo: f64,
 }
 
 impl RegionArgs {
-    pub(crate) fn region(&self) -> anyhow::Result<Option<v2x_fuser::region::Region>> {
+    pub(crate) fn region(&self) -> anyhow::Result<Option<v2x_fuser::intake::region::Region>> {
         let Some(tile) = self.tile else {
             return Ok(None);
         };
@@ -95,7 +98,7 @@ impl RegionArgs {
         if !(self.halo >= 0.0 && self.halo.is_finite()) {
             anyhow::bail!("--halo must be >= 0 m");
         }
-        Ok(Some(v2x_fuser::region::Region {
+        Ok(Some(v2x_fuser::intake::region::Region {
             tiling,
             tile,
             halo_m: self.halo,

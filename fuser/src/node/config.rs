@@ -1,10 +1,10 @@
 //! What a node is given (its configuration, usually built from
 //! [`crate::settings::FuserSettings`]), what it hands out per fused window, and its clock.
 
-use crate::ingest::IngestConfig;
-use crate::motion::MotionParams;
-use crate::region::Region;
-use crate::region::Scope;
+use crate::intake::ingest::IngestConfig;
+use crate::intake::region::Region;
+use crate::intake::region::Scope;
+use crate::time::motion::MotionParams;
 use crate::Method;
 use anyhow::anyhow;
 use std::sync::Arc;
@@ -19,10 +19,10 @@ pub struct NodeConfig {
     pub ns: String,
     /// Fusion method.
     pub method: Method,
-    /// The agents send a detector's boxes (`crate::detector`): a CSBA-3D method's groups are
+    /// The agents send a detector's boxes (`crate::uncertainty::detector`): a CSBA-3D method's groups are
     /// scored by the noisy-OR of their members and fused boxes below the threshold dropped;
     /// the stds are the agents' own. `None`: the method's own scores, every box kept.
-    pub detector: Option<crate::detector::DetectorParams>,
+    pub detector: Option<crate::uncertainty::detector::DetectorParams>,
     /// Window width delta t (ms).
     pub window_ms: f64,
     /// Longest wait for missing agents after a window's first frame (ms).
@@ -38,15 +38,15 @@ pub struct NodeConfig {
     pub motion: Option<MotionParams>,
     /// Registration of every agent to the roadside unit by its boxes before association
     /// (`None`: agents' poses are trusted).
-    pub align: Option<crate::align::AlignParams>,
+    pub align: Option<crate::time::align::AlignParams>,
     /// Tracking of the fused boxes, published on `v2x/NS/tracks` (`None`: no tracks).
     pub track: Option<crate::tracker::TrackerParams>,
     /// Each agent's stds learned from its boxes and fused instead of the stated ones (`None`:
     /// the stated ones are trusted).
-    pub learn: Option<crate::learn::LearnParams>,
+    pub learn: Option<crate::uncertainty::learn::LearnParams>,
     /// Calibrated error models by agent name, applied to the agents' boxes before anything
     /// else (`--std-model`).
-    pub models: crate::stdmodel::Models,
+    pub models: crate::uncertainty::stdmodel::Models,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
     /// The region this fuser serves (`None`: the single fuser of the namespace, on
@@ -131,7 +131,7 @@ impl NodeConfig {
     }
 
     /// What the node serves: the whole namespace, or its region's tile and halo.
-    pub fn scope(&self) -> crate::region::Scope {
+    pub fn scope(&self) -> crate::intake::region::Scope {
         self.region.into()
     }
 
@@ -160,9 +160,9 @@ pub struct Fused {
     /// (as published on the tracks key).
     pub tracks: Option<Vec<v2x_protocol::Detection>>,
     /// With registration: each registered agent's estimate in this window.
-    pub registration: std::collections::BTreeMap<String, crate::align::Registration>,
+    pub registration: std::collections::BTreeMap<String, crate::time::align::Registration>,
     /// With learned stds: what is learned of each agent after this window.
-    pub learned: std::collections::BTreeMap<String, crate::learn::AgentReport>,
+    pub learned: std::collections::BTreeMap<String, crate::uncertainty::learn::AgentReport>,
 }
 
 /// The fuser's clock: the wall clock read once at start, advanced by a monotonic clock, in

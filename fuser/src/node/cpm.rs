@@ -1,7 +1,7 @@
 //! An agent's payload as the frame the ingest checks: a frame, or an ETSI CPM read as one
 //! (docs/cpm.md).
 
-use crate::ingest::Rejection;
+use crate::intake::ingest::Rejection;
 use v2x_cpm::Geo;
 use v2x_protocol::Frame;
 

@@ -5,7 +5,7 @@
 //!
 //! [`Handover`]: crate::tracker::handover::Handover
 
-use crate::region::Region;
+use crate::intake::region::Region;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use v2x_protocol::tiles::Tile;

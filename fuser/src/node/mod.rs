@@ -1,4 +1,4 @@
-//! The fuser node: the thin Zenoh shell around [`crate::ingest`], [`crate::window`] and a
+//! The fuser node: the thin Zenoh shell around [`crate::intake::ingest`], [`crate::time::window`] and a
 //! [`Method`].
 //!
 //! The receive loop subscribes to `v2x/NS/det/*` and `v2x/NS/alive/*`, admits each frame
@@ -17,6 +17,7 @@ mod config;
 mod cpm;
 mod handover;
 mod query;
+pub mod ratelog;
 pub mod ros_out;
 mod stats;
 mod worker;
@@ -28,11 +29,11 @@ pub use stats::{FitStats, Latency, NodeStats};
 pub use v2x_protocol::net::shutdown_signal;
 pub use worker::fuse_window;
 
-use crate::ingest::{Ingest, IngestConfig, Rejection};
-use crate::parts::{Assembled, Parts};
-use crate::ratelog::RateLog;
-use crate::region::Scope;
-use crate::window::{Closed, Windows};
+use crate::intake::ingest::{Ingest, IngestConfig, Rejection};
+use crate::intake::parts::{Assembled, Parts};
+use crate::intake::region::Scope;
+use crate::node::ratelog::RateLog;
+use crate::time::window::{Closed, Windows};
 use anyhow::anyhow;
 use std::future::Future;
 use std::sync::Arc;
@@ -182,7 +183,7 @@ impl State {
             radius_m: self.ingest.config().area.radius_m(),
             learned: matches!(
                 self.ingest.config().area,
-                crate::ingest::Area::Learned { .. }
+                crate::intake::ingest::Area::Learned { .. }
             ),
         });
         s.degraded = stats::Degraded {

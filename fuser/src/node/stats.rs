@@ -2,7 +2,7 @@
 //! lost, and latency percentiles. The same object answers `v2x/NS/fuser/stats` and is printed at
 //! the end of a run; its size is bounded by the number of agents tracked.
 
-use crate::ingest::AgentStats;
+use crate::intake::ingest::AgentStats;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -168,10 +168,10 @@ pub struct NodeStats {
     pub fit: FitStats,
     /// With registration (`--align`): each agent's latest estimate, its stds, its matches and
     /// whether it is applied.
-    pub registration: BTreeMap<String, crate::align::Registration>,
+    pub registration: BTreeMap<String, crate::time::align::Registration>,
     /// With learned stds (`--learn-std`): per agent, the stds it states and the ones learned,
     /// over all its classes and per class, and whether it is flagged as inconsistent.
-    pub learned_std: BTreeMap<String, crate::learn::AgentReport>,
+    pub learned_std: BTreeMap<String, crate::uncertainty::learn::AgentReport>,
     /// Tracks (live, confirmed so far, ended so far), when the node tracks.
     pub tracks: Option<crate::tracker::TrackStats>,
     /// Windows open now.

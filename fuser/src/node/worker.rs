@@ -5,11 +5,11 @@
 //! loop, which keeps the statistics.
 
 use super::{Clock, Fused};
+use crate::intake::region::Scope;
 use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
-use crate::region::Scope;
+use crate::time::window::Closed;
 use crate::tracker::handover::{id_block, published, step_region, Handover};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
-use crate::window::Closed;
 use crate::Method;
 use tokio::sync::mpsc;
 use v2x_protocol::wire::{self, Fit};
@@ -149,7 +149,7 @@ fn tracks_frame(
     fused: &Frame,
     lists: &[Vec<Detection>],
     method: &Method,
-    region: Option<&crate::region::Region>,
+    region: Option<&crate::intake::region::Region>,
 ) -> Frame {
     let tracked = step_region(
         tracker,
@@ -187,7 +187,7 @@ type JobOutput = (
 /// fused box of its tile and halo in the wire's domain, after its neighbours' ids).
 fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutput {
     // The association's bounds counted on this thread, for this window alone.
-    let bounds_before = crate::association::bounds_applied();
+    let bounds_before = crate::maths::association::bounds_applied();
     let pipeline = state.pipeline.get_or_insert_with(|| f.pipeline());
     let (mut fused, lists) = fuse_window(pipeline, closed, seq);
     let mut halo = None;
@@ -214,7 +214,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
         fused.tracks = Some(frame.detections);
         (bytes, t.stats())
     });
-    let after = crate::association::bounds_applied();
+    let after = crate::maths::association::bounds_applied();
     let degraded = (after.0 - bounds_before.0, after.1 - bounds_before.1);
     (fused, fit, bytes, tracked, state, degraded)
 }

@@ -20,8 +20,8 @@
 //! 4. **lifecycle** as [`Tracker::step`]: a track whose group holds a box counts as hit.
 
 use super::{distance, estimate, update, Tracked, Tracker};
-use crate::association::{assign, CsbaParams, Edge};
-use crate::method::csba_groups;
+use crate::maths::association::{assign, CsbaParams, Edge};
+use crate::maths::method::csba_groups;
 use crate::Method;
 use v2x_protocol::Detection;
 

@@ -21,8 +21,8 @@
 //! node's subscription, or [`RegionalTrackers`] offline).
 
 use super::{Tracked, Tracker};
-use crate::association::{assign, Edge};
-use crate::region::{tiles_of, Region};
+use crate::intake::region::{tiles_of, Region};
+use crate::maths::association::{assign, Edge};
 use crate::Method;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;

@@ -4,7 +4,7 @@
 use foxglove::schemas::SceneUpdate;
 use foxglove::Decode;
 use std::collections::BTreeMap;
-use v2x_fuser::align::Registration;
+use v2x_fuser::time::align::Registration;
 use v2x_fuser::viz::{agent_colour, Viz, FUSED};
 use v2x_protocol::{AgentSet, Detection, Provenance, Velocity};
 
@@ -65,7 +65,7 @@ async fn the_mcap_holds_every_source_as_scene_updates() {
             },
         )]
         .into();
-        let mut learner = v2x_fuser::learn::Learner::new(Default::default());
+        let mut learner = v2x_fuser::uncertainty::learn::Learner::new(Default::default());
         learner.observe("veh", t, &[]);
         viz.window(
             t,

@@ -69,7 +69,7 @@ pub struct BenchArgs {
     #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tile_size: Option<f64>,
     /// With --tile-size: how far beyond its tile a regional fuser takes boxes (m).
-    #[arg(long, requires = "tile_size", default_value_t = v2x_fuser::region::DEFAULT_HALO_M)]
+    #[arg(long, requires = "tile_size", default_value_t = v2x_fuser::intake::region::DEFAULT_HALO_M)]
     pub halo: f64,
     /// Instead of Table 2: two agents captured at different instants (10+10 Hz at offsets
     /// 0, 25, 50 and 100 ms, and a 10+20 Hz pair), each fused with and without motion
@@ -242,7 +242,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         for guided in [false, true] {
             let params = v2x_fuser::tracker::TrackerParams {
                 guided,
-                confirm_hits: v2x_fuser::detector::CONFIRM_HITS,
+                confirm_hits: v2x_fuser::uncertainty::detector::CONFIRM_HITS,
                 ..Default::default()
             };
             tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
@@ -268,11 +268,11 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 /// The tiles and halo of `--tile-size` and `--halo`.
-fn tiling(size: f64, halo: f64) -> anyhow::Result<v2x_fuser::region::Tiling> {
+fn tiling(size: f64, halo: f64) -> anyhow::Result<v2x_fuser::intake::region::Tiling> {
     if !(halo.is_finite() && halo >= 0.0) {
         bail!("--halo {halo}: expected a finite distance of at least 0 m");
     }
-    v2x_fuser::region::Tiling::new(size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))
+    v2x_fuser::intake::region::Tiling::new(size).map_err(|e| anyhow::anyhow!("--tile-size: {e}"))
 }
 
 /// `--tile-size --tracking`: tracks of one fuser against regional fusers', with and without
@@ -365,7 +365,7 @@ fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Resul
         range,
     };
     let start = Instant::now();
-    let params = v2x_fuser::align::AlignParams::default();
+    let params = v2x_fuser::time::align::AlignParams::default();
     let rows = bench::run_detection(gt, &cfg, args.align.then_some(&params), &|| {});
     let heading = format!(
         "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s",

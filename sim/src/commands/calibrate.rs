@@ -3,7 +3,7 @@
 use anyhow::Context;
 use std::path::PathBuf;
 use v2x_eval::calibrate::{error_samples, CalibrateOptions};
-use v2x_fuser::stdmodel::{Cell, ErrorModel};
+use v2x_fuser::uncertainty::stdmodel::{Cell, ErrorModel};
 use v2x_sim::cli::DataArgs;
 use v2x_sim::table::{
     markdown,

@@ -16,8 +16,8 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::sync::watch;
 use v2x_agent::now_us;
+use v2x_fuser::intake::region::Region;
 use v2x_fuser::node::Latency;
-use v2x_fuser::region::Region;
 use v2x_protocol::keys::FuserKeys;
 use v2x_protocol::net::{open_session, ZenohArgs};
 

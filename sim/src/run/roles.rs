@@ -274,7 +274,7 @@ pub async fn fuser_role(
 /// The fuser node's configuration for a scenario (a region's, with `region`).
 fn node_config(
     scenario: &Scenario,
-    region: Option<v2x_fuser::region::Region>,
+    region: Option<v2x_fuser::intake::region::Region>,
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
 ) -> anyhow::Result<NodeConfig> {
     let mut cfg = scenario
@@ -282,7 +282,7 @@ fn node_config(
         .node_config(&scenario.namespace, scenario.speed)?;
     // Real detectors' boxes: their groups scored and their tail dropped, as `--detector` does.
     if scenario.dataset.kind == crate::cli::DatasetKind::V2v4real {
-        cfg.detector = Some(v2x_fuser::detector::DetectorParams::default());
+        cfg.detector = Some(v2x_fuser::uncertainty::detector::DetectorParams::default());
     }
     cfg.region = region;
     cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);
@@ -324,7 +324,7 @@ pub async fn regional_fuser_role(
     scenario: &Scenario,
     schedule: &Schedule,
     epoch_us: u64,
-    region: Option<v2x_fuser::region::Region>,
+    region: Option<v2x_fuser::intake::region::Region>,
     serves_epoch: bool,
     viz: Option<std::sync::Arc<v2x_fuser::viz::Viz>>,
     stop: impl std::future::Future<Output = ()>,

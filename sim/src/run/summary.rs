@@ -14,7 +14,7 @@ use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use v2x_agent::AgentTotals;
-use v2x_fuser::ingest::AgentStats;
+use v2x_fuser::intake::ingest::AgentStats;
 use v2x_fuser::node::Latency;
 use v2x_protocol::nuscenes_json::Results;
 use v2x_protocol::traffic::{Flow, Traffic};
@@ -238,7 +238,7 @@ pub struct Summary {
     pub regions: Vec<RegionReport>,
     /// With learned stds (`fuser.learn_std`): what the fuser learned of each agent by the end.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub learned_std: BTreeMap<String, v2x_fuser::learn::AgentReport>,
+    pub learned_std: BTreeMap<String, v2x_fuser::uncertainty::learn::AgentReport>,
     /// With learned stds: each agent flagged as stating inconsistent stds, and how long after
     /// the first fused window (s of data) it was first flagged.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]

@@ -1,7 +1,7 @@
 //! Detector faults appear at their configured rates, and box-level registration recovers an
 //! injected pose error within its noise (seeded, statistical bounds).
 
-use v2x_fuser::align::{estimate, AlignParams};
+use v2x_fuser::time::align::{estimate, AlignParams};
 use v2x_protocol::{wrap_angle, Class, Detection};
 use v2x_sim::dataset::GtObject;
 use v2x_sim::faults::{look_alike, Faults};

@@ -362,11 +362,14 @@ async fn one_agent_cannot_evict_the_others_boxes_by_score_or_by_origin() {
         }
     }
     // Of each pile, the budget of 500 boxes was fused; no fused box was dropped to fit the wire.
-    assert_eq!(admitted, 3 * v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT);
+    assert_eq!(
+        admitted,
+        3 * v2x_fuser::intake::ingest::MAX_OBJECTS_PER_AGENT
+    );
     let st = finish(s).await;
     assert_eq!(st.windows, 6);
     assert_eq!((st.fit.objects_invalid, st.fit.objects_capped), (0, 0));
-    let budget = v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT as u64;
+    let budget = v2x_fuser::intake::ingest::MAX_OBJECTS_PER_AGENT as u64;
     assert_eq!(
         st.agents["mal"].over_budget,
         3 * (limits::MAX_OBJECTS as u64 - budget)
@@ -398,7 +401,9 @@ async fn piles_of_boxes_cannot_stall_the_honest_windows() {
         assert!(f.provenance.complete, "round {round}");
         assert_eq!(honest_boxes(&f), [10.0, 30.0], "round {round}");
         // Each pile brought its budget of boxes (all on one spot, fused at most pairwise).
-        assert!(f.frame.detections.len() <= 2 + 2 * v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT);
+        assert!(
+            f.frame.detections.len() <= 2 + 2 * v2x_fuser::intake::ingest::MAX_OBJECTS_PER_AGENT
+        );
     }
     let st = finish(s).await;
     assert_eq!(
@@ -409,7 +414,7 @@ async fn piles_of_boxes_cannot_stall_the_honest_windows() {
         "two piles of 4,096 boxes: fusion p50 {:?} ms, max {:?} ms a window",
         st.fusion_latency_ms.p50_ms, st.fusion_latency_ms.max_ms
     );
-    let over = 8 * (limits::MAX_OBJECTS - v2x_fuser::ingest::MAX_OBJECTS_PER_AGENT) as u64;
+    let over = 8 * (limits::MAX_OBJECTS - v2x_fuser::intake::ingest::MAX_OBJECTS_PER_AGENT) as u64;
     assert_eq!(st.dropped["over_budget"], 2 * over);
 }
 
@@ -485,7 +490,7 @@ async fn a_flapping_token_and_a_reserved_name_cost_nothing() {
         drop(token);
         wait_live(&s.sa, ns, &["a", "b"]).await;
     }
-    assert_eq!(incomplete, v2x_fuser::ingest::MAX_MISSES);
+    assert_eq!(incomplete, v2x_fuser::intake::ingest::MAX_MISSES);
     let st = finish(s).await;
     assert!(!st.agents.contains_key("fuser"));
 }

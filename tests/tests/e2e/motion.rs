@@ -2,8 +2,8 @@
 //! predicts both boxes to the window's latest capture, and the fused centre lands where the car
 //! is then, as when both captured at once. Without compensation it lands halfway between.
 
-use v2x_fuser::motion::MotionParams;
 use v2x_fuser::node::NodeConfig;
+use v2x_fuser::time::motion::MotionParams;
 use v2x_protocol::{AgentKind, Frame, Velocity};
 use v2x_sim::run::free_port;
 use v2x_tests::fuser::{

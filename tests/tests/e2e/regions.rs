@@ -6,8 +6,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 use v2x_agent::{now_us, Agent, Link};
+use v2x_fuser::intake::region::Region;
 use v2x_fuser::node::{self, Fused, NodeConfig};
-use v2x_fuser::region::Region;
 use v2x_protocol::keys::FuserKeys;
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::tiles::{Tile, Tiling};

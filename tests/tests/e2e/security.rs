@@ -326,7 +326,7 @@ async fn a_regional_fuser_is_held_to_the_same_policy() {
     let tiling = Tiling::new(200.0).unwrap();
     let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
     cfg.max_wait_ms = 300.0;
-    cfg.region = Some(v2x_fuser::region::Region {
+    cfg.region = Some(v2x_fuser::intake::region::Region {
         tiling,
         tile,
         halo_m: 30.0,

@@ -2,14 +2,14 @@
 //! A [`Method`] is a value, so CSBA-WLS, its variants, the baselines and the oracle are used the
 //! same way, by name, from the library, the `v2x-fuser fuse` command and the fuser node.
 
-use crate::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
-use crate::baselines;
-use crate::fusion::GroupSum;
+use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
+use crate::maths::baselines;
+use crate::maths::fusion::GroupSum;
 use std::fmt;
 use std::str::FromStr;
 use v2x_protocol::{AgentSet, Detection, UnknownName};
 
-pub use crate::fusion::Sourced;
+pub use crate::maths::fusion::Sourced;
 
 impl Sourced {
     /// Pairs boxes with their source sets, in order.

@@ -1,5 +1,5 @@
 use super::*;
-use crate::method::Method;
+use crate::maths::method::Method;
 use v2x_protocol::Class;
 
 /// The boxes of a method's output, without their sources.

@@ -452,7 +452,7 @@ pub struct Models(pub BTreeMap<String, ErrorModel>);
 
 impl Models {
     /// Applies each agent's model to its frame of a closed window.
-    pub fn apply_window(&self, closed: &mut crate::window::Closed) {
+    pub fn apply_window(&self, closed: &mut crate::time::window::Closed) {
         for (agent, f) in &mut closed.frames {
             self.apply(agent, &mut f.detections);
         }

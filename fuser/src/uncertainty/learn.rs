@@ -285,7 +285,7 @@ impl Learner {
 
     /// Learns from each frame of a closed window, then gives its boxes the learned stds;
     /// agents silent for [`FORGET_AFTER_US`] before it are forgotten.
-    pub fn learn_window(&mut self, closed: &mut crate::window::Closed) {
+    pub fn learn_window(&mut self, closed: &mut crate::time::window::Closed) {
         let mut latest = 0;
         for (agent, f) in &mut closed.frames {
             self.observe(agent, f.capture_us, &f.detections);

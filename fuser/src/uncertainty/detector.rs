@@ -18,9 +18,9 @@
 //! supports, so the tracker is given both. The defaults are calibrated on V2V4Real's training
 //! split (`docs/results.md`). Sans-IO.
 
-use crate::association::CsbaParams;
-use crate::fusion::Sourced;
-use crate::method::csba_groups;
+use crate::maths::association::CsbaParams;
+use crate::maths::fusion::Sourced;
+use crate::maths::method::csba_groups;
 use v2x_protocol::limits::clamp_std;
 use v2x_protocol::{Detection, Uncertainty};
 

@@ -89,7 +89,7 @@ pub fn predict(d: &Detection, dt_s: f64, p: &MotionParams) -> Detection {
 /// A closed window's reference time t_ref (its latest capture) and its frames' detections in
 /// agent order, predicted to t_ref with `motion` (as captured without).
 pub fn align_window(
-    closed: &crate::window::Closed,
+    closed: &crate::time::window::Closed,
     motion: Option<&MotionParams>,
 ) -> (u64, Vec<Vec<Detection>>) {
     let t_ref = closed

@@ -4,7 +4,7 @@
 
 use super::roster::{CAPTURES, LAGS};
 use super::{Ingest, Note};
-use crate::window::Verdict;
+use crate::time::window::Verdict;
 use v2x_protocol::{wire, Frame};
 
 /// Why a payload was not admitted.
@@ -28,8 +28,8 @@ pub enum Rejection {
     Stale(u64),
     /// With regions: the part's attachment does not hold a valid tile list.
     BadTiles(v2x_protocol::tiles::TileError),
-    /// With regions: the part does not fit its capture ([`crate::parts`]).
-    Part(crate::parts::PartError),
+    /// With regions: the part does not fit its capture ([`crate::intake::parts`]).
+    Part(crate::intake::parts::PartError),
 }
 
 impl Rejection {
@@ -44,7 +44,7 @@ impl Rejection {
             Rejection::Future(_) => "future",
             Rejection::Stale(_) => "stale",
             Rejection::BadTiles(_) => "bad_tiles",
-            Rejection::Part(crate::parts::PartError::Late) => "late_part",
+            Rejection::Part(crate::intake::parts::PartError::Late) => "late_part",
             Rejection::Part(_) => "bad_part",
         }
     }

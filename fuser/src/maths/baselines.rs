@@ -22,9 +22,9 @@
 //! kept box's one-hop cluster. Where a merge is a plain mean, the output std is that of the mean of
 //! independent members, sqrt(sum sigma^2) / n; the methods themselves ignore stds.
 
-use crate::fusion::fuse_group;
-use crate::fusion::Sourced;
-use crate::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
+use crate::maths::fusion::fuse_group;
+use crate::maths::fusion::Sourced;
+use crate::maths::geometry::{bev_iou, giou_3d, iou_3d, may_overlap};
 use std::collections::BTreeMap;
 use v2x_protocol::{wrap_angle, AgentSet, Detection, Uncertainty, Velocity, NO_ID};
 

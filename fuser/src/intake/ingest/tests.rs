@@ -1,5 +1,5 @@
 use super::*;
-use crate::window::Verdict;
+use crate::time::window::Verdict;
 use v2x_protocol::{wire, AgentKind, Detection, Frame};
 
 const S: u64 = 1_000_000;

@@ -1,0 +1,7 @@
+//! How uncertain each box is: [`detector`] gives a real detector's boxes their stds from score
+//! and range, [`learn`] learns each agent's stds from its own boxes as they flow, and
+//! [`stdmodel`] applies an error model calibrated against ground truth.
+
+pub mod detector;
+pub mod learn;
+pub mod stdmodel;
