@@ -26,6 +26,7 @@ use crate::table::{
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::time::motion::{compensate, MotionParams};
+use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
 /// Agent 2's offsets behind agent 1 in the 10+10 Hz pairs (ms).
@@ -51,7 +52,7 @@ pub struct AsyncRow {
     /// Whether detections were predicted to t_ref before fusion.
     pub compensation: bool,
     /// The method.
-    pub method: String,
+    pub method: Method,
     /// The metrics.
     #[serde(flatten)]
     pub metrics: Metrics,
@@ -91,7 +92,7 @@ pub fn run_timing(
     setting: &NoiseSetting,
     timing: Timing,
     skip_us: u64,
-) -> Vec<(bool, String, Metrics)> {
+) -> Vec<(bool, Method, Metrics)> {
     let params = MotionParams::default();
     let n = cfg.methods.len();
     let accs = in_order(
@@ -142,12 +143,12 @@ pub fn run_timing(
         merge_slots,
     )
     .unwrap_or_else(|| vec![Accumulator::new(); 2 * n]);
-    let mut rows = Vec::new();
-    for (i, acc) in accs.iter().enumerate() {
-        rows.push((i >= n, cfg.methods[i % n].name(), acc.summary()));
-    }
-    rows.sort_by_key(|r| (cfg.methods.iter().position(|m| m.name() == r.1), r.0));
-    rows
+    let mut order: Vec<usize> = (0..2 * n).collect();
+    order.sort_by_key(|&i| (i % n, i >= n));
+    order
+        .into_iter()
+        .map(|i| (i >= n, cfg.methods[i % n], accs[i].summary()))
+        .collect()
 }
 
 /// The whole comparison: the 10+10 Hz pairs at [`OFFSETS_MS`], then the 10+20 Hz pair.
@@ -197,7 +198,7 @@ fn same_rate(r: &AsyncRow) -> bool {
 /// How much compensation wins back, per method: mATE at 50 ms compensated over the synchronous one,
 /// and the share of the 100 ms loss that compensation recovers,
 /// (uncompensated - compensated) / (uncompensated - synchronous).
-pub fn recovery(rows: &[AsyncRow], method: &str) -> Option<(f64, f64)> {
+pub fn recovery(rows: &[AsyncRow], method: Method) -> Option<(f64, f64)> {
     let ate = |offset: f64, comp: bool| {
         rows.iter()
             .find(|r| {
@@ -236,7 +237,7 @@ impl Rows for [AsyncRow] {
                     r.rates.clone(),
                     r.offset_ms.to_string(),
                     (if r.compensation { "yes" } else { "no" }).to_string(),
-                    r.method.clone(),
+                    r.method.to_string(),
                     cell(m.precision, 4),
                     cell(m.recall, 4),
                     cell(m.all.m_ate, 3),
@@ -245,10 +246,10 @@ impl Rows for [AsyncRow] {
                 ]
             }),
         );
-        let mut methods: Vec<&str> = Vec::new();
+        let mut methods: Vec<Method> = Vec::new();
         for r in rows {
-            if !methods.contains(&r.method.as_str()) {
-                methods.push(&r.method);
+            if !methods.contains(&r.method) {
+                methods.push(r.method);
             }
         }
         for method in methods {
@@ -289,7 +290,9 @@ mod tests {
         assert_eq!(rows.len(), 5 * 2 * 2);
         let ate = |offset: f64, comp: bool| {
             rows.iter()
-                .find(|r| r.method == "gt-wls" && r.offset_ms == offset && r.compensation == comp)
+                .find(|r| {
+                    r.method == Method::GtWls && r.offset_ms == offset && r.compensation == comp
+                })
                 .unwrap()
                 .metrics
                 .all
@@ -305,7 +308,7 @@ mod tests {
             "{}",
             ate(100.0, false)
         );
-        let (at50, recovered) = recovery(&rows, "gt-wls").unwrap();
+        let (at50, recovered) = recovery(&rows, Method::GtWls).unwrap();
         assert!(at50 < 1.05, "{at50}");
         assert!(recovered > 0.6, "{recovered}");
         assert!(rows.iter().all(|r| r.metrics.all.m_ave.is_some()));

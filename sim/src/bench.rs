@@ -23,8 +23,8 @@ use v2x_protocol::Detection;
 mod tracking;
 pub(crate) use tracking::score_tracked;
 pub use tracking::{
-    run_tracking, seed_summary, tracking_cells, SeedSummary, SeedsReport, TrackingRow,
-    TRACKING_COLUMNS,
+    run_tracking, seed_summary, tracking_cells, Scope, Scored, SeedSummary, SeedsReport,
+    TrackingRow, TRACKING_COLUMNS,
 };
 
 /// One row of the table.
@@ -563,7 +563,7 @@ mod tests {
     fn tracking_rows(method: &str, noise: &str) -> (Vec<TrackingRow>, Vec<String>) {
         let (gt, cfg) = tracking_case(&[method], noise);
         let rows = run_tracking(&gt, &cfg, TrackerParams::default());
-        let names = rows.iter().map(|r| r.method.clone()).collect();
+        let names = rows.iter().map(|r| r.method.to_string()).collect();
         (rows, names)
     }
 
@@ -644,15 +644,17 @@ mod tests {
             })
             .collect();
         let summary = seed_summary(&per_seed);
+        let csba = Scored::tracked("csba-wls+".parse().unwrap());
+        let oracle = Scored::tracked(Method::GtWls);
         // Every tracked row, in table order; single-frame rows are not summarised.
-        let tracked: Vec<&str> = per_seed[0]
+        let tracked: Vec<Scored> = per_seed[0]
             .iter()
             .filter(|r| r.tracking.is_some())
-            .map(|r| r.method.as_str())
+            .map(|r| r.method)
             .collect();
-        let names: Vec<&str> = summary.iter().map(|r| r.method.as_str()).collect();
+        let names: Vec<Scored> = summary.iter().map(|r| r.method).collect();
         assert_eq!(names, tracked);
-        let amota = |rows: &[TrackingRow], m: &str| {
+        let amota = |rows: &[TrackingRow], m: Scored| {
             rows.iter()
                 .find(|r| r.method == m)
                 .unwrap()
@@ -661,14 +663,8 @@ mod tests {
                 .unwrap()
                 .amota
         };
-        let row = summary
-            .iter()
-            .find(|r| r.method == "csba-wls+ tracked")
-            .unwrap();
-        let each: Vec<f64> = per_seed
-            .iter()
-            .map(|r| amota(r, "csba-wls+ tracked"))
-            .collect();
+        let row = summary.iter().find(|r| r.method == csba).unwrap();
+        let each: Vec<f64> = per_seed.iter().map(|r| amota(r, csba)).collect();
         assert_eq!(row.seeds, 3);
         assert!((row.amota[0] - each.iter().sum::<f64>() / 3.0).abs() < 1e-12);
         assert_eq!(
@@ -682,13 +678,10 @@ mod tests {
         // The worst ratio is taken seed by seed, not from the means.
         let worst = per_seed
             .iter()
-            .map(|r| amota(r, "csba-wls+ tracked") / amota(r, "gt-wls tracked"))
+            .map(|r| amota(r, csba) / amota(r, oracle))
             .fold(f64::INFINITY, f64::min);
         assert_eq!(row.worst_amota_ratio, Some(worst));
-        let oracle = summary
-            .iter()
-            .find(|r| r.method == "gt-wls tracked")
-            .unwrap();
+        let oracle = summary.iter().find(|r| r.method == oracle).unwrap();
         assert_eq!(oracle.worst_amota_ratio, Some(1.0));
         assert_eq!(oracle.worst_ids_ratio, Some(1.0));
         assert!(summary[..]

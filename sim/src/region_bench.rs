@@ -5,7 +5,8 @@
 //! less the one fuser's.
 
 use crate::bench::{
-    agent_detections, in_order, merge_pairs, scenes, score_tracked, BenchConfig, TrackingRow,
+    agent_detections, in_order, merge_pairs, scenes, score_tracked, BenchConfig, Scope, Scored,
+    TrackingRow,
 };
 use crate::dataset::GroundTruth;
 use crate::metrics::Accumulator;
@@ -17,14 +18,14 @@ use v2x_fuser::tracker::handover::RegionalTrackers;
 use v2x_fuser::tracker::{Tracker, TrackerParams};
 use v2x_fuser::Method;
 
-/// The ways a method's boxes are tracked, each a row: (name suffix, guided, regions, hand-over).
-const WAYS: [(&str, bool, bool, bool); 6] = [
-    ("tracked", false, false, false),
-    ("tracked regions", false, true, false),
-    ("tracked regions hand-over", false, true, true),
-    ("guided", true, false, false),
-    ("guided regions", true, true, false),
-    ("guided regions hand-over", true, true, true),
+/// The ways a method's boxes are tracked, each a row: (guided, who tracks).
+const WAYS: [(bool, Scope); 6] = [
+    (false, Scope::One),
+    (false, Scope::Regions),
+    (false, Scope::HandOver),
+    (true, Scope::One),
+    (true, Scope::Regions),
+    (true, Scope::HandOver),
 ];
 
 /// A tracker of one way: one fuser's, or a city of regional fusers'.
@@ -42,15 +43,22 @@ pub fn run_region_tracking(
     halo_m: f64,
 ) -> Vec<TrackingRow> {
     let mut rows = Vec::new();
-    let names: Vec<(usize, String)> = cfg
+    let names: Vec<(usize, Scored)> = cfg
         .methods
         .iter()
         .enumerate()
-        .flat_map(|(m, method)| {
+        .flat_map(|(m, &method)| {
             WAYS.iter()
                 .enumerate()
-                .filter(move |(_, w)| !w.1 || *method != Method::GtWls)
-                .map(move |(k, w)| (m * WAYS.len() + k, format!("{method} {}", w.0)))
+                .filter(move |(_, (guided, _))| !guided || method != Method::GtWls)
+                .map(move |(k, &(guided, scope))| {
+                    let scored = Scored::Tracks {
+                        method,
+                        guided,
+                        scope,
+                    };
+                    (m * WAYS.len() + k, scored)
+                })
         })
         .collect();
     let slots = cfg.methods.len() * WAYS.len();
@@ -70,7 +78,7 @@ pub fn run_region_tracking(
         for (slot, method) in &names {
             rows.push(TrackingRow {
                 noise: setting.name.clone(),
-                method: method.clone(),
+                method: *method,
                 metrics: accs[*slot].summary(),
                 tracking: Some(evals[*slot].summary()),
             });
@@ -94,15 +102,17 @@ fn scene(
     // Every class is tracked, so that the detection columns compare with `bench --tracking`'s.
     let mut ways: Vec<Way> = (0..slots)
         .map(|slot| {
-            let (_, guided, regions, handover) = WAYS[slot % WAYS.len()];
+            let (guided, scope) = WAYS[slot % WAYS.len()];
             let params = TrackerParams {
                 all_classes: true,
                 guided,
                 ..Default::default()
             };
-            match regions {
-                false => Way::One(Tracker::new(params)),
-                true => Way::Regions(RegionalTrackers::new(tiling, halo_m, params, handover)),
+            let regions = |handover| RegionalTrackers::new(tiling, halo_m, params, handover);
+            match scope {
+                Scope::One => Way::One(Tracker::new(params)),
+                Scope::Regions => Way::Regions(regions(false)),
+                Scope::HandOver => Way::Regions(regions(true)),
             }
         })
         .collect();
@@ -112,7 +122,7 @@ fn scene(
         let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
         for (slot, way) in ways.iter_mut().enumerate() {
             let method = &cfg.methods[slot / WAYS.len()];
-            let (_, guided, _, _) = WAYS[slot % WAYS.len()];
+            let (guided, _) = WAYS[slot % WAYS.len()];
             if guided && *method == Method::GtWls {
                 continue;
             }
@@ -139,7 +149,7 @@ mod tests {
         let (gt, cfg) = crate::bench::tracking_case(&["csba-wls+", "gt-wls"], "moderate");
         let tiling = Tiling::new(50.0).unwrap();
         let rows = run_region_tracking(&gt, &cfg, tiling, 30.0);
-        let names: Vec<&str> = rows.iter().map(|r| r.method.as_str()).collect();
+        let names: Vec<String> = rows.iter().map(|r| r.method.to_string()).collect();
         assert_eq!(
             names,
             [

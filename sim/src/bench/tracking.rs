@@ -3,17 +3,88 @@
 //! noise seeds.
 
 use super::*;
+use std::fmt;
+
+/// What a row of the tracking tables scores; written as its label (`csba-wls+ guided regions`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scored {
+    /// `agentN tracked`: agent N's boxes alone, tracked (N from 1).
+    Agent(usize),
+    /// `METHOD`: the method's fused boxes of each frame, untracked.
+    Single(Method),
+    /// `METHOD tracked` (its fused boxes tracked) or `METHOD guided` (each agent's boxes
+    /// through the tracks, the method fusing the rest), by one fuser or by regions.
+    Tracks {
+        /// The method.
+        method: Method,
+        /// Guided rather than tracked after fusion.
+        guided: bool,
+        /// One fuser, or regional fusers with or without hand-over.
+        scope: Scope,
+    },
+    /// `gt-wls tracked by id`: the true groups tracked by the true ids (a perfect association
+    /// of boxes to tracks).
+    TrackedById,
+}
+
+/// Who tracks a row's boxes: one fuser, or a city of regional fusers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scope {
+    /// One fuser over the whole map.
+    One,
+    /// Regional fusers, each tracking its own tile.
+    Regions,
+    /// Regional fusers handing tracks over at tile borders.
+    HandOver,
+}
+
+impl Scored {
+    /// The method's boxes tracked after fusion by one fuser.
+    pub fn tracked(method: Method) -> Self {
+        Scored::Tracks {
+            method,
+            guided: false,
+            scope: Scope::One,
+        }
+    }
+}
+
+impl fmt::Display for Scored {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Scored::Agent(n) => write!(f, "agent{n} tracked"),
+            Scored::Single(m) => write!(f, "{m}"),
+            Scored::Tracks {
+                method,
+                guided,
+                scope,
+            } => {
+                let how = if *guided { "guided" } else { "tracked" };
+                let scope = match scope {
+                    Scope::One => "",
+                    Scope::Regions => " regions",
+                    Scope::HandOver => " regions hand-over",
+                };
+                write!(f, "{method} {how}{scope}")
+            }
+            Scored::TrackedById => f.write_str("gt-wls tracked by id"),
+        }
+    }
+}
+
+impl Serialize for Scored {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
 
 /// One row of the tracking table (`bench --tracking`).
 #[derive(Clone, Debug, Serialize)]
 pub struct TrackingRow {
     /// The noise setting.
     pub noise: String,
-    /// `agentN tracked`, `METHOD` (single-frame), `METHOD tracked` (its fused boxes tracked),
-    /// `METHOD guided` (each agent's boxes through the tracks, the method fusing the rest), or
-    /// `gt-wls tracked by id` (the true groups tracked by the true ids: a perfect association of
-    /// boxes to tracks).
-    pub method: String,
+    /// What the row scores.
+    pub method: Scored,
     /// The id-matched figures of the boxes (the paper's protocol).
     #[serde(flatten)]
     pub metrics: Metrics,
@@ -53,14 +124,24 @@ pub fn run_tracking(
             )
         });
         let names = (0..n_agents)
-            .map(|a| (format!("agent{} tracked", a + 1), true))
-            .chain(cfg.methods.iter().flat_map(|m| {
-                let guided = (*m != Method::GtWls).then(|| (format!("{m} guided"), true));
-                [(m.name(), false), (format!("{m} tracked"), true)]
-                    .into_iter()
-                    .chain(guided)
+            .map(|a| (Scored::Agent(a + 1), true))
+            .chain(cfg.methods.iter().flat_map(|&method| {
+                let guided = (method != Method::GtWls).then_some((
+                    Scored::Tracks {
+                        method,
+                        guided: true,
+                        scope: Scope::One,
+                    },
+                    true,
+                ));
+                [
+                    (Scored::Single(method), false),
+                    (Scored::tracked(method), true),
+                ]
+                .into_iter()
+                .chain(guided)
             }))
-            .chain(gt_wls.map(|_| ("gt-wls tracked by id".to_string(), true)));
+            .chain(gt_wls.map(|_| (Scored::TrackedById, true)));
         for ((method, is_tracked), (acc, eval)) in names.zip(accs.iter().zip(evals)) {
             rows.push(TrackingRow {
                 noise: setting.name.clone(),
@@ -200,7 +281,7 @@ impl Rows for [TrackingRow] {
             &columns,
             rows.iter().map(|r| {
                 let m = &r.metrics;
-                let mut cells = leading_cells(&r.noise, &r.method, m);
+                let mut cells = leading_cells(&r.noise, &r.method.to_string(), m);
                 cells.push(cell(m.all.m_aoe, 2));
                 cells.extend(tracking_cells(r.tracking.as_ref()));
                 cells
@@ -217,7 +298,7 @@ pub struct SeedSummary {
     /// The noise setting.
     pub noise: String,
     /// The row.
-    pub method: String,
+    pub method: Scored,
     /// Seeds summarised.
     pub seeds: usize,
     /// AMOTA: mean, lowest, highest.
@@ -250,7 +331,7 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
     };
     let oracle = |rows: &[TrackingRow], noise: &str| {
         rows.iter()
-            .find(|r| r.noise == noise && r.method == "gt-wls tracked")
+            .find(|r| r.noise == noise && r.method == Scored::tracked(Method::GtWls))
             .and_then(|r| r.tracking.as_ref())
             .map(|t| (t.amota, t.ids_per_100_tracks))
     };
@@ -274,7 +355,7 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
             |f: RatioOf| -> Option<Vec<f64>> { seen.iter().map(|(t, o)| f(t, (*o)?)).collect() };
         out.push(SeedSummary {
             noise: row.noise.clone(),
-            method: row.method.clone(),
+            method: row.method,
             seeds: seen.len(),
             amota: spread(&amota),
             ids_per_100: spread(&ids),
@@ -333,7 +414,7 @@ impl Rows for [SeedSummary] {
             rows.iter().map(|r| {
                 vec![
                     r.noise.clone(),
-                    r.method.clone(),
+                    r.method.to_string(),
                     r.seeds.to_string(),
                     three(r.amota, 4),
                     three(r.ids_per_100, 2),
