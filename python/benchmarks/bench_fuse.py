@@ -174,6 +174,17 @@ def median_us(fn, number):
     return sorted(runs)[len(runs) // 2] / number * 1e6
 
 
+def paired_ratio(fast, slow, n_fast, n_slow, repeat=25):
+    """The median over repeats of slow's time over fast's, the two timed in turn within each
+    repeat, so that the machine's drift during the run moves both alike."""
+    ratios = []
+    for _ in range(repeat):
+        a = timeit.timeit(fast, number=n_fast) / n_fast
+        b = timeit.timeit(slow, number=n_slow) / n_slow
+        ratios.append(b / a)
+    return sorted(ratios)[len(ratios) // 2]
+
+
 def criterion_us(method, noise):
     """Runs the Rust criterion bench of this step and reads its median (us)."""
     name = f"methods/2x80/{method}/{noise}"
@@ -208,8 +219,12 @@ def main():
     pairs = median_us(lambda: numpy_pairs(*agents), 20)
     print(f"| numpy/scipy CSBA-3D + WLS-3D, straightforward | {general:.0f} µs | - |")
     print(f"| numpy/scipy, two agents vectorized by hand | {pairs:.0f} µs | - |")
+    dict_over = [paired_ratio(lambda m=m: v.fuse(boxes, m), lambda: numpy_pairs(*agents), 20, 20)
+                 for m in ("csba-wls", "csba-wls+")]
+    print(f"\nthe vectorized numpy/scipy peer over the dict path, timed in turn: "
+          f"csba-wls {dict_over[0]:.1f}x, csba-wls+ {dict_over[1]:.1f}x")
     numpy_path = rows["fuse_arrays (numpy path)"][0]
-    print(f"\nnumpy/scipy over the numpy path (csba-wls): straightforward {general / numpy_path:.1f}x, "
+    print(f"numpy/scipy over the numpy path (csba-wls): straightforward {general / numpy_path:.1f}x, "
           f"vectorized {pairs / numpy_path:.1f}x; fused boxes: ours {len(v.fuse_arrays(agents, 'csba-wls')['score'])}, "
           f"numpy/scipy {len(numpy_csba_wls(agents))}")
     if args.criterion:

@@ -9,24 +9,39 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use pyo3::{intern, Borrowed};
 use serde_json::Value;
-use std::borrow::Cow;
 use std::path::Path;
 use v2x_protocol::nuscenes_json::{
-    box_fields, parse_box_fields, BoxFields, FieldValue, JsonError, MissingStd, OutField,
-    TokenTable, READ_FIELDS,
+    box_fields, parse_box_fields, BoxFields, Field, FieldValue, JsonError, MissingStd, OutField,
+    TokenTable,
 };
 use v2x_protocol::Detection;
 
 /// The key `name` as a Python string, made once for the fields the format knows (those a box
 /// is read from, `attribute_name`, and what the package adds to the dicts it returns).
 fn key<'py>(py: Python<'py>, name: &str) -> Bound<'py, PyString> {
-    match READ_FIELDS.iter().chain(&MORE).position(|&k| k == name) {
+    match key_index(name) {
         Some(i) => key_table(py)[i].bind(py).clone(),
         None => PyString::new(py, name),
     }
 }
 
-/// The keys written besides [`READ_FIELDS`].
+/// Where `name` stands in [`key_table`].
+fn key_index(name: &str) -> Option<usize> {
+    let names = || (0..Field::ALL.len() + MORE.len()).map(key_name);
+    // The writer's names are the same constants: their address finds them, their text if not.
+    names()
+        .position(|k| std::ptr::eq(k, name))
+        .or_else(|| names().position(|k| k == name))
+}
+
+/// The name of [`key_table`]'s key `i`.
+fn key_name(i: usize) -> &'static str {
+    Field::ALL
+        .get(i)
+        .map_or_else(|| MORE[i - Field::ALL.len()], |f| f.name())
+}
+
+/// The keys written besides the [`Field`]s.
 const MORE: [&str; 5] = [
     "attribute_name",
     "v2x_sources",
@@ -35,13 +50,14 @@ const MORE: [&str; 5] = [
     "tracking_score",
 ];
 
-/// The interned keys: [`READ_FIELDS`] first, then [`MORE`], made on the first call.
+/// The interned keys: the [`Field`]s first, then [`MORE`], made on the first call.
 fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
     static KEYS: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
     KEYS.get_or_init(py, || {
-        READ_FIELDS
+        Field::ALL
             .iter()
-            .chain(&MORE)
+            .map(|f| f.name())
+            .chain(MORE)
             .map(|k| PyString::intern(py, k).unbind())
             .collect()
     })
@@ -64,13 +80,13 @@ fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
 }
 
 /// A dict's values of the fields a box is read from, found in one pass over its items.
-struct DictFields<'py>([Option<Bound<'py, PyAny>>; READ_FIELDS.len()]);
+struct DictFields<'py>([Option<Bound<'py, PyAny>>; Field::ALL.len()]);
 
 impl<'py> DictFields<'py> {
     fn of(d: &Bound<'py, PyDict>) -> DictFields<'py> {
         let py = d.py();
-        let keys = &key_table(py)[..READ_FIELDS.len()];
-        let mut fields: [Option<Bound<'py, PyAny>>; READ_FIELDS.len()] = Default::default();
+        let keys = &key_table(py)[..Field::ALL.len()];
+        let mut fields: [Option<Bound<'py, PyAny>>; Field::ALL.len()] = Default::default();
         for (k, v) in d.iter() {
             // Keys written in Python source are interned: the pointer finds them.
             let i = keys
@@ -78,7 +94,7 @@ impl<'py> DictFields<'py> {
                 .position(|x| x.as_ptr() == k.as_ptr())
                 .or_else(|| {
                     let k = k.cast::<PyString>().ok()?.to_cow().ok()?;
-                    READ_FIELDS.iter().position(|&name| name == k)
+                    Field::ALL.iter().position(|f| f.name() == k)
                 });
             if let Some(i) = i {
                 fields[i] = Some(v);
@@ -89,15 +105,14 @@ impl<'py> DictFields<'py> {
 }
 
 impl BoxFields for DictFields<'_> {
-    fn field(&self, name: &str) -> Option<FieldValue<'_>> {
-        let i = READ_FIELDS.iter().position(|&k| k == name)?;
-        self.0[i].as_ref().map(field_value)
+    fn field(&self, f: Field) -> Option<FieldValue<'_>> {
+        self.0[f as usize].as_ref().map(field_value)
     }
 }
 
 /// A Python value as a box field: floats, ints, strings, lists and tuples directly, anything else
 /// (numpy arrays and scalars) through its JSON value.
-fn field_value(v: &Bound<'_, PyAny>) -> FieldValue<'static> {
+fn field_value<'a>(v: &'a Bound<'_, PyAny>) -> FieldValue<'a> {
     if v.is_none() {
         return FieldValue::Null;
     }
@@ -110,9 +125,7 @@ fn field_value(v: &Bound<'_, PyAny>) -> FieldValue<'static> {
         });
     }
     if let Ok(s) = v.cast::<PyString>() {
-        return s
-            .to_cow()
-            .map_or(FieldValue::Other, |s| FieldValue::Str(Cow::Owned(s.into())));
+        return s.to_cow().map_or(FieldValue::Other, FieldValue::Str);
     }
     if let Ok(l) = v.cast::<PyList>() {
         return FieldValue::List(l.iter().map(|x| element(&x)).collect());
@@ -220,13 +233,33 @@ pub fn box_dict<'py>(
     d: &Detection,
     tokens: &TokenTable,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let dict = PyDict::new(py);
+    let (template, order) = template(py);
+    let dict = template.bind(py).copy()?;
+    let keys = key_table(py);
+    let mut written = 0u32;
     let mut result = Ok(());
+    // The writer puts its keys in the template's order: each is found at or just after the last.
+    let mut next = 0;
     box_fields(None, d, tokens, |k, v| {
         if result.is_err() {
             return;
         }
-        let k = key(py, k);
+        let ahead = order[next..]
+            .iter()
+            .position(|&i| std::ptr::eq(key_name(i), k));
+        let found = match ahead {
+            Some(p) => {
+                next += p + 1;
+                Some(order[next - 1])
+            }
+            None => key_index(k),
+        };
+        let Some(i) = found else {
+            result = Err(PyValueError::new_err(format!("no key for the field {k}")));
+            return;
+        };
+        written |= 1 << i;
+        let k = keys[i].bind(py);
         result = match v {
             OutField::Str("") => dict.set_item(k, intern!(py, "")),
             OutField::Str(s) => dict.set_item(k, s),
@@ -236,7 +269,55 @@ pub fn box_dict<'py>(
             OutField::Id(i) => dict.set_item(k, i),
         };
     });
-    result.map(|()| dict)
+    result?;
+    for &i in order.iter().filter(|&&i| written & (1 << i) == 0) {
+        dict.del_item(keys[i].bind(py))?;
+    }
+    Ok(dict)
+}
+
+/// A dict of every key the writer may write, in its order, each `None`, and those keys' places
+/// in [`key_table`]: each box's dict starts as a copy (sized once, where setting key after key
+/// grows it twice), the keys its box has not removed.
+fn template(py: Python<'_>) -> &'static (Py<PyDict>, Vec<usize>) {
+    static TEMPLATE: PyOnceLock<(Py<PyDict>, Vec<usize>)> = PyOnceLock::new();
+    TEMPLATE.get_or_init(py, || {
+        // A box with every optional field, and an id with a token; an id without one is
+        // written as `instance_id` in the token's place.
+        let mut tokens = TokenTable::new();
+        let full = Detection {
+            class: v2x_protocol::Class::Car,
+            center: [0.0; 3],
+            size: [1.0; 3],
+            yaw: 0.0,
+            score: 1.0,
+            std: v2x_protocol::Uncertainty::uniform(1.0, 1.0, 1.0),
+            pos_cov: Some(Box::new([
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ])),
+            velocity: Some(v2x_protocol::Velocity {
+                v: [0.0; 2],
+                std: [1.0; 2],
+            }),
+            id: tokens.intern("token"),
+        };
+        let mut order = Vec::new();
+        box_fields(None, &full, &tokens, |k, _| order.extend(key_index(k)));
+        if let Some(at) = order
+            .iter()
+            .position(|&i| i == Field::InstanceToken as usize)
+        {
+            order.insert(at + 1, Field::InstanceId as usize);
+        }
+        let dict = PyDict::new(py);
+        for &i in &order {
+            dict.set_item(key_table(py)[i].bind(py), py.None())
+                .expect("a dict takes a string key");
+        }
+        (dict.unbind(), order)
+    })
 }
 
 /// Sets `name` on a dict by its interned key.

@@ -31,13 +31,15 @@ pub fn fuse_step<'py>(
     let mut tokens = TokenTable::new();
     let per_agent = read_agents(&agents, &mut tokens, missing)?;
     let fused = py.detach(|| method.fuse_sourced(&per_agent));
-    let out = PyList::empty(py);
-    for s in &fused {
-        let b = box_dict(py, &s.det, &tokens)?;
-        set(&b, "v2x_sources", s.sources.iter().collect::<Vec<_>>())?;
-        out.append(b)?;
-    }
-    Ok(out.into_any())
+    let out = fused
+        .iter()
+        .map(|s| {
+            let b = box_dict(py, &s.det, &tokens)?;
+            set(&b, "v2x_sources", s.sources.iter().collect::<Vec<_>>())?;
+            Ok(b)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok(PyList::new(py, out)?.into_any())
 }
 
 /// Fuses whole results documents (the JSON of each agent's), as `v2x-fuser fuse` fuses files.

@@ -31,35 +31,47 @@ pub fn box_fields<'a>(
     let [l, w, h] = d.size;
     let [sl, sw, sh] = d.std.size;
     if let Some(sample) = sample {
-        put("sample_token", Str(sample));
+        put(Field::SampleToken.name(), Str(sample));
     }
-    put("translation", Numbers(d.center.into_iter().collect()));
-    put("size", Numbers([w, l, h].into_iter().collect()));
     put(
-        "rotation",
+        Field::Translation.name(),
+        Numbers(d.center.into_iter().collect()),
+    );
+    put(Field::Size.name(), Numbers([w, l, h].into_iter().collect()));
+    put(
+        Field::Rotation.name(),
         Numbers(yaw_quaternion(d.yaw).into_iter().collect()),
     );
     let v = d.velocity.map_or([0.0, 0.0], |v| v.v);
-    put("velocity", Numbers(v.into_iter().collect()));
-    put("detection_name", OutField::Class(d.class));
-    put("detection_score", Number(d.score));
+    put(Field::Velocity.name(), Numbers(v.into_iter().collect()));
+    put(Field::DetectionName.name(), OutField::Class(d.class));
+    put(Field::DetectionScore.name(), Number(d.score));
     put("attribute_name", Str(""));
-    put("translation_std", Numbers(d.std.pos.into_iter().collect()));
-    put("size_std", Numbers([sw, sl, sh].into_iter().collect()));
-    put("yaw_std", Number(d.std.yaw));
+    put(
+        Field::TranslationStd.name(),
+        Numbers(d.std.pos.into_iter().collect()),
+    );
+    put(
+        Field::SizeStd.name(),
+        Numbers([sw, sl, sh].into_iter().collect()),
+    );
+    put(Field::YawStd.name(), Number(d.std.yaw));
     if let Some(c) = d.pos_cov.as_deref() {
         put(
-            "translation_cov",
+            Field::TranslationCov.name(),
             Numbers(c.iter().flatten().copied().collect()),
         );
     }
     if let Some(v) = d.velocity {
-        put("velocity_std", Numbers(v.std.into_iter().collect()));
+        put(
+            Field::VelocityStd.name(),
+            Numbers(v.std.into_iter().collect()),
+        );
     }
     if let Some(t) = tokens.name(d.id) {
-        put("instance_token", Str(t));
+        put(Field::InstanceToken.name(), Str(t));
     } else if d.id != NO_ID {
-        put("instance_id", OutField::Id(d.id));
+        put(Field::InstanceId.name(), OutField::Id(d.id));
     }
 }
 
