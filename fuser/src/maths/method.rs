@@ -4,6 +4,7 @@
 
 use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
 use crate::maths::baselines;
+use crate::maths::by_class::by_class;
 use crate::maths::fusion::GroupSum;
 use std::fmt;
 use std::str::FromStr;
@@ -259,6 +260,11 @@ pub type Members = smallvec::SmallVec<[(usize, usize); 4]>;
 /// CSBA-3D association and WLS-3D fusion ([`csba_wls`]): the fused boxes and the members of
 /// each, in the same order.
 pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
+    by_class(agents, |a| csba_one_pass(p, a)).unwrap_or_else(|| csba_one_pass(p, agents))
+}
+
+/// [`csba_groups`] in one pass over the agents' lists.
+fn csba_one_pass(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
     let n: usize = agents.iter().map(Vec::len).sum();
     let mut groups: Vec<Members> = Vec::with_capacity(n);
     // Each group's WLS-3D sums once it has two members: a member joining adds its own terms.
