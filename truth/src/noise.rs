@@ -236,9 +236,14 @@ impl NoiseSetting {
 
     /// The four settings of the paper's Table 2.
     pub fn paper() -> Vec<NoiseSetting> {
+        NoiseSetting::paper_with(2)
+    }
+
+    /// The paper's settings seen by `n_agents` agents (the last profile repeating).
+    pub fn paper_with(n_agents: usize) -> Vec<NoiseSetting> {
         ["mild", "moderate", "large", "mild+large"]
             .iter()
-            .map(|s| NoiseSetting::parse(s, 2).expect("valid"))
+            .map(|s| NoiseSetting::parse(s, n_agents).expect("valid"))
             .collect()
     }
 

@@ -24,6 +24,11 @@ pub struct BenchArgs {
     /// Methods, comma-separated, or 'all' (see `v2x-fuser fuse --help`).
     #[arg(long, default_value = "all")]
     pub methods: String,
+    /// Agents seeing each scene in the paper's table (a noise setting's last profile repeats
+    /// for the agents it does not name): 2 as in the paper; up to 64 to score one fuser at a
+    /// dense junction.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub agents: u16,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -116,6 +121,11 @@ pub enum TruthMode {
 impl Mode {
     /// The mode the flags select, or why they select none.
     pub fn of(args: &BenchArgs) -> anyhow::Result<Mode> {
+        if args.data.is_dair() || args.data.is_v2v4real() {
+            if args.agents != 2 {
+                bail!("--agents is for simulated agents: the real data sets have their own two");
+            }
+        }
         if args.data.is_dair() {
             if args.tile_size.is_some()
                 || args.tracking
@@ -137,17 +147,19 @@ impl Mode {
             }
             return Ok(Mode::V2v4real);
         }
-        Ok(Mode::Truth(
-            match (args.tile_size, args.tracking, &args.profile) {
-                (Some(size), true, _) => TruthMode::RegionTracking(size),
-                (Some(size), false, _) => TruthMode::Regions(size),
-                (None, true, _) if !args.seeds.is_empty() => TruthMode::TrackingSeeds,
-                (None, true, _) => TruthMode::Tracking,
-                (None, false, Some(profile)) => TruthMode::Detection(profile.clone()),
-                (None, false, None) if args.asynchronous => TruthMode::Asynchronous,
-                (None, false, None) => TruthMode::Table2,
-            },
-        ))
+        let mode = match (args.tile_size, args.tracking, &args.profile) {
+            (Some(size), true, _) => TruthMode::RegionTracking(size),
+            (Some(size), false, _) => TruthMode::Regions(size),
+            (None, true, _) if !args.seeds.is_empty() => TruthMode::TrackingSeeds,
+            (None, true, _) => TruthMode::Tracking,
+            (None, false, Some(profile)) => TruthMode::Detection(profile.clone()),
+            (None, false, None) if args.asynchronous => TruthMode::Asynchronous,
+            (None, false, None) => TruthMode::Table2,
+        };
+        if args.agents != 2 && mode != TruthMode::Table2 {
+            bail!("--agents sets the agents of the paper's table: leave it out with --tile-size, --tracking, --profile and --async");
+        }
+        Ok(Mode::Truth(mode))
     }
 }
 
@@ -408,7 +420,10 @@ fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
 fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
     let (seed, range, format) = (args.seed, args.range, args.format);
-    let settings = parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?;
+    let agents = usize::from(args.agents);
+    let settings = parse_list(noise, NoiseSetting::paper_with(agents), |s| {
+        NoiseSetting::parse(s, agents)
+    })?;
     let methods = parse_list(methods, Method::all(), |s| s.parse())?;
     let cfg = BenchConfig {
         methods,
@@ -490,5 +505,18 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("dair-v2x runs its own table"));
+        // --agents sets the paper's table alone, 1 to 64 agents.
+        assert_eq!(mode(&["--agents", "64"]).unwrap(), truth(TruthMode::Table2));
+        for bad in [
+            &["--agents", "64", "--tracking"][..],
+            &["--agents", "3", "--async"],
+        ] {
+            let err = mode(bad).unwrap_err().to_string();
+            assert!(err.contains("--agents sets the agents"), "{err}");
+        }
+        assert!(mode(&["--agents", "65"]).is_err());
+        assert!(mode(&["--agents", "0"]).is_err());
+        let err = mode(&[&v2v[..], &["--agents", "4"]].concat()).unwrap_err();
+        assert!(err.to_string().contains("real data sets"), "{err}");
     }
 }
