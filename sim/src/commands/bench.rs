@@ -121,10 +121,8 @@ pub enum TruthMode {
 impl Mode {
     /// The mode the flags select, or why they select none.
     pub fn of(args: &BenchArgs) -> anyhow::Result<Mode> {
-        if args.data.is_dair() || args.data.is_v2v4real() {
-            if args.agents != 2 {
-                bail!("--agents is for simulated agents: the real data sets have their own two");
-            }
+        if (args.data.is_dair() || args.data.is_v2v4real()) && args.agents != 2 {
+            bail!("--agents is for simulated agents: the real data sets have their own two");
         }
         if args.data.is_dair() {
             if args.tile_size.is_some()
