@@ -3,6 +3,7 @@ dict path (fuse), and a straightforward numpy/scipy CSBA-3D + WLS-3D for compari
 --criterion, the Rust criterion figure of the same step in the same run.
 
     python python/benchmarks/bench_fuse.py [--criterion] [--noise mild]
+    python python/benchmarks/bench_fuse.py --size 64x200
 
 Scenes follow the Rust benches' (fuser/benches/common): 80 objects within 50 m, the same class
 mix, one noisy copy per agent at the noise profile's stds; drawn with numpy's generator, so they
@@ -200,7 +201,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--noise", default="mild", choices=sorted(PROFILES))
     ap.add_argument("--criterion", action="store_true", help="also run the Rust criterion bench")
+    ap.add_argument("--size", metavar="AGENTSxOBJECTS",
+                    help="instead: the numpy path alone on a larger scene, e.g. 64x200")
     args = ap.parse_args()
+    if args.size:
+        n_agents, n_objects = (int(x) for x in args.size.split("x"))
+        big = scene(n_objects, n_agents, args.noise, 1)
+        times = [median_us(lambda m=m: v.fuse_arrays(big, m), 3) / 1e3 for m in ("csba-wls+", "csba-wls")]
+        print(f"fuse_arrays at {n_agents} x {n_objects}, {args.noise} noise (median of 25 repeats): "
+              f"csba-wls+ {times[0]:.2f} ms, csba-wls {times[1]:.2f} ms")
+        return
     agents = scene(80, 2, args.noise, 1)
     boxes = [as_boxes(a) for a in agents]
     print(f"2 agents x 80 boxes, {args.noise} noise (median of 25 repeats)")
