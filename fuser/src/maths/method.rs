@@ -253,9 +253,7 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
     (fused, sources)
 }
 
-/// A group's members as (agent, index in the agent's list): two to four agents need no
-/// allocation per group.
-pub type Members = smallvec::SmallVec<[(usize, usize); 4]>;
+pub use crate::maths::by_class::Members;
 
 /// CSBA-3D association and WLS-3D fusion ([`csba_wls`]): the fused boxes and the members of
 /// each, in the same order.
@@ -429,5 +427,81 @@ mod tests {
         ]);
         assert_eq!(out.len(), 2);
         assert!(Method::Csba(CsbaParams::PAPER).fuse(&[]).is_empty());
+    }
+}
+
+/// A large window split by class ([`by_class`]) fuses as one pass does.
+#[cfg(test)]
+mod by_class_tests {
+    use super::*;
+    use crate::maths::by_class::{by_class, PARALLEL_FROM};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use v2x_protocol::fixtures::{car, URBAN_MIX};
+
+    /// `agents` noisy views of `n` objects of the urban mix (1 m position noise).
+    fn window(n: usize, agents: usize, seed: u64) -> Vec<Vec<Detection>> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let truth: Vec<Detection> = (0..n)
+            .map(|i| {
+                let mut d = car(
+                    rng.gen_range(-300.0..300.0),
+                    rng.gen_range(-300.0..300.0),
+                    1.0,
+                );
+                d.class = URBAN_MIX[i % URBAN_MIX.len()];
+                d.size = d.class.typical_size();
+                d
+            })
+            .collect();
+        (0..agents)
+            .map(|_| {
+                let mut seen = Vec::new();
+                for d in &truth {
+                    if rng.gen_bool(0.9) {
+                        let mut d = d.clone();
+                        d.center[0] += rng.gen_range(-1.5..1.5);
+                        d.center[1] += rng.gen_range(-1.5..1.5);
+                        seen.push(d);
+                    }
+                }
+                seen
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_window_fused_class_by_class_equals_one_pass() {
+        let p = CsbaParams::default();
+        let one_pass = |a: &[Vec<Detection>]| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
+            pool.install(|| csba_groups(&p, a))
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for seed in [1, 2] {
+            let agents = window(300, 16, seed);
+            assert!(agents.iter().map(Vec::len).sum::<usize>() >= PARALLEL_FROM);
+            let split = pool.install(|| by_class(&agents, one_pass)).expect("split");
+            let whole = one_pass(&agents);
+            assert_eq!(split.1, whole.1, "seed {seed}");
+            assert_eq!(split.0, whole.0, "seed {seed}");
+            assert!(whole.1.iter().any(|g| g.len() > 8), "groups span agents");
+        }
+        // Below the bound, or with one thread, there is no split.
+        let small = window(100, 4, 3);
+        assert!(pool.install(|| by_class(&small, one_pass)).is_none());
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        assert!(one
+            .install(|| by_class(&window(300, 16, 1), one_pass))
+            .is_none());
     }
 }
