@@ -322,7 +322,7 @@ pub enum Field {
 }
 
 impl Field {
-    /// Every field, in the order a box is written.
+    /// Every field, each at its own place (`f as usize`).
     pub const ALL: [Field; 14] = [
         Field::SampleToken,
         Field::Translation,

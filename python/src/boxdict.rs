@@ -94,7 +94,7 @@ impl<'py> DictFields<'py> {
                 .position(|x| x.as_ptr() == k.as_ptr())
                 .or_else(|| {
                     let k = k.cast::<PyString>().ok()?.to_cow().ok()?;
-                    Field::ALL.iter().position(|f| f.name() == k)
+                    key_index(&k).filter(|&i| i < Field::ALL.len())
                 });
             if let Some(i) = i {
                 fields[i] = Some(v);
