@@ -23,7 +23,7 @@ use v2x_protocol::Detection;
 mod tracking;
 pub(crate) use tracking::score_tracked;
 pub use tracking::{
-    run_tracking, seed_summary, tracking_cells, Scope, Scored, SeedSummary, SeedsReport,
+    run_tracking, seed_summary, tracking_cells, LogSeeds, Scope, Scored, SeedSummary, SeedsReport,
     TrackingRow, TRACKING_COLUMNS,
 };
 
@@ -665,7 +665,7 @@ mod tests {
         };
         let row = summary.iter().find(|r| r.method == csba).unwrap();
         let each: Vec<f64> = per_seed.iter().map(|r| amota(r, csba)).collect();
-        assert_eq!(row.seeds, 3);
+        assert_eq!(row.runs, 3);
         assert!((row.amota[0] - each.iter().sum::<f64>() / 3.0).abs() < 1e-12);
         assert_eq!(
             row.amota[1],
@@ -687,5 +687,50 @@ mod tests {
         assert!(summary[..]
             .table()
             .contains("| large | csba-wls+ tracked | 3 |"));
+    }
+
+    #[test]
+    fn logs_are_summarised_each_and_together_the_worst_run_of_any_log_shown() {
+        let (gt, mut cfg) = tracking_case(&["csba-wls+", "gt-wls"], "large");
+        let logs: Vec<LogSeeds> = (0..2)
+            .map(|k| {
+                let part = gt.part(k, 2).unwrap();
+                let per_seed = [3, 4]
+                    .iter()
+                    .map(|&seed| {
+                        cfg.seed = seed;
+                        run_tracking(&part, &cfg, Default::default())
+                    })
+                    .collect();
+                LogSeeds::new(format!("part {k}"), vec![3, 4], per_seed)
+            })
+            .collect();
+        let report = SeedsReport::new(logs.clone());
+        let csba = Scored::tracked("csba-wls+".parse().unwrap());
+        let row = |s: &[SeedSummary]| s.iter().find(|r| r.method == csba).unwrap().clone();
+        let all = row(&report.summary);
+        let each: Vec<SeedSummary> = logs.iter().map(|l| row(&l.summary)).collect();
+        assert_eq!(all.runs, 4);
+        assert_eq!(each[0].runs, 2);
+        // The mean is over every run; the lows, highs and worst ratios the worst of any log.
+        let mean = (each[0].amota[0] + each[1].amota[0]) / 2.0;
+        assert!((all.amota[0] - mean).abs() < 1e-12);
+        assert_eq!(all.amota[1], each[0].amota[1].min(each[1].amota[1]));
+        let worst = |r: &SeedSummary| r.worst_amota_ratio.unwrap();
+        assert_eq!(worst(&all), worst(&each[0]).min(worst(&each[1])));
+        let worst_ids = |r: &SeedSummary| r.worst_ids_ratio.unwrap();
+        assert_eq!(
+            worst_ids(&all),
+            worst_ids(&each[0]).max(worst_ids(&each[1]))
+        );
+        // The table shows the whole first, then each log under its name.
+        let table = report.table();
+        let at = |s: &str| table.find(s).unwrap_or_else(|| panic!("{s} in {table}"));
+        assert!(at("Over every log and seed (2 logs)") < at("part 0:"));
+        assert!(at("part 0:") < at("part 1:"));
+        assert!(
+            table.contains("| large | csba-wls+ tracked | 4 |"),
+            "{table}"
+        );
     }
 }

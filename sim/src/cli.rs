@@ -189,7 +189,17 @@ impl DataArgs {
 
     /// A short description of the source, for reports.
     pub fn describe(&self, gt: &GroundTruth) -> String {
-        let what = match &self.dataroot {
+        format!(
+            "{}: {} frames, {} boxes",
+            self.source(),
+            gt.frames.len(),
+            gt.boxes()
+        )
+    }
+
+    /// The source's name, for reports: its data root or the town's settings.
+    pub fn source(&self) -> String {
+        match &self.dataroot {
             Some(r) if self.is_dair() => format!(
                 "DAIR-V2X {} (calibration offset {})",
                 r.display(),
@@ -210,8 +220,7 @@ impl DataArgs {
                     t.seed, t.scenes, t.seconds, t.hz
                 )
             }
-        };
-        format!("{what}: {} frames, {} boxes", gt.frames.len(), gt.boxes())
+        }
     }
 }
 

@@ -131,6 +131,36 @@ pub trait Recorded: std::fmt::Debug + Send + Sync {
 }
 
 impl GroundTruth {
+    /// Part `k` of `n` (from 0) of every scene, cut by frame count in time order, as a data set
+    /// of its own (the scenes' names and motion kept); `None` for data with recorded agents,
+    /// whose frames cannot be cut, or when `k >= n`.
+    pub fn part(&self, k: usize, n: usize) -> Option<GroundTruth> {
+        if self.recorded.is_some() || k >= n {
+            return None;
+        }
+        let mut count = vec![0usize; self.scenes.len().max(1)];
+        for f in &self.frames {
+            if let Some(c) = count.get_mut(f.scene) {
+                *c += 1;
+            }
+        }
+        let mut seen = vec![0usize; count.len()];
+        let mut frames = Vec::new();
+        for f in &self.frames {
+            let Some(i) = seen.get_mut(f.scene) else {
+                continue;
+            };
+            if *i * n / count[f.scene] == k {
+                frames.push(f.clone());
+            }
+            *i += 1;
+        }
+        Some(GroundTruth {
+            frames,
+            ..self.clone()
+        })
+    }
+
     /// Number of annotated boxes over all frames.
     pub fn boxes(&self) -> usize {
         self.frames.iter().map(|f| f.objects.len()).sum()
@@ -809,5 +839,33 @@ mod tests {
             assert!(e.contains(msg), "{e}");
             assert!(e.contains(table), "{e}");
         }
+    }
+
+    #[test]
+    fn parts_cut_each_scene_in_time_order_and_together_hold_every_frame() {
+        let frame = |scene: usize, t: u64| GtFrame {
+            sample_token: format!("{scene}-{t}"),
+            scene,
+            timestamp_us: t,
+            ego: None,
+            objects: Vec::new(),
+        };
+        let gt = GroundTruth {
+            scenes: vec!["a".into(), "b".into()],
+            frames: (0..5)
+                .map(|t| frame(0, t))
+                .chain((0..2).map(|t| frame(1, t)))
+                .collect(),
+            ..Default::default()
+        };
+        let tokens = |g: &GroundTruth| -> Vec<String> {
+            g.frames.iter().map(|f| f.sample_token.clone()).collect()
+        };
+        let halves: Vec<GroundTruth> = (0..2).map(|k| gt.part(k, 2).unwrap()).collect();
+        assert_eq!(tokens(&halves[0]), ["0-0", "0-1", "0-2", "1-0"]);
+        assert_eq!(tokens(&halves[1]), ["0-3", "0-4", "1-1"]);
+        assert_eq!(halves[1].scenes, gt.scenes);
+        assert_eq!(tokens(&gt.part(0, 1).unwrap()), tokens(&gt));
+        assert!(gt.part(2, 2).is_none());
     }
 }

@@ -290,25 +290,25 @@ impl Rows for [TrackingRow] {
     }
 }
 
-/// A tracked row over several noise seeds: its AMOTA and identity switches (per 100 objects)
-/// as mean, lowest and highest, and seed by seed against `gt-wls tracked` under the same
-/// noise: the lowest AMOTA ratio and the highest switch ratio.
+/// A tracked row over several runs (logs and noise seeds): its AMOTA and identity switches
+/// (per 100 objects) as mean, lowest and highest, and run by run against `gt-wls tracked` under
+/// the same noise: the lowest AMOTA ratio and the highest switch ratio.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SeedSummary {
     /// The noise setting.
     pub noise: String,
     /// The row.
     pub method: Scored,
-    /// Seeds summarised.
-    pub seeds: usize,
+    /// Runs summarised: each log under each seed.
+    pub runs: usize,
     /// AMOTA: mean, lowest, highest.
     pub amota: [f64; 3],
     /// Identity switches per 100 objects: mean, lowest, highest.
     pub ids_per_100: [f64; 3],
-    /// The lowest over seeds of AMOTA / `gt-wls tracked`'s AMOTA (None without that row).
+    /// The lowest over runs of AMOTA / `gt-wls tracked`'s AMOTA (None without that row).
     pub worst_amota_ratio: Option<f64>,
-    /// The highest over seeds of switches / `gt-wls tracked`'s switches (None without that row;
-    /// 1 on a seed where neither switched, infinite where only this row did).
+    /// The highest over runs of switches / `gt-wls tracked`'s switches (None without that row;
+    /// 1 on a run where neither switched, infinite where only this row did).
     pub worst_ids_ratio: Option<f64>,
 }
 
@@ -320,11 +320,11 @@ fn spread(v: &[f64]) -> [f64; 3] {
     [mean, lo, hi]
 }
 
-/// A row's figure against the oracle's (AMOTA, switches per 100 objects) on one seed.
+/// A row's figure against the oracle's (AMOTA, switches per 100 objects) in one run.
 type RatioOf<'a> = &'a dyn Fn(&TrackingMetrics, (f64, f64)) -> Option<f64>;
 
-/// Every tracked row of `per_seed` (the tracking table under each seed, rows in the same
-/// order) summarised over the seeds.
+/// Every tracked row of `per_seed` (the tracking table of each run, rows in the same order)
+/// summarised over the runs.
 pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
     let Some(first) = per_seed.first() else {
         return Vec::new();
@@ -356,7 +356,7 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
         out.push(SeedSummary {
             noise: row.noise.clone(),
             method: row.method,
-            seeds: seen.len(),
+            runs: seen.len(),
             amota: spread(&amota),
             ids_per_100: spread(&ids),
             worst_amota_ratio: ratios(&|t, (a, _)| (a > 0.0).then(|| t.amota / a))
@@ -374,20 +374,66 @@ pub fn seed_summary(per_seed: &[Vec<TrackingRow>]) -> Vec<SeedSummary> {
     out
 }
 
-/// The tracking table under several seeds: each seed's rows and their summary.
+/// One log's tracking tables under each seed, and their summary.
 #[derive(Clone, Debug, Serialize)]
-pub struct SeedsReport {
-    /// Each seed's rows.
-    pub per_seed: Vec<Vec<TrackingRow>>,
+pub struct LogSeeds {
+    /// The log: its data root or town seed, and its part.
+    pub log: String,
     /// The seeds.
     pub seeds: Vec<u64>,
+    /// Each seed's rows.
+    pub per_seed: Vec<Vec<TrackingRow>>,
     /// The rows summarised over the seeds.
     pub summary: Vec<SeedSummary>,
 }
 
+impl LogSeeds {
+    /// A log's runs under each seed, summarised.
+    pub fn new(log: String, seeds: Vec<u64>, per_seed: Vec<Vec<TrackingRow>>) -> Self {
+        let summary = seed_summary(&per_seed);
+        LogSeeds {
+            log,
+            seeds,
+            per_seed,
+            summary,
+        }
+    }
+}
+
+/// The tracking table over several logs and seeds: each log's runs, and every run summarised.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedsReport {
+    /// Each log's runs.
+    pub logs: Vec<LogSeeds>,
+    /// The rows summarised over every log and seed; the worst ratios are a single run's.
+    pub summary: Vec<SeedSummary>,
+}
+
+impl SeedsReport {
+    /// The report of these logs' runs.
+    pub fn new(logs: Vec<LogSeeds>) -> Self {
+        let all: Vec<Vec<TrackingRow>> = logs.iter().flat_map(|l| l.per_seed.clone()).collect();
+        SeedsReport {
+            summary: seed_summary(&all),
+            logs,
+        }
+    }
+}
+
 impl Rows for SeedsReport {
     fn table(&self) -> String {
-        self.summary.table()
+        if self.logs.len() < 2 {
+            return self.summary.table();
+        }
+        let mut out = format!(
+            "Over every log and seed ({} logs):\n\n{}",
+            self.logs.len(),
+            self.summary.table()
+        );
+        for l in &self.logs {
+            out.push_str(&format!("\n{}:\n\n{}", l.log, l.summary.table()));
+        }
+        out
     }
 }
 
@@ -405,7 +451,7 @@ impl Rows for [SeedSummary] {
             &[
                 ("noise", Left),
                 ("tracks", Left),
-                ("seeds", Right),
+                ("runs", Right),
                 ("AMOTA mean (low-high)", Right),
                 ("IDS / 100 objects mean (low-high)", Right),
                 ("worst AMOTA / gt-wls tracked", Right),
@@ -415,7 +461,7 @@ impl Rows for [SeedSummary] {
                 vec![
                     r.noise.clone(),
                     r.method.to_string(),
-                    r.seeds.to_string(),
+                    r.runs.to_string(),
                     three(r.amota, 4),
                     three(r.ids_per_100, 2),
                     ratio(r.worst_amota_ratio),

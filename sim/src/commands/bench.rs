@@ -37,6 +37,18 @@ pub struct BenchArgs {
     /// (mean, lowest, highest) and, seed by seed, against `gt-wls tracked`: the worst ratio.
     #[arg(long, requires = "tracking", value_delimiter = ',', num_args = 1..)]
     pub seeds: Vec<u64>,
+    /// With --seeds: further logs in --dataroot's form (nuScenes tables of the same --version),
+    /// each run under every seed and summarised on its own and with the others.
+    #[arg(long, value_name = "DATAROOT", requires_all = ["seeds", "dataroot"])]
+    pub more_dataroot: Vec<PathBuf>,
+    /// With --seeds and the synthetic town: its layout seeds, comma-separated, each town a log
+    /// of its own (in place of --town-seed).
+    #[arg(long, requires = "seeds", conflicts_with = "dataroot", value_delimiter = ',', num_args = 1..)]
+    pub town_seeds: Vec<u64>,
+    /// With --seeds: each log cut into this many parts in time (2: halves), each scored as a
+    /// log of its own.
+    #[arg(long, requires = "seeds", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=16))]
+    pub parts: u16,
     /// Sensing range of each agent in metres (default: every agent sees every object).
     #[arg(long)]
     pub range: Option<f64>,
@@ -168,11 +180,14 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Mode::V2v4real => return v2v4real(&args),
         Mode::Truth(mode) => mode,
     };
+    if mode == TruthMode::TrackingSeeds {
+        return tracking_seeds(&args);
+    }
     let gt = args.data.load()?;
     match mode {
         TruthMode::Regions(size) => regions(&args, &gt, size),
         TruthMode::RegionTracking(size) => region_tracking(&args, &gt, size),
-        TruthMode::TrackingSeeds => tracking_seeds(&args, &gt),
+        TruthMode::TrackingSeeds => unreachable!("run above"),
         TruthMode::Tracking => tracking(&args, &gt),
         TruthMode::Detection(profile) => detection(&args, &gt, &profile),
         TruthMode::Asynchronous => asynchronous(&args, &gt),
@@ -322,25 +337,79 @@ fn regions(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> 
     Ok(())
 }
 
-/// `--tracking --seeds`: the tracking table under each seed, summarised over them.
-fn tracking_seeds(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
-    let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
-    let start = Instant::now();
-    let mut per_seed = Vec::with_capacity(args.seeds.len());
-    for &seed in &args.seeds {
-        let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, args.range)?;
-        per_seed.push(bench::run_tracking(gt, &cfg, Default::default()));
+/// The logs of `--tracking --seeds`: --dataroot and each --more-dataroot, or the town under
+/// each --town-seeds (--town-seed without), each cut into --parts.
+fn tracking_logs(args: &BenchArgs) -> anyhow::Result<Vec<(String, GroundTruth)>> {
+    let mut whole = Vec::new();
+    if args.town_seeds.is_empty() {
+        whole.push((args.data.source(), args.data.load()?));
     }
-    let summary = bench::seed_summary(&per_seed);
-    let report = bench::SeedsReport {
-        per_seed,
-        seeds: args.seeds.clone(),
-        summary,
-    };
+    for &seed in &args.town_seeds {
+        let data = DataArgs {
+            town_seed: seed,
+            ..args.data.clone()
+        };
+        whole.push((data.source(), data.load()?));
+    }
+    for root in &args.more_dataroot {
+        let data = DataArgs {
+            dataroot: Some(root.clone()),
+            ..args.data.clone()
+        };
+        whole.push((data.source(), data.load()?));
+    }
+    let n = usize::from(args.parts);
+    let mut out = Vec::new();
+    for (name, gt) in whole {
+        for k in 0..n {
+            let Some(part) = gt.part(k, n) else {
+                bail!("{name}: --parts cuts nuScenes tables and the town, not data with recorded agents");
+            };
+            let name = if n == 1 {
+                name.clone()
+            } else {
+                format!("{name}, part {} of {n}", k + 1)
+            };
+            out.push((
+                format!(
+                    "{name}: {} frames, {} boxes",
+                    part.frames.len(),
+                    part.boxes()
+                ),
+                part,
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// `--tracking --seeds`: the tracking table of each log under each seed, summarised per log and
+/// over them all.
+fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
+    let (noise, methods) = (args.noise.as_str(), args.methods.as_str());
+    let logs = tracking_logs(args)?;
+    let start = Instant::now();
+    let mut runs = Vec::with_capacity(logs.len());
+    for (name, gt) in &logs {
+        let mut per_seed = Vec::with_capacity(args.seeds.len());
+        for &seed in &args.seeds {
+            let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, args.range)?;
+            per_seed.push(bench::run_tracking(gt, &cfg, Default::default()));
+        }
+        runs.push(bench::LogSeeds::new(
+            name.clone(),
+            args.seeds.clone(),
+            per_seed,
+        ));
+    }
+    let report = bench::SeedsReport::new(runs);
     let seeds: Vec<String> = args.seeds.iter().map(u64::to_string).collect();
+    let what = match &logs[..] {
+        [(name, _)] => name.clone(),
+        _ => format!("{} logs", logs.len()),
+    };
     let heading = format!(
-        "{} ; noise seeds {}; id matching for the boxes, 2 m for tracking; {:.1} s",
-        data.describe(gt),
+        "{what} ; noise seeds {}; id matching for the boxes, 2 m for tracking; {:.1} s",
         seeds.join(", "),
         start.elapsed().as_secs_f64()
     );
@@ -516,5 +585,67 @@ mod tests {
         assert!(mode(&["--agents", "0"]).is_err());
         let err = mode(&[&v2v[..], &["--agents", "4"]].concat()).unwrap_err();
         assert!(err.to_string().contains("real data sets"), "{err}");
+    }
+
+    #[test]
+    fn logs_and_parts_go_with_the_seeds_and_the_town_seeds_with_the_town() {
+        let seeds = ["--tracking", "--seeds", "1,2"];
+        for extra in [
+            &["--parts", "2"][..],
+            &["--town-seeds", "7,8"],
+            &[
+                "--dataroot",
+                "a",
+                "--more-dataroot",
+                "b",
+                "--more-dataroot",
+                "c",
+            ],
+        ] {
+            let flags = [&seeds[..], extra].concat();
+            assert_eq!(mode(&flags).unwrap(), Mode::Truth(TruthMode::TrackingSeeds));
+        }
+        for bad in [
+            &["--tracking", "--parts", "2"][..],
+            &["--tracking", "--town-seeds", "7"],
+            &["--tracking", "--seeds", "1", "--parts", "0"],
+            &["--tracking", "--seeds", "1", "--parts", "17"],
+            &["--tracking", "--seeds", "1", "--more-dataroot", "b"],
+            &[
+                "--tracking",
+                "--seeds",
+                "1",
+                "--dataroot",
+                "a",
+                "--town-seeds",
+                "7",
+            ],
+        ] {
+            assert!(mode(bad).is_err(), "{bad:?}");
+        }
+        let cli = Cli::try_parse_from([
+            "bench",
+            "--tracking",
+            "--seeds",
+            "1",
+            "--town-seeds",
+            "7,9",
+            "--parts",
+            "2",
+        ])
+        .unwrap();
+        let logs = tracking_logs(&BenchArgs {
+            data: DataArgs {
+                seconds: 2.0,
+                ..cli.bench.data.clone()
+            },
+            ..cli.bench
+        })
+        .unwrap();
+        let names: Vec<&str> = logs.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names.len(), 4);
+        assert!(names[0].starts_with("synthetic town (seed 7,"), "{names:?}");
+        assert!(names[1].contains("part 2 of 2: 10 frames"), "{names:?}");
+        assert!(names[3].starts_with("synthetic town (seed 9,"), "{names:?}");
     }
 }
