@@ -2,8 +2,10 @@
 //! set of tracks, SORT's loop with the covariances WLS-3D already gives.
 //!
 //! Per window at time t:
-//! 1. **predict** every track to t with a constant-velocity model on (x, y, vx, vy):
-//!    x <- F x, P <- F P F^T + Q, Q the white-acceleration noise of std `accel_std`;
+//! 1. **predict** every track to t with two constant-velocity models on (x, y, vx, vy), an
+//!    agile and a quiet one (white-acceleration Q of std `accel_std` and `quiet_accel_std`),
+//!    mixed as an interacting multiple model: each x_j <- F x_j, P_j <- F P_j F^T + Q_j from
+//!    the models' mixture by the chance of a change, the track's state their mixture by mu;
 //! 2. **cost** of a (track, box) pair of the same class: the innovation y = z - H x with
 //!    S = H P H^T + R (R the box's own covariance; H measures the centre, and the velocity too
 //!    when the box has one) gives d^2 = y^T S^-1 y and the cost d^2 + ln det S, twice the
@@ -11,7 +13,8 @@
 //!    `by_id`, a simulation's perfect association, a box's only pair is the track its
 //!    ground-truth id had);
 //! 3. **assign** with the association's exact solver (`association::assign`);
-//! 4. **update** matched tracks with the Kalman gain (Joseph form); size by WLS against the box,
+//! 4. **update** matched tracks: each model with the Kalman gain (Joseph form) and its
+//!    probability by its likelihood; size by WLS against the box,
 //!    yaw as WLS-3D fuses it (period pi for barriers, a heading turned by pi beyond 4 stds taken
 //!    as a flip); unmatched boxes start tentative tracks;
 //! 5. **lifecycle**: a tentative track is confirmed after `confirm_hits` consecutive hits and
@@ -23,14 +26,21 @@
 
 use crate::maths::association::{assign, Edge};
 use crate::maths::fusion::FLIP_SIGMAS;
-use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
+use nalgebra::{Const, DimMin, Matrix2, Matrix2x4, Matrix4, SMatrix, SVector, Vector2, Vector4};
 use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 
 /// Parameters of the tracker.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct TrackerParams {
-    /// Std of the unmodelled acceleration (m/s^2), as in motion compensation.
+    /// Std of the unmodelled acceleration (m/s^2) of the agile motion model, as in motion
+    /// compensation.
     pub accel_std: f64,
+    /// Std of the unmodelled acceleration (m/s^2) of the quiet motion model: an object keeping
+    /// its course. Each track weighs the two models by how well each predicted its boxes
+    /// (`docs/method.md` §8); equal to `accel_std`, one model.
+    pub quiet_accel_std: f64,
+    /// Mean time (s) an object keeps to one motion model before it may change to the other.
+    pub mode_hold_s: f64,
     /// Gate on d^2 of a (track, box) pair: the 99.9% chi-square quantile for 4 degrees of
     /// freedom (centre and velocity measured); with the centre alone the same bound is looser.
     pub gate: f64,
@@ -75,6 +85,8 @@ impl Default for TrackerParams {
     fn default() -> Self {
         TrackerParams {
             accel_std: 2.0,
+            quiet_accel_std: 0.5,
+            mode_hold_s: 2.0,
             gate: 18.47,
             confirm_hits: 2,
             max_misses: 3,
@@ -96,9 +108,12 @@ impl Default for TrackerParams {
 struct Track {
     id: u32,
     class: Class,
-    /// (x, y, vx, vy) and its covariance.
+    /// (x, y, vx, vy) and its covariance: the two motion models' mixture.
     x: Vector4<f64>,
     p: Matrix4<f64>,
+    /// Each motion model's (x, y, vx, vy) and covariance, quiet first, and its probability.
+    modes: [(Vector4<f64>, Matrix4<f64>); 2],
+    mu: [f64; 2],
     z: (f64, f64),
     size: [(f64, f64); 3],
     yaw: (f64, f64),
@@ -390,11 +405,14 @@ fn birth(id: u32, b: &Detection, p: &TrackerParams) -> Track {
     cov[(1, 1)] = c[1][1];
     cov[(2, 2)] = vv[0];
     cov[(3, 3)] = vv[1];
+    let x = Vector4::new(b.center[0], b.center[1], v[0], v[1]);
     Track {
         id,
         class: b.class,
-        x: Vector4::new(b.center[0], b.center[1], v[0], v[1]),
+        x,
         p: cov,
+        modes: [(x, cov); 2],
+        mu: [0.5; 2],
         z: (b.center[2], c[2][2]),
         size: std::array::from_fn(|k| (b.size[k], b.std.size[k].powi(2))),
         yaw: (b.yaw, b.std.yaw.powi(2)),
@@ -406,7 +424,10 @@ fn birth(id: u32, b: &Detection, p: &TrackerParams) -> Track {
     }
 }
 
-/// x <- F x, P <- F P F^T + Q over dt; the yaw variance grows with the yaw rate std.
+/// The interacting multiple model's prediction over dt: the two models mixed by the chance
+/// that the object changed model (each stays with probability 1 - s, s = (1 - e^(-dt/hold))/2),
+/// each predicted x <- F x, P <- F P F^T + Q with its own acceleration std, and the track's
+/// state their mixture; the yaw variance grows with the yaw rate std.
 fn predict(t: &mut Track, dt: f64, p: &TrackerParams) {
     if dt == 0.0 {
         return;
@@ -414,18 +435,50 @@ fn predict(t: &mut Track, dt: f64, p: &TrackerParams) {
     let mut f = Matrix4::identity();
     f[(0, 2)] = dt;
     f[(1, 3)] = dt;
-    let q = (p.accel_std * accel_scale(t.class)).powi(2);
-    let (a, b, c) = (dt.powi(4) / 4.0 * q, dt.powi(3) / 2.0 * q, dt * dt * q);
-    #[rustfmt::skip]
-    let qm = Matrix4::new(
-        a, 0.0, b, 0.0,
-        0.0, a, 0.0, b,
-        b, 0.0, c, 0.0,
-        0.0, b, 0.0, c,
-    );
-    t.x = f * t.x;
-    t.p = f * t.p * f.transpose() + qm;
+    let s = if p.mode_hold_s > 0.0 {
+        0.5 * (1.0 - (-dt / p.mode_hold_s).exp())
+    } else {
+        0.5
+    };
+    let stay = [[1.0 - s, s], [s, 1.0 - s]];
+    // c_j = sum_i Pi_ij mu_i; the mixed start of model j weighs model i by Pi_ij mu_i / c_j.
+    let c: [f64; 2] = std::array::from_fn(|j| (0..2).map(|i| stay[i][j] * t.mu[i]).sum());
+    let mixed: [(Vector4<f64>, Matrix4<f64>); 2] = std::array::from_fn(|j| {
+        let w: [f64; 2] = std::array::from_fn(|i| stay[i][j] * t.mu[i] / c[j].max(1e-300));
+        mixture(&t.modes, w)
+    });
+    for (j, (x, cov)) in mixed.into_iter().enumerate() {
+        let accel = if j == 0 {
+            p.quiet_accel_std
+        } else {
+            p.accel_std
+        };
+        let q = (accel * accel_scale(t.class)).powi(2);
+        let (a, b, c) = (dt.powi(4) / 4.0 * q, dt.powi(3) / 2.0 * q, dt * dt * q);
+        #[rustfmt::skip]
+        let qm = Matrix4::new(
+            a, 0.0, b, 0.0,
+            0.0, a, 0.0, b,
+            b, 0.0, c, 0.0,
+            0.0, b, 0.0, c,
+        );
+        t.modes[j] = (f * x, f * cov * f.transpose() + qm);
+    }
+    t.mu = c;
+    (t.x, t.p) = mixture(&t.modes, t.mu);
     t.yaw.1 += (p.yaw_rate_std * dt).powi(2);
+}
+
+/// The moment-matched mixture of the models' states weighted `w`: the mean, and the covariance
+/// with the spread of the means.
+fn mixture(modes: &[(Vector4<f64>, Matrix4<f64>); 2], w: [f64; 2]) -> (Vector4<f64>, Matrix4<f64>) {
+    let x = modes[0].0 * w[0] + modes[1].0 * w[1];
+    let mut cov = Matrix4::zeros();
+    for ((xi, pi), wi) in modes.iter().zip(w) {
+        let d = xi - x;
+        cov += (pi + d * d.transpose()) * wi;
+    }
+    (x, cov)
 }
 
 /// How much of `accel_std` a class's motion has: vehicles all of it, people and bicycles half,
@@ -438,28 +491,35 @@ fn accel_scale(class: Class) -> f64 {
     }
 }
 
-/// The measurement matrix, the measurement and its covariance for a box: the centre, and the
-/// velocity when the box has one.
-fn measurement(b: &Detection) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
+/// A box as a measurement of (x, y, vx, vy): H, z and R, of the centre, and of the velocity too
+/// when the box has one.
+enum Measurement {
+    /// The centre alone.
+    Centre(Matrix2x4<f64>, Vector2<f64>, Matrix2<f64>),
+    /// The centre and the velocity (H the identity).
+    Full(Matrix4<f64>, Vector4<f64>, Matrix4<f64>),
+}
+
+/// The box as a measurement.
+fn measurement(b: &Detection) -> Measurement {
     let c = b.position_covariance();
     match &b.velocity {
         Some(v) => {
-            let h = DMatrix::identity(4, 4);
-            let z = DVector::from_vec(vec![b.center[0], b.center[1], v.v[0], v.v[1]]);
-            let mut r = DMatrix::zeros(4, 4);
-            r[(0, 0)] = c[0][0];
-            r[(0, 1)] = c[0][1];
-            r[(1, 0)] = c[1][0];
-            r[(1, 1)] = c[1][1];
-            r[(2, 2)] = v.std[0].powi(2);
-            r[(3, 3)] = v.std[1].powi(2);
-            (h, z, r)
+            #[rustfmt::skip]
+            let r = Matrix4::new(
+                c[0][0], c[0][1], 0.0, 0.0,
+                c[1][0], c[1][1], 0.0, 0.0,
+                0.0, 0.0, v.std[0].powi(2), 0.0,
+                0.0, 0.0, 0.0, v.std[1].powi(2),
+            );
+            let z = Vector4::new(b.center[0], b.center[1], v.v[0], v.v[1]);
+            Measurement::Full(Matrix4::identity(), z, r)
         }
         None => {
-            let h = DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
-            let z = DVector::from_vec(vec![b.center[0], b.center[1]]);
-            let r = DMatrix::from_row_slice(2, 2, &[c[0][0], c[0][1], c[1][0], c[1][1]]);
-            (h, z, r)
+            let h = Matrix2x4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+            let z = Vector2::new(b.center[0], b.center[1]);
+            let r = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
+            Measurement::Centre(h, z, r)
         }
     }
 }
@@ -475,34 +535,85 @@ fn may_pass(t: &Track, b: &Detection, [vx, vy]: [f64; 2], gate: f64) -> bool {
 /// The squared Mahalanobis distance d^2 = y^T S^-1 y of a box from a track's state, and ln det S
 /// (`None` when S is singular).
 fn distance(t: &Track, b: &Detection) -> Option<(f64, f64)> {
-    let (y, s, _) = innovation(t, b);
-    let s_inv = s.clone().try_inverse()?;
-    let d2 = (y.transpose() * &s_inv * &y)[0];
-    Some((d2, s.determinant().max(1e-300).ln()))
+    match measurement(b) {
+        Measurement::Centre(h, z, r) => gaussian(&t.x, &t.p, &h, &z, &r).map(|g| (g.d2, g.ln_det)),
+        Measurement::Full(h, z, r) => gaussian(&t.x, &t.p, &h, &z, &r).map(|g| (g.d2, g.ln_det)),
+    }
 }
 
-/// The innovation y, its covariance S and H.
-fn innovation(t: &Track, b: &Detection) -> (DVector<f64>, DMatrix<f64>, DMatrix<f64>) {
-    let (h, z, r) = measurement(b);
-    let x = DVector::from_column_slice(t.x.as_slice());
-    let p = DMatrix::from_column_slice(4, 4, t.p.as_slice());
-    let y = z - &h * x;
-    let s = &h * p * h.transpose() + r;
-    (y, s, h)
+/// A state's innovation y by a measurement, S^-1, d^2 = y^T S^-1 y and ln det S.
+struct Innovation<const M: usize> {
+    y: SVector<f64, M>,
+    s_inv: SMatrix<f64, M, M>,
+    d2: f64,
+    ln_det: f64,
 }
 
-/// The Kalman update of the kinematic state (Joseph form), then size, z and yaw.
+/// y = z - H x and S = H P H^T + R of the state (x, P); `None` when S is singular.
+fn gaussian<const M: usize>(
+    x: &Vector4<f64>,
+    p: &Matrix4<f64>,
+    h: &SMatrix<f64, M, 4>,
+    z: &SVector<f64, M>,
+    r: &SMatrix<f64, M, M>,
+) -> Option<Innovation<M>>
+where
+    Const<M>: DimMin<Const<M>, Output = Const<M>>,
+{
+    let y = z - h * x;
+    let s = h * p * h.transpose() + r;
+    let s_inv = s.try_inverse()?;
+    let d2 = (y.transpose() * s_inv * y)[0];
+    Some(Innovation {
+        y,
+        s_inv,
+        d2,
+        ln_det: s.determinant().max(1e-300).ln(),
+    })
+}
+
+/// The Kalman update of one model's state (Joseph form); its log-likelihood
+/// -(d^2 + ln det S) / 2, or `None` (the state kept) when S is singular.
+fn kalman<const M: usize>(
+    x: &mut Vector4<f64>,
+    p: &mut Matrix4<f64>,
+    h: &SMatrix<f64, M, 4>,
+    z: &SVector<f64, M>,
+    r: &SMatrix<f64, M, M>,
+) -> Option<f64>
+where
+    Const<M>: DimMin<Const<M>, Output = Const<M>>,
+{
+    let g = gaussian(x, p, h, z, r)?;
+    let k = *p * h.transpose() * g.s_inv;
+    *x += k * g.y;
+    let i_kh = Matrix4::identity() - k * h;
+    *p = i_kh * *p * i_kh.transpose() + k * r * k.transpose();
+    Some(-0.5 * (g.d2 + g.ln_det))
+}
+
+/// The Kalman update of each motion model, each model's probability times its likelihood
+/// N(y; 0, S), the track's state their mixture; then size, z and yaw.
 fn update(t: &mut Track, b: &Detection, dt: f64, p: &TrackerParams) {
-    let (y, s, h) = innovation(t, b);
-    let (_, _, r) = measurement(b);
-    if let Some(s_inv) = s.try_inverse() {
-        let p = DMatrix::from_column_slice(4, 4, t.p.as_slice());
-        let k = &p * h.transpose() * s_inv;
-        let x = DVector::from_column_slice(t.x.as_slice()) + &k * y;
-        let i_kh = DMatrix::identity(4, 4) - &k * &h;
-        let p = &i_kh * p * i_kh.transpose() + &k * r * k.transpose();
-        t.x = Vector4::from_column_slice(x.as_slice());
-        t.p = Matrix4::from_column_slice(p.as_slice());
+    let m = measurement(b);
+    let mut log_l = [f64::NEG_INFINITY; 2];
+    for ((x, cov), l) in t.modes.iter_mut().zip(&mut log_l) {
+        let updated = match &m {
+            Measurement::Centre(h, z, r) => kalman(x, cov, h, z, r),
+            Measurement::Full(h, z, r) => kalman(x, cov, h, z, r),
+        };
+        if let Some(v) = updated {
+            *l = v;
+        }
+    }
+    if log_l.iter().any(|l| l.is_finite()) {
+        let top = log_l[0].max(log_l[1]);
+        let w: [f64; 2] = std::array::from_fn(|j| t.mu[j] * (log_l[j] - top).exp());
+        let sum = w[0] + w[1];
+        if sum > 0.0 && sum.is_finite() {
+            t.mu = w.map(|v| v / sum);
+        }
+        (t.x, t.p) = mixture(&t.modes, t.mu);
     }
     let c = b.position_covariance();
     t.z = blend(t.z, (b.center[2], c[2][2]), p.height_var_per_s * dt);

@@ -174,6 +174,7 @@ fn take_over(t: &mut super::Track, d: &Detection) {
             }
             t.p[(2, 2)] = v.std[0].powi(2);
             t.p[(3, 3)] = v.std[1].powi(2);
+            t.modes = [(t.x, t.p); 2];
         }
     }
 }
