@@ -240,6 +240,26 @@ impl TrackingEval {
         s.frames.push(Frame { t_us, gt, hyps });
     }
 
+    /// Where each identity switch counted in [`TrackingEval::summary`] happened: the object's
+    /// centre (x, y) in the frame it changed track, at its class's threshold of best MOTA.
+    pub fn switch_positions(&self) -> Vec<[f64; 2]> {
+        let scenes: Vec<Scene> = self.scenes.iter().map(prepare).collect();
+        let mut at = Vec::new();
+        for class in Class::TRACKING {
+            let gt_count: usize = frames(&scenes)
+                .map(|f| f.gt.iter().filter(|o| o.class == class).count())
+                .sum();
+            if gt_count == 0 {
+                continue;
+            }
+            let c = evaluate_class(&scenes, class, gt_count);
+            if c.best.is_some() {
+                accumulate(&scenes, class, c.best_threshold, Some(&mut at));
+            }
+        }
+        at
+    }
+
     /// Appends another evaluation's scenes after this one's.
     pub fn merge(&mut self, other: TrackingEval) {
         self.scenes.extend(other.scenes);
@@ -322,10 +342,12 @@ struct ClassFigures {
     mota: f64,
     motp: f64,
     best: Option<Counts>,
+    /// The score threshold of `best` (`None`: every box).
+    best_threshold: Option<f64>,
 }
 
 fn evaluate_class(scenes: &[Scene], class: Class, gt_count: usize) -> ClassFigures {
-    let (_, scores) = accumulate(scenes, class, None);
+    let (_, scores) = accumulate(scenes, class, None, None);
     let thresholds = thresholds(scores, gt_count);
     // per threshold (ascending, the unreached ones first): the counts, computed once per value
     let mut counts: Vec<Option<Counts>> = Vec::with_capacity(NUM_THRESHOLDS);
@@ -334,7 +356,7 @@ fn evaluate_class(scenes: &[Scene], class: Class, gt_count: usize) -> ClassFigur
             None => None,
             Some(th) => match thresholds[..t].iter().position(|x| *x == Some(*th)) {
                 Some(k) => counts[k],
-                None => Some(accumulate(scenes, class, Some(*th)).0),
+                None => Some(accumulate(scenes, class, Some(*th), None).0),
             },
         };
         counts.push(c);
@@ -347,6 +369,7 @@ fn evaluate_class(scenes: &[Scene], class: Class, gt_count: usize) -> ClassFigur
             mota: 0.0,
             motp: WORST_MOTP,
             best: None,
+            best_threshold: None,
         };
     }
     let over = |f: fn(&Counts) -> f64, worst: f64| {
@@ -357,19 +380,21 @@ fn evaluate_class(scenes: &[Scene], class: Class, gt_count: usize) -> ClassFigur
             / NUM_THRESHOLDS as f64
     };
     // np.nanargmax: the first of the largest
-    let mut best: Option<Counts> = None;
-    for c in counts.iter().flatten() {
-        if best.is_none_or(|b| c.mota() > b.mota()) {
-            best = Some(*c);
+    let mut best: Option<(Counts, Option<f64>)> = None;
+    for (c, th) in counts.iter().zip(&thresholds) {
+        let Some(c) = c else { continue };
+        if best.is_none_or(|(b, _)| c.mota() > b.mota()) {
+            best = Some((*c, *th));
         }
     }
-    let best = best.expect("some threshold reached");
+    let (best, best_threshold) = best.expect("some threshold reached");
     ClassFigures {
         amota: over(Counts::motar, 0.0),
         amotp: over(Counts::motp, WORST_MOTP),
         mota: best.mota(),
         motp: best.motp(),
         best: Some(best),
+        best_threshold,
     }
 }
 
@@ -401,8 +426,14 @@ fn thresholds(mut scores: Vec<f64>, gt_count: usize) -> Vec<Option<f64>> {
 }
 
 /// The devkit's `accumulate_threshold` for one class: the event counts with the boxes scoring
-/// at least `threshold` (all of them with `None`), and the scores of the matches.
-fn accumulate(scenes: &[Scene], class: Class, threshold: Option<f64>) -> (Counts, Vec<f64>) {
+/// at least `threshold` (all of them with `None`), and the scores of the matches; where each
+/// switch's object stood, into `switches_at` when given.
+fn accumulate(
+    scenes: &[Scene],
+    class: Class,
+    threshold: Option<f64>,
+    mut switches_at: Option<&mut Vec<[f64; 2]>>,
+) -> (Counts, Vec<f64>) {
     let mut c = Counts::default();
     let mut scores = Vec::new();
     for scene in scenes {
@@ -457,6 +488,9 @@ fn accumulate(scenes: &[Scene], class: Class, threshold: Option<f64>) -> (Counts
                 // 3. a new match with another track than before: a switch
                 if last.get(&objs[i].id).is_some_and(|t| *t != hyps[j].track) {
                     c.switches += 1;
+                    if let Some(at) = switches_at.as_deref_mut() {
+                        at.push(objs[i].xy);
+                    }
                 } else {
                     c.matches += 1;
                     scores.push(hyps[j].score);
@@ -700,6 +734,32 @@ mod tests {
             center: [x, 0.0],
             score,
         }
+    }
+
+    #[test]
+    fn each_switch_is_placed_where_its_object_stood() {
+        // Object 2 changes track twice (b -> c at x = 20, c -> d at x = 25); object 1 never.
+        let mut e = TrackingEval::new();
+        let frames: [(&[GtObject], &[TrackBox]); 3] = [
+            (
+                &[obj(1, 0.0), obj(2, 20.0)],
+                &[trk("a", 0.0), trk("b", 20.0)],
+            ),
+            (
+                &[obj(1, 0.0), obj(2, 20.0)],
+                &[trk("a", 0.0), trk("c", 20.5)],
+            ),
+            (
+                &[obj(1, 0.0), obj(2, 25.0)],
+                &[trk("a", 0.0), trk("d", 25.0)],
+            ),
+        ];
+        for (k, (gt, boxes)) in frames.iter().enumerate() {
+            e.add_frame(0, 500_000 * k as u64, gt, boxes);
+        }
+        assert_eq!(e.summary().ids, 2);
+        assert_eq!(e.switch_positions(), vec![[20.0, 0.0], [25.0, 0.0]]);
+        assert!(TrackingEval::new().switch_positions().is_empty());
     }
 
     /// Frames of one scene, 0.5 s apart.

@@ -111,6 +111,14 @@ impl Tiling {
         (lo, [lo[0] + self.size_m, lo[1] + self.size_m])
     }
 
+    /// How far a point lies from the nearest border of its tile (m; 0 on a border).
+    pub fn border_distance(&self, p: [f64; 2]) -> f64 {
+        let (lo, hi) = self.bounds(self.tile_of([p[0], p[1], 0.0]));
+        (0..2)
+            .map(|k| (p[k] - lo[k]).abs().min((hi[k] - p[k]).abs()))
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Whether a point lies in the tile grown by `halo_m` on every side.
     pub fn within(&self, t: Tile, p: [f64; 3], halo_m: f64) -> bool {
         let (lo, hi) = self.bounds(t);

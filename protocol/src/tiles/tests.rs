@@ -133,3 +133,13 @@ proptest::proptest! {
         proptest::prop_assert_eq!(decode_tiles(&bytes).unwrap(), tiles);
     }
 }
+
+#[test]
+fn a_points_border_distance_is_to_the_nearest_edge_of_its_tile() {
+    let g = grid();
+    assert_eq!(g.border_distance([0.0, 50.0]), 0.0);
+    assert_eq!(g.border_distance([30.0, 100.0]), 30.0);
+    assert_eq!(g.border_distance([190.0, 100.0]), 10.0);
+    assert_eq!(g.border_distance([-5.0, -150.0]), 5.0);
+    assert_eq!(g.border_distance([100.0, 100.0]), 100.0);
+}

@@ -216,6 +216,10 @@ pub struct Summary {
     /// With `[fuser] track`: the tracks scored as the nuScenes tracking benchmark does
     /// (AMOTA, MOTA, IDS...), over the same frames.
     pub tracking: Option<TrackingMetrics>,
+    /// With `[fuser] track` and `[regions]`: the identity switches whose object stood within
+    /// [`BORDER_M`] of a tile border.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub border_switches: Option<usize>,
     /// Metrics of each agent alone over the same frames.
     pub agents: BTreeMap<String, Metrics>,
     /// Bandwidth per agent.
@@ -265,12 +269,22 @@ pub fn summarize(
     wall_s: f64,
 ) -> Summary {
     let (fused, covered) = fused_metrics(scenario, gt, schedule, outcome);
-    let tracking = scenario
+    let tracks = scenario
         .fuser
         .settings
         .track
         .track
         .then(|| tracking_metrics(gt, schedule, outcome, &covered));
+    let border_switches = scenario.regions.as_ref().and_then(|r| {
+        let tiling = r.tiling();
+        let (_, at) = tracks.as_ref()?;
+        Some(
+            at.iter()
+                .filter(|p| tiling.border_distance(**p) <= BORDER_M)
+                .count(),
+        )
+    });
+    let tracking = tracks.map(|(m, _)| m);
     let (bandwidth, counts) = agent_traffic(scenario, schedule, outcome, totals);
     Summary {
         namespace: scenario.namespace.clone(),
@@ -282,6 +296,7 @@ pub fn summarize(
         wall_s,
         fused,
         tracking,
+        border_switches,
         agents: agent_metrics(scenario, gt, schedule, outcome.reached_us),
         bandwidth,
         counts,
@@ -375,14 +390,18 @@ fn fused_metrics(
     (acc.summary(), covered)
 }
 
+/// Identity switches whose object stood within this distance (m) of a tile border are the
+/// border's: a window or two of an object's motion, and the hand-over's reach.
+pub const BORDER_M: f64 = 10.0;
+
 /// The tracks scored as the tracking benchmark does: each window's tracks at its time, and
-/// every reached frame no window came near as empty.
+/// every reached frame no window came near as empty; and where each identity switch happened.
 fn tracking_metrics(
     gt: &GroundTruth,
     schedule: &Schedule,
     outcome: &FuserOutcome,
     covered: &[bool],
-) -> TrackingMetrics {
+) -> (TrackingMetrics, Vec<[f64; 2]>) {
     let mut frames: BTreeMap<u64, (Vec<GtObject>, Vec<TrackBox>)> = outcome
         .tracks
         .iter()
@@ -409,7 +428,8 @@ fn tracking_metrics(
     for (t, (objects, boxes)) in &frames {
         eval.add_frame(schedule.scene, *t, objects, boxes);
     }
-    eval.summary()
+    let at = eval.switch_positions();
+    (eval.summary(), at)
 }
 
 /// Each agent alone, at its own capture times up to `reached`, as it saw them: absent while it
@@ -658,8 +678,11 @@ pub fn print_table(s: &Summary) {
     print!("{}", crate::table::Rows::table(&rows[..]));
     println!();
     if let Some(t) = &s.tracking {
+        let border = s.border_switches.map_or(String::new(), |n| {
+            format!(", {n} within {BORDER_M} m of a tile border")
+        });
         println!(
-            "tracks: AMOTA {:.4} · AMOTP {:.3} m · MOTA {:.4} · MOTP {:.3} m · IDS {} ({:.2} per 100 objects) · FRAG {}",
+            "tracks: AMOTA {:.4} · AMOTP {:.3} m · MOTA {:.4} · MOTP {:.3} m · IDS {} ({:.2} per 100 objects{border}) · FRAG {}",
             t.amota, t.amotp, t.mota, t.motp, t.ids, t.ids_per_100_tracks, t.frag
         );
         println!();
@@ -796,7 +819,12 @@ mod tests {
 
     /// The town's 20 frames fused and tracked exactly: ids from `id(object, frame)`.
     fn tracked_with(id: impl Fn(u32, usize) -> u32) -> Summary {
-        let mut scenario = Scenario::parse(crate::scenario::DEFAULT, "default", None).unwrap();
+        tracked_in(crate::scenario::DEFAULT, id)
+    }
+
+    /// [`tracked_with`] in the scenario `toml`.
+    fn tracked_in(toml: &str, id: impl Fn(u32, usize) -> u32) -> Summary {
+        let mut scenario = Scenario::parse(toml, "scenario", None).unwrap();
         scenario.fuser.settings.track.track = true;
         let (gt, schedule) = town();
         let mut outcome = FuserOutcome::default();
@@ -837,6 +865,24 @@ mod tests {
             .tracking
             .unwrap();
         assert_eq!(renamed.ids, both);
+        assert_eq!(
+            tracked_with(|o, k| if k < 10 { o } else { o + 1000 }).border_switches,
+            None,
+            "no tiles, no border"
+        );
+        // In the city's 100 m tiles: the switches of objects within 10 m of a tile border.
+        let city = include_str!("../../../scenarios/city.toml");
+        let tiling = v2x_protocol::tiles::Tiling::new(100.0).unwrap();
+        let near: usize = at
+            .iter()
+            .filter(|o| before.iter().any(|b| b.id == o.id) && o.class.is_tracking())
+            .filter(|o| tiling.border_distance([o.center[0], o.center[1]]) <= BORDER_M)
+            .count();
+        assert!(near > 0 && near < both, "{near} of {both}");
+        let s = tracked_in(city, |o, k| if k < 10 { o } else { o + 1000 });
+        assert_eq!(s.tracking.unwrap().ids, both);
+        assert_eq!(s.border_switches, Some(near));
+        assert_eq!(tracked_in(city, |o, _| o).border_switches, Some(0));
     }
 
     fn frame_objects(k: usize) -> usize {
