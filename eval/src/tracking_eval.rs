@@ -246,9 +246,7 @@ impl TrackingEval {
         let scenes: Vec<Scene> = self.scenes.iter().map(prepare).collect();
         let mut at = Vec::new();
         for class in Class::TRACKING {
-            let gt_count: usize = frames(&scenes)
-                .map(|f| f.gt.iter().filter(|o| o.class == class).count())
-                .sum();
+            let gt_count = class_count(&scenes, class);
             if gt_count == 0 {
                 continue;
             }
@@ -272,9 +270,7 @@ impl TrackingEval {
         let (mut amota, mut amotp, mut mota, mut motp) = (vec![], vec![], vec![], vec![]);
         let mut objects = std::collections::HashSet::new();
         for class in Class::TRACKING {
-            let gt_count: usize = frames(&scenes)
-                .map(|f| f.gt.iter().filter(|o| o.class == class).count())
-                .sum();
+            let gt_count = class_count(&scenes, class);
             if gt_count == 0 {
                 continue;
             }
@@ -333,6 +329,13 @@ impl TrackingEval {
 
 fn frames(scenes: &[Scene]) -> impl Iterator<Item = &Frame> {
     scenes.iter().flat_map(|s| &s.frames)
+}
+
+/// The ground-truth boxes of a class over every frame.
+fn class_count(scenes: &[Scene], class: Class) -> usize {
+    frames(scenes)
+        .map(|f| f.gt.iter().filter(|o| o.class == class).count())
+        .sum()
 }
 
 /// One class's figures: AMOTA, AMOTP, and the counts at the threshold of best MOTA.
