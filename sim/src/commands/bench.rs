@@ -152,8 +152,11 @@ impl Mode {
                 || args.profile.is_some()
                 || args.asynchronous
                 || args.plot.is_some()
+                || !args.seeds.is_empty()
+                || args.parts != 1
+                || !args.more_dataroot.is_empty()
             {
-                bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async and --plot");
+                bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async, --plot, --seeds, --parts and --more-dataroot");
             }
             return Ok(Mode::V2v4real);
         }
@@ -565,8 +568,14 @@ mod tests {
         );
         let v2v = ["--dataset", "v2v4real", "--dataroot", "x"];
         assert_eq!(mode(&v2v).unwrap(), Mode::V2v4real);
-        let err = mode(&[&v2v[..], &["--tile-size", "50"]].concat()).unwrap_err();
-        assert!(err.to_string().contains("leave out --tile-size"), "{err}");
+        for extra in [
+            &["--tile-size", "50"][..],
+            &["--tracking", "--seeds", "1,2"],
+            &["--tracking", "--seeds", "1", "--parts", "2"],
+        ] {
+            let err = mode(&[&v2v[..], extra].concat()).unwrap_err();
+            assert!(err.to_string().contains("leave out --tile-size"), "{err}");
+        }
         let dair = ["--dataset", "dair-v2x", "--dataroot", "x", "--tracking"];
         assert!(mode(&dair)
             .unwrap_err()
