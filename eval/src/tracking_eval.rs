@@ -240,24 +240,6 @@ impl TrackingEval {
         s.frames.push(Frame { t_us, gt, hyps });
     }
 
-    /// Where each identity switch counted in [`TrackingEval::summary`] happened: the object's
-    /// centre (x, y) in the frame it changed track, at its class's threshold of best MOTA.
-    pub fn switch_positions(&self) -> Vec<[f64; 2]> {
-        let scenes: Vec<Scene> = self.scenes.iter().map(prepare).collect();
-        let mut at = Vec::new();
-        for class in Class::TRACKING {
-            let gt_count = class_count(&scenes, class);
-            if gt_count == 0 {
-                continue;
-            }
-            let c = evaluate_class(&scenes, class, gt_count);
-            if c.best.is_some() {
-                accumulate(&scenes, class, c.best_threshold, Some(&mut at));
-            }
-        }
-        at
-    }
-
     /// Appends another evaluation's scenes after this one's.
     pub fn merge(&mut self, other: TrackingEval) {
         self.scenes.extend(other.scenes);
@@ -265,12 +247,28 @@ impl TrackingEval {
 
     /// The tracking benchmark's figures over every frame added.
     pub fn summary(&self) -> TrackingMetrics {
+        self.score(None)
+    }
+
+    /// [`TrackingEval::summary`], and where each identity switch it counts happened: the
+    /// object's centre (x, y) in the frame it changed track, at its class's threshold of best
+    /// MOTA.
+    pub fn summary_with_switches(&self) -> (TrackingMetrics, Vec<[f64; 2]>) {
+        let mut at = Vec::new();
+        let m = self.score(Some(&mut at));
+        (m, at)
+    }
+
+    /// The figures; the switches' places into `switches_at` when given.
+    fn score(&self, mut switches_at: Option<&mut Vec<[f64; 2]>>) -> TrackingMetrics {
         let scenes: Vec<Scene> = self.scenes.iter().map(prepare).collect();
         let mut m = TrackingMetrics::default();
         let (mut amota, mut amotp, mut mota, mut motp) = (vec![], vec![], vec![], vec![]);
         let mut objects = std::collections::HashSet::new();
         for class in Class::TRACKING {
-            let gt_count = class_count(&scenes, class);
+            let gt_count: usize = frames(&scenes)
+                .map(|f| f.gt.iter().filter(|o| o.class == class).count())
+                .sum();
             if gt_count == 0 {
                 continue;
             }
@@ -285,6 +283,9 @@ impl TrackingEval {
             }
             if !c.motp.is_nan() {
                 motp.push(c.motp);
+            }
+            if let (Some(at), Some(_)) = (switches_at.as_deref_mut(), c.best) {
+                accumulate(&scenes, class, c.best_threshold, Some(at));
             }
             if let Some(best) = c.best {
                 m.ids += best.switches;
@@ -329,13 +330,6 @@ impl TrackingEval {
 
 fn frames(scenes: &[Scene]) -> impl Iterator<Item = &Frame> {
     scenes.iter().flat_map(|s| &s.frames)
-}
-
-/// The ground-truth boxes of a class over every frame.
-fn class_count(scenes: &[Scene], class: Class) -> usize {
-    frames(scenes)
-        .map(|f| f.gt.iter().filter(|o| o.class == class).count())
-        .sum()
 }
 
 /// One class's figures: AMOTA, AMOTP, and the counts at the threshold of best MOTA.
@@ -760,9 +754,11 @@ mod tests {
         for (k, (gt, boxes)) in frames.iter().enumerate() {
             e.add_frame(0, 500_000 * k as u64, gt, boxes);
         }
-        assert_eq!(e.summary().ids, 2);
-        assert_eq!(e.switch_positions(), vec![[20.0, 0.0], [25.0, 0.0]]);
-        assert!(TrackingEval::new().switch_positions().is_empty());
+        let (m, at) = e.summary_with_switches();
+        assert_eq!(m, e.summary());
+        assert_eq!(m.ids, 2);
+        assert_eq!(at, vec![[20.0, 0.0], [25.0, 0.0]]);
+        assert!(TrackingEval::new().summary_with_switches().1.is_empty());
     }
 
     /// Frames of one scene, 0.5 s apart.

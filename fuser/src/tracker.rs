@@ -535,9 +535,24 @@ fn may_pass(t: &Track, b: &Detection, [vx, vy]: [f64; 2], gate: f64) -> bool {
 /// The squared Mahalanobis distance d^2 = y^T S^-1 y of a box from a track's state, and ln det S
 /// (`None` when S is singular).
 fn distance(t: &Track, b: &Detection) -> Option<(f64, f64)> {
-    match measurement(b) {
-        Measurement::Centre(h, z, r) => gaussian(&t.x, &t.p, &h, &z, &r).map(|g| (g.d2, g.ln_det)),
-        Measurement::Full(h, z, r) => gaussian(&t.x, &t.p, &h, &z, &r).map(|g| (g.d2, g.ln_det)),
+    measurement(b).distance(&t.x, &t.p)
+}
+
+impl Measurement {
+    /// d^2 and ln det S of the state (x, P); `None` when S is singular.
+    fn distance(&self, x: &Vector4<f64>, p: &Matrix4<f64>) -> Option<(f64, f64)> {
+        match self {
+            Measurement::Centre(h, z, r) => gaussian(x, p, h, z, r).map(|g| (g.d2, g.ln_det)),
+            Measurement::Full(h, z, r) => gaussian(x, p, h, z, r).map(|g| (g.d2, g.ln_det)),
+        }
+    }
+
+    /// [`kalman`] of the state (x, P) by this measurement.
+    fn update(&self, x: &mut Vector4<f64>, p: &mut Matrix4<f64>) -> Option<f64> {
+        match self {
+            Measurement::Centre(h, z, r) => kalman(x, p, h, z, r),
+            Measurement::Full(h, z, r) => kalman(x, p, h, z, r),
+        }
     }
 }
 
@@ -598,11 +613,7 @@ fn update(t: &mut Track, b: &Detection, dt: f64, p: &TrackerParams) {
     let m = measurement(b);
     let mut log_l = [f64::NEG_INFINITY; 2];
     for ((x, cov), l) in t.modes.iter_mut().zip(&mut log_l) {
-        let updated = match &m {
-            Measurement::Centre(h, z, r) => kalman(x, cov, h, z, r),
-            Measurement::Full(h, z, r) => kalman(x, cov, h, z, r),
-        };
-        if let Some(v) = updated {
+        if let Some(v) = m.update(x, cov) {
             *l = v;
         }
     }

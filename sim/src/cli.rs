@@ -189,12 +189,7 @@ impl DataArgs {
 
     /// A short description of the source, for reports.
     pub fn describe(&self, gt: &GroundTruth) -> String {
-        format!(
-            "{}: {} frames, {} boxes",
-            self.source(),
-            gt.frames.len(),
-            gt.boxes()
-        )
+        described(&self.source(), gt)
     }
 
     /// The source's name, for reports: its data root or the town's settings.
@@ -222,6 +217,11 @@ impl DataArgs {
             }
         }
     }
+}
+
+/// A data set's name and size, for reports: `NAME: N frames, M boxes`.
+pub fn described(name: &str, gt: &GroundTruth) -> String {
+    format!("{name}: {} frames, {} boxes", gt.frames.len(), gt.boxes())
 }
 
 pub use v2x_eval::file_eval::{

@@ -183,18 +183,16 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Mode::V2v4real => return v2v4real(&args),
         Mode::Truth(mode) => mode,
     };
-    if mode == TruthMode::TrackingSeeds {
-        return tracking_seeds(&args);
-    }
-    let gt = args.data.load()?;
+    // Every mode but the one over several logs reads the one data set it is given.
+    let gt = || args.data.load();
     match mode {
-        TruthMode::Regions(size) => regions(&args, &gt, size),
-        TruthMode::RegionTracking(size) => region_tracking(&args, &gt, size),
-        TruthMode::TrackingSeeds => unreachable!("run above"),
-        TruthMode::Tracking => tracking(&args, &gt),
-        TruthMode::Detection(profile) => detection(&args, &gt, &profile),
-        TruthMode::Asynchronous => asynchronous(&args, &gt),
-        TruthMode::Table2 => table2(&args, &gt),
+        TruthMode::Regions(size) => regions(&args, &gt()?, size),
+        TruthMode::RegionTracking(size) => region_tracking(&args, &gt()?, size),
+        TruthMode::TrackingSeeds => tracking_seeds(&args),
+        TruthMode::Tracking => tracking(&args, &gt()?),
+        TruthMode::Detection(profile) => detection(&args, &gt()?, &profile),
+        TruthMode::Asynchronous => asynchronous(&args, &gt()?),
+        TruthMode::Table2 => table2(&args, &gt()?),
     }
 }
 
@@ -364,23 +362,16 @@ fn tracking_logs(args: &BenchArgs) -> anyhow::Result<Vec<(String, GroundTruth)>>
     let n = usize::from(args.parts);
     let mut out = Vec::new();
     for (name, gt) in whole {
+        if n == 1 {
+            out.push((v2x_sim::cli::described(&name, &gt), gt));
+            continue;
+        }
         for k in 0..n {
             let Some(part) = gt.part(k, n) else {
                 bail!("{name}: --parts cuts nuScenes tables and the town, not data with recorded agents");
             };
-            let name = if n == 1 {
-                name.clone()
-            } else {
-                format!("{name}, part {} of {n}", k + 1)
-            };
-            out.push((
-                format!(
-                    "{name}: {} frames, {} boxes",
-                    part.frames.len(),
-                    part.boxes()
-                ),
-                part,
-            ));
+            let name = format!("{name}, part {} of {n}", k + 1);
+            out.push((v2x_sim::cli::described(&name, &part), part));
         }
     }
     Ok(out)

@@ -428,8 +428,7 @@ fn tracking_metrics(
     for (t, (objects, boxes)) in &frames {
         eval.add_frame(schedule.scene, *t, objects, boxes);
     }
-    let at = eval.switch_positions();
-    (eval.summary(), at)
+    eval.summary_with_switches()
 }
 
 /// Each agent alone, at its own capture times up to `reached`, as it saw them: absent while it
