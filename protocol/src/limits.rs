@@ -63,13 +63,15 @@ pub fn clamp_std(s: f64) -> f64 {
 
 /// True when a size lies in [`SIZE_MIN`], [`SIZE_MAX`] once rounded to centimetres.
 pub fn size_in_range(s: f64) -> bool {
-    let cm = (s * 100.0).round();
-    (SIZE_MIN * 100.0..=SIZE_MAX * 100.0).contains(&cm)
+    // Rounding halves away from zero, a whole number of centimetres n is what [n - 0.5, n + 0.5)
+    // rounds to: bounds on the unrounded value, without a call to round.
+    (SIZE_MIN * 100.0 - 0.5..SIZE_MAX * 100.0 + 0.5).contains(&(s * 100.0))
 }
 
 /// True when a coordinate is finite and |x| <= [`COORD_MAX`] once rounded to centimetres.
 pub fn coord_in_range(x: f64) -> bool {
-    x.is_finite() && (x * 100.0).round().abs() <= COORD_MAX * 100.0
+    // As in `size_in_range`: |round(v)| <= n is |v| < n + 0.5 (false for NaN and infinities).
+    (x * 100.0).abs() < COORD_MAX * 100.0 + 0.5
 }
 
 #[cfg(test)]
@@ -86,6 +88,44 @@ mod tests {
         assert!(!std_in_range(f64::NAN));
         assert_eq!(clamp_std(1e-300), STD_MIN);
         assert_eq!(clamp_std(1e300), max);
+    }
+
+    #[test]
+    fn the_bounds_are_the_rounded_values_bounds() {
+        let rounded_size =
+            |s: f64| (SIZE_MIN * 100.0..=SIZE_MAX * 100.0).contains(&(s * 100.0).round());
+        let rounded_coord =
+            |x: f64| x.is_finite() && (x * 100.0).round().abs() <= COORD_MAX * 100.0;
+        let edges = [
+            0.0,
+            0.005,
+            0.01,
+            1000.0,
+            1000.005,
+            1e9,
+            1e9 + 0.005,
+            1e9 + 0.01,
+        ];
+        let mut values = vec![
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MIN_POSITIVE,
+        ];
+        for e in edges {
+            let mut below = e;
+            let mut above = e;
+            for _ in 0..4 {
+                values.extend([below, above, -below, -above]);
+                below = below.next_down();
+                above = above.next_up();
+            }
+        }
+        values.extend((0..10_000).map(|i| (i as f64 * 0.618_034).fract() * 1e3 * (i % 7) as f64));
+        for v in values {
+            assert_eq!(size_in_range(v), rounded_size(v), "size {v:e}");
+            assert_eq!(coord_in_range(v), rounded_coord(v), "coordinate {v:e}");
+        }
     }
 
     #[test]
