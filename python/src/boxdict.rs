@@ -4,26 +4,20 @@
 
 use crate::pyjson::to_value;
 use pyo3::exceptions::PyValueError;
+use pyo3::ffi;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use pyo3::{intern, Borrowed};
 use serde_json::Value;
+use smallvec::SmallVec;
 use std::path::Path;
+use std::sync::{Mutex, OnceLock};
 use v2x_protocol::nuscenes_json::{
     box_fields, parse_box_fields, BoxFields, Field, FieldValue, JsonError, MissingStd, OutField,
     TokenTable,
 };
 use v2x_protocol::Detection;
-
-/// The key `name` as a Python string, made once for the fields the format knows (those a box
-/// is read from, `attribute_name`, and what the package adds to the dicts it returns).
-fn key<'py>(py: Python<'py>, name: &str) -> Bound<'py, PyString> {
-    match key_index(name) {
-        Some(i) => key_table(py)[i].bind(py).clone(),
-        None => PyString::new(py, name),
-    }
-}
 
 /// Where `name` stands in [`key_table`].
 fn key_index(name: &str) -> Option<usize> {
@@ -64,7 +58,7 @@ fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
 }
 
 /// A class's name, made once per interpreter.
-fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
+pub fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString> {
     static NAMES: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
     NAMES.get_or_init(py, || {
         v2x_protocol::Class::ALL
@@ -116,19 +110,21 @@ fn field_value<'a>(v: &'a Bound<'_, PyAny>) -> FieldValue<'a> {
     if v.is_none() {
         return FieldValue::Null;
     }
-    if let Ok(f) = v.cast::<PyFloat>() {
-        return FieldValue::Number(f.value(), None);
+    // Lists and strings first: their checks read the type's flags, a float's check of
+    // anything but a float walks the type's bases.
+    if let Ok(l) = v.cast::<PyList>() {
+        return FieldValue::List(list_numbers(l));
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        return s.to_cow().map_or(FieldValue::Other, FieldValue::Str);
     }
     if is_int(v) {
         return v.extract::<f64>().map_or(FieldValue::Other, |x| {
             FieldValue::Number(x, v.extract::<u64>().ok())
         });
     }
-    if let Ok(s) = v.cast::<PyString>() {
-        return s.to_cow().map_or(FieldValue::Other, FieldValue::Str);
-    }
-    if let Ok(l) = v.cast::<PyList>() {
-        return FieldValue::List(l.iter().map(|x| element(&x)).collect());
+    if let Ok(f) = v.cast::<PyFloat>() {
+        return FieldValue::Number(f.value(), None);
     }
     if let Ok(t) = v.cast::<PyTuple>() {
         return FieldValue::List(t.iter().map(|x| element(&x)).collect());
@@ -137,6 +133,29 @@ fn field_value<'a>(v: &'a Bound<'_, PyAny>) -> FieldValue<'a> {
         Ok(value) => FieldValue::of_json(&value).into_owned(),
         Err(_) => FieldValue::Other,
     }
+}
+
+/// A list's numbers ([`element`]): its floats read in place, up to the first element that is
+/// not one, the rest one by one.
+fn list_numbers(l: &Bound<'_, PyList>) -> SmallVec<[f64; 4]> {
+    let n = l.len();
+    let mut out = SmallVec::with_capacity(n);
+    while out.len() < n {
+        // SAFETY: the index is below the length read above, and no Python code has run since
+        // (only exact floats are read here, by their value, without running any of their code).
+        let x = unsafe { ffi::PyList_GET_ITEM(l.as_ptr(), out.len() as ffi::Py_ssize_t) };
+        if unsafe { ffi::PyFloat_CheckExact(x) } == 0 {
+            break;
+        }
+        out.push(unsafe { ffi::PyFloat_AS_DOUBLE(x) });
+    }
+    // Anything else may run Python code (a numpy scalar's conversion): through the list's own
+    // checked access from here on.
+    let rest = out.len();
+    if rest < n {
+        out.extend(l.iter().skip(rest).map(|x| element(&x)));
+    }
+    out
 }
 
 /// An int that is not a bool.
@@ -227,63 +246,91 @@ pub fn read_boxes(
     Ok(out)
 }
 
-/// A box as a results-file dict (no `sample_token`).
+/// A box as a results-file dict (no `sample_token`), then `extra`'s keys and values.
 pub fn box_dict<'py>(
     py: Python<'py>,
     d: &Detection,
     tokens: &TokenTable,
+    extra: &[(&str, Bound<'py, PyAny>)],
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (template, order) = template(py);
-    let dict = template.bind(py).copy()?;
+    let no_key = |k: &str| PyValueError::new_err(format!("no key for the field {k}"));
     let keys = key_table(py);
-    let mut written = 0u32;
-    let mut result = Ok(());
-    // The writer puts its keys in the template's order: each is found at or just after the last.
+    // Written into a copy of the last box's template: the same keys, most often.
+    let (guess, template_dict) = last_template(py);
+    let dict = template_dict.bind(py).copy()?;
+    // Each field's place in the key table, by the writer's own order: found at or just after
+    // the last one's by the address of its name, by its text if not.
+    let written = writer_order();
     let mut next = 0;
+    let mut order = Order::new();
+    let mut result = Ok(());
     box_fields(None, d, tokens, |k, v| {
         if result.is_err() {
             return;
         }
-        let ahead = order[next..]
-            .iter()
-            .position(|&i| std::ptr::eq(key_name(i), k));
+        let ahead = written[next..].iter().position(|w| std::ptr::eq(w.0, k));
         let found = match ahead {
             Some(p) => {
                 next += p + 1;
-                Some(order[next - 1])
+                Some(written[next - 1].1)
             }
             None => key_index(k),
         };
         let Some(i) = found else {
-            result = Err(PyValueError::new_err(format!("no key for the field {k}")));
+            result = Err(no_key(k));
             return;
         };
-        written |= 1 << i;
+        order.push(i as u8);
         let k = keys[i].bind(py);
         result = match v {
             OutField::Str("") => dict.set_item(k, intern!(py, "")),
             OutField::Str(s) => dict.set_item(k, s),
             OutField::Class(c) => dict.set_item(k, class_name(py, c)),
             OutField::Number(x) => dict.set_item(k, x),
-            OutField::Numbers(xs) => PyList::new(py, xs.iter()).and_then(|l| dict.set_item(k, l)),
+            OutField::Numbers(xs) => numbers(py, &xs).and_then(|l| dict.set_item(k, l)),
             OutField::Id(i) => dict.set_item(k, i),
         };
     });
     result?;
-    for &i in order.iter().filter(|&&i| written & (1 << i) == 0) {
-        dict.del_item(keys[i].bind(py))?;
+    for (k, v) in extra {
+        let i = key_index(k).ok_or_else(|| no_key(k))?;
+        order.push(i as u8);
+        dict.set_item(keys[i].bind(py), v)?;
     }
-    Ok(dict)
+    if order == guess {
+        return Ok(dict);
+    }
+    // Other keys than the last box's: the dict again, from a template of exactly its keys.
+    let exact = template(py, &order).bind(py).copy()?;
+    for &i in &order {
+        let k = keys[i as usize].bind(py);
+        if let Some(v) = dict.get_item(k)? {
+            exact.set_item(k, v)?;
+        }
+    }
+    Ok(exact)
 }
 
-/// A dict of every key the writer may write, in its order, each `None`, and those keys' places
-/// in [`key_table`]: each box's dict starts as a copy (sized once, where setting key after key
-/// grows it twice), the keys its box has not removed.
-fn template(py: Python<'_>) -> &'static (Py<PyDict>, Vec<usize>) {
-    static TEMPLATE: PyOnceLock<(Py<PyDict>, Vec<usize>)> = PyOnceLock::new();
-    TEMPLATE.get_or_init(py, || {
-        // A box with every optional field, and an id with a token; an id without one is
-        // written as `instance_id` in the token's place.
+/// A dict's keys as places in [`key_table`], in order.
+type Order = SmallVec<[u8; 24]>;
+
+/// The templates made so far, the one used last first.
+static TEMPLATES: Mutex<Vec<(Order, Py<PyDict>)>> = Mutex::new(Vec::new());
+
+/// The keys of the template used last, and the template (an empty dict before the first).
+fn last_template(py: Python<'_>) -> (Order, Py<PyDict>) {
+    let made = TEMPLATES.lock().unwrap_or_else(|e| e.into_inner());
+    match made.first() {
+        Some((order, t)) => (order.clone(), t.clone_ref(py)),
+        None => (Order::new(), PyDict::new(py).unbind()),
+    }
+}
+
+/// The keys the writer writes for a box with every optional field, in its order: each name
+/// and its place in [`key_table`].
+fn writer_order() -> &'static [(&'static str, usize)] {
+    static ORDER: OnceLock<Vec<(&'static str, usize)>> = OnceLock::new();
+    ORDER.get_or_init(|| {
         let mut tokens = TokenTable::new();
         let full = Detection {
             class: v2x_protocol::Class::Car,
@@ -304,27 +351,67 @@ fn template(py: Python<'_>) -> &'static (Py<PyDict>, Vec<usize>) {
             id: tokens.intern("token"),
         };
         let mut order = Vec::new();
-        box_fields(None, &full, &tokens, |k, _| order.extend(key_index(k)));
-        if let Some(at) = order
-            .iter()
-            .position(|&i| i == Field::InstanceToken as usize)
-        {
-            order.insert(at + 1, Field::InstanceId as usize);
-        }
-        let dict = PyDict::new(py);
-        for &i in &order {
-            dict.set_item(key_table(py)[i].bind(py), py.None())
-                .expect("a dict takes a string key");
-        }
-        (dict.unbind(), order)
+        box_fields(None, &full, &tokens, |k, _| {
+            order.extend(key_index(k).map(|i| (k, i)));
+        });
+        order
     })
 }
 
-/// Sets `name` on a dict by its interned key.
-pub fn set<'py>(
-    dict: &Bound<'py, PyDict>,
-    name: &str,
-    value: impl IntoPyObject<'py>,
-) -> PyResult<()> {
-    dict.set_item(key(dict.py(), name), value)
+/// A list of floats in which equal neighbours, and every zero, are one float object: fewer
+/// objects to make and to free (a std's three equal axes, a quaternion's zero x and y).
+fn numbers<'py>(py: Python<'py>, xs: &[f64]) -> PyResult<Bound<'py, PyList>> {
+    static ZERO: PyOnceLock<Py<PyFloat>> = PyOnceLock::new();
+    let zero = ZERO
+        .get_or_init(py, || PyFloat::new(py, 0.0).unbind())
+        .as_ptr();
+    // SAFETY: the list is new and `xs.len()` long, and each of its places is set once, to a new
+    // reference (a new float, or one more reference to the zero or the previous float) before
+    // it is handed out; a float that cannot be made drops the list with its places still empty,
+    // which CPython's list deallocation allows.
+    unsafe {
+        let list = Bound::from_owned_ptr_or_err(py, ffi::PyList_New(xs.len() as ffi::Py_ssize_t))?;
+        let mut last: (u64, *mut ffi::PyObject) = (0, zero);
+        for (i, &x) in xs.iter().enumerate() {
+            let bits = x.to_bits();
+            let f = if bits == 0 {
+                zero
+            } else if bits == last.0 {
+                last.1
+            } else {
+                let f = ffi::PyFloat_FromDouble(x);
+                if f.is_null() {
+                    return Err(PyErr::fetch(py));
+                }
+                last = (bits, f);
+                ffi::PyList_SET_ITEM(list.as_ptr(), i as ffi::Py_ssize_t, f);
+                continue;
+            };
+            ffi::Py_INCREF(f);
+            ffi::PyList_SET_ITEM(list.as_ptr(), i as ffi::Py_ssize_t, f);
+        }
+        Ok(list.cast_into_unchecked())
+    }
+}
+
+/// A dict of the keys `order` (places in [`key_table`]) in that order, each `None`: a box's dict
+/// starts as a copy, sized once and never resized by its values. Made on the first call for
+/// each set of keys (a handful: which optional fields a box has, which extra keys a caller
+/// adds), and from then on the template used last.
+fn template(py: Python<'_>, order: &[u8]) -> Py<PyDict> {
+    let mut made = TEMPLATES.lock().unwrap_or_else(|e| e.into_inner());
+    let at = match made.iter().position(|(o, _)| o[..] == *order) {
+        Some(at) => at,
+        None => {
+            let dict = PyDict::new(py);
+            for &i in order {
+                dict.set_item(key_table(py)[i as usize].bind(py), py.None())
+                    .expect("a dict takes a string key");
+            }
+            made.push((order.into(), dict.unbind()));
+            made.len() - 1
+        }
+    };
+    made[..=at].rotate_right(1);
+    made[0].1.clone_ref(py)
 }

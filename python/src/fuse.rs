@@ -1,7 +1,7 @@
 //! Fusion of boxes in results-file form: one time step (`fuse`), whole results documents
 //! (`fuse_results`) and files (`fuse_files`, `track_files`, as `v2x-fuser fuse` and `track`).
 
-use crate::boxdict::{box_dict, read_agents, set};
+use crate::boxdict::{box_dict, read_agents};
 use crate::options::{method, missing_std, Options};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -34,9 +34,8 @@ pub fn fuse_step<'py>(
     let out = fused
         .iter()
         .map(|s| {
-            let b = box_dict(py, &s.det, &tokens)?;
-            set(&b, "v2x_sources", s.sources.iter().collect::<Vec<_>>())?;
-            Ok(b)
+            let sources = PyList::new(py, s.sources.iter())?.into_any();
+            box_dict(py, &s.det, &tokens, &[("v2x_sources", sources)])
         })
         .collect::<PyResult<Vec<_>>>()?;
     Ok(PyList::new(py, out)?.into_any())

@@ -1,6 +1,6 @@
 //! The tracker as a Python object, stepped window by window (`v2x_fuser::tracker`).
 
-use crate::boxdict::{box_dict, read_agents, read_boxes, set};
+use crate::boxdict::{box_dict, class_name, read_agents, read_boxes};
 use crate::options::{missing_std, tracker_params};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -106,11 +106,15 @@ fn tracked_dicts<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let out = PyList::empty(py);
     for t in tracked {
-        let b = box_dict(py, &t.det, tokens)?;
-        set(&b, "tracking_id", t.tracking_id.to_string())?;
-        set(&b, "tracking_name", t.det.class.name())?;
-        set(&b, "tracking_score", t.det.score)?;
-        out.append(b)?;
+        let extra = [
+            (
+                "tracking_id",
+                t.tracking_id.to_string().into_pyobject(py)?.into_any(),
+            ),
+            ("tracking_name", class_name(py, t.det.class).into_any()),
+            ("tracking_score", t.det.score.into_pyobject(py)?.into_any()),
+        ];
+        out.append(box_dict(py, &t.det, tokens, &extra)?)?;
     }
     Ok(out.into_any())
 }

@@ -134,6 +134,30 @@ def test_velocities_cross_the_numpy_path():
     assert len(order) == 3
 
 
+def test_each_dict_has_its_boxs_keys_in_the_writers_order():
+    base = {"size": [2.0, 4.5, 1.6], "rotation": [1.0, 0.0, 0.0, 0.0], "detection_name": "car",
+            "detection_score": 0.7, "translation_std": [0.5, 0.5, 0.5], "size_std": [0.1, 0.1, 0.1],
+            "yaw_std": 0.1}
+    plain = lambda x: dict(base, translation=[x, 0.0, 1.0])
+    moving = lambda x: dict(plain(x), velocity=[1.0, -0.0], velocity_std=[0.5, 0.5], instance_token=f"o{x}")
+    short = ["translation", "size", "rotation", "velocity", "detection_name", "detection_score",
+             "attribute_name", "translation_std", "size_std", "yaw_std", "v2x_sources"]
+    full = short[:-1] + ["velocity_std", "instance_token", "v2x_sources"]
+    # Boxes of two key sets in turn, far apart (each its own group): each dict has its own keys.
+    out = v.fuse([[moving(0), plain(20), moving(40), plain(60)]], "csba-wls+")
+    assert [list(d) for d in out] == [full, short, full, short]
+    assert out[0]["velocity"] == [1.0, 0.0] and math.copysign(1, out[0]["velocity"][1]) == -1
+    assert out[1]["velocity"] == [0.0, 0.0] and out[3]["translation"] == [60.0, 0.0, 1.0]
+    assert out[2]["instance_token"] == "o40" and out[2]["translation_std"] == [0.5] * 3
+    assert list(v.fuse([[plain(0)]], "csba-wls+")[0]) == short
+    # Floats, float subclasses, numpy scalars and ints mixed in one list read alike.
+    mixed = dict(plain(0), translation=[np.float64(3.0), np.float32(0.5), 1], size=[2.0, 4.5, np.float32(1.5)])
+    got = v.fuse([[mixed]], "csba-wls+")[0]
+    assert got["translation"] == [3.0, 0.5, 1.0] and got["size"] == [2.0, 4.5, 1.5]
+    with pytest.raises(ValueError, match="field 'translation': element 1 is not a finite number"):
+        v.fuse([[dict(plain(0), translation=[1.0, "x", 1.0])]])
+
+
 def test_bad_input_says_what_is_wrong(untimed):
     boxes = load(untimed / "agent1.json")["results"]
     first = next(iter(boxes.values()))
