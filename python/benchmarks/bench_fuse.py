@@ -4,6 +4,7 @@ dict path (fuse), and a straightforward numpy/scipy CSBA-3D + WLS-3D for compari
 
     python python/benchmarks/bench_fuse.py [--criterion] [--noise mild]
     python python/benchmarks/bench_fuse.py --size 64x200
+    python python/benchmarks/bench_fuse.py --calls 300 [--from-json]   # under a profiler
 
 Scenes follow the Rust benches' (fuser/benches/common): 80 objects within 50 m, the same class
 mix, one noisy copy per agent at the noise profile's stds; drawn with numpy's generator, so they
@@ -203,7 +204,17 @@ def main():
     ap.add_argument("--criterion", action="store_true", help="also run the Rust criterion bench")
     ap.add_argument("--size", metavar="AGENTSxOBJECTS",
                     help="instead: the numpy path alone on a larger scene, e.g. 64x200")
+    ap.add_argument("--calls", type=int, metavar="N",
+                    help="instead: N calls of the dict path (csba-wls) and nothing else, for a profiler")
+    ap.add_argument("--from-json", action="store_true", help="with --calls: the dicts from json.loads")
     args = ap.parse_args()
+    if args.calls is not None:
+        boxes = [as_boxes(a) for a in scene(80, 2, args.noise, 1)]
+        if args.from_json:
+            boxes = json.loads(json.dumps(boxes))
+        for _ in range(args.calls):
+            v.fuse(boxes, "csba-wls")
+        return
     if args.size:
         n_agents, n_objects = (int(x) for x in args.size.split("x"))
         big = scene(n_objects, n_agents, args.noise, 1)
@@ -213,12 +224,15 @@ def main():
         return
     agents = scene(80, 2, args.noise, 1)
     boxes = [as_boxes(a) for a in agents]
+    # The same dicts as a results file gives them: keys the JSON decoder made, not interned.
+    read = json.loads(json.dumps(boxes))
     print(f"2 agents x 80 boxes, {args.noise} noise (median of 25 repeats)")
     print("| step | csba-wls | csba-wls+ |\n|---|---:|---:|")
     rows = {}
     for label, fn, number in [
         ("fuse_arrays (numpy path)", lambda m: v.fuse_arrays(agents, m), 200),
         ("fuse (dict path)", lambda m: v.fuse(boxes, m), 20),
+        ("fuse (dict path, dicts from json.loads)", lambda m: v.fuse(read, m), 20),
     ]:
         rows[label] = [median_us(lambda m=m: fn(m), number) for m in ("csba-wls", "csba-wls+")]
     if args.criterion:
@@ -231,8 +245,10 @@ def main():
     print(f"| numpy/scipy, two agents vectorized by hand | {pairs:.0f} µs | - |")
     dict_over = [paired_ratio(lambda m=m: v.fuse(boxes, m), lambda: numpy_pairs(*agents), 20, 20)
                  for m in ("csba-wls", "csba-wls+")]
+    read_over = paired_ratio(lambda: v.fuse(read, "csba-wls"), lambda: numpy_pairs(*agents), 20, 20)
     print(f"\nthe vectorized numpy/scipy peer over the dict path, timed in turn: "
-          f"csba-wls {dict_over[0]:.1f}x, csba-wls+ {dict_over[1]:.1f}x")
+          f"csba-wls {dict_over[0]:.1f}x, csba-wls+ {dict_over[1]:.1f}x; "
+          f"dicts from json.loads, csba-wls {read_over:.1f}x")
     numpy_path = rows["fuse_arrays (numpy path)"][0]
     print(f"numpy/scipy over the numpy path (csba-wls): straightforward {general / numpy_path:.1f}x, "
           f"vectorized {pairs / numpy_path:.1f}x; fused boxes: ours {len(v.fuse_arrays(agents, 'csba-wls')['score'])}, "

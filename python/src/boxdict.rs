@@ -77,7 +77,7 @@ pub fn class_name(py: Python<'_>, c: v2x_protocol::Class) -> Bound<'_, PyString>
 struct DictFields<'py>([Option<Bound<'py, PyAny>>; Field::ALL.len()]);
 
 impl<'py> DictFields<'py> {
-    fn of(d: &Bound<'py, PyDict>) -> DictFields<'py> {
+    fn of(d: &Bound<'py, PyDict>, seen: &mut SeenKeys) -> DictFields<'py> {
         let py = d.py();
         let keys = &key_table(py)[..Field::ALL.len()];
         let mut fields: [Option<Bound<'py, PyAny>>; Field::ALL.len()] = Default::default();
@@ -86,16 +86,54 @@ impl<'py> DictFields<'py> {
             let i = keys
                 .iter()
                 .position(|x| x.as_ptr() == k.as_ptr())
-                .or_else(|| {
-                    let k = k.cast::<PyString>().ok()?.to_cow().ok()?;
-                    key_index(&k).filter(|&i| i < Field::ALL.len())
-                });
+                .or_else(|| seen.field(&k));
             if let Some(i) = i {
                 fields[i] = Some(v);
             }
         }
         DictFields(fields)
     }
+}
+
+/// The keys of one list's dicts that are not [`key_table`]'s own objects (keys read from JSON,
+/// which the decoder shares between the dicts of a document, or made at run time): each
+/// object's address, hash and field, so that the next dict's same key is found as an interned
+/// one is.
+#[derive(Default)]
+struct SeenKeys(Vec<(usize, isize, Option<usize>)>);
+
+impl SeenKeys {
+    /// The field key `k` names.
+    fn field(&mut self, k: &Bound<'_, PyAny>) -> Option<usize> {
+        let h = k.hash().ok()?;
+        let at = k.as_ptr() as usize;
+        // The same object, by its address and its hash (a string's hash is kept in it).
+        if let Some(&(_, _, i)) = self.0.iter().find(|s| s.0 == at && s.1 == h) {
+            return i;
+        }
+        let i = field_of_key(k, h);
+        if self.0.len() < 64 {
+            self.0.push((at, h, i));
+        }
+        i
+    }
+}
+
+/// The field a key names that is not one of [`key_table`]'s own objects: found by its hash
+/// `h`, then confirmed by its text.
+fn field_of_key(k: &Bound<'_, PyAny>, h: isize) -> Option<usize> {
+    static HASHES: PyOnceLock<Vec<isize>> = PyOnceLock::new();
+    let py = k.py();
+    let hashes = HASHES.get_or_init(py, || {
+        key_table(py)[..Field::ALL.len()]
+            .iter()
+            .map(|x| x.bind(py).hash().expect("a string has a hash"))
+            .collect()
+    });
+    let k = k.cast::<PyString>().ok()?;
+    (0..hashes.len())
+        .filter(|&i| hashes[i] == h)
+        .find(|&i| k.to_cow().is_ok_and(|t| t == key_name(i)))
 }
 
 impl BoxFields for DictFields<'_> {
@@ -204,9 +242,11 @@ pub fn read_boxes(
 ) -> PyResult<Vec<Detection>> {
     let source = Path::new(name);
     let fail = |e: JsonError| PyValueError::new_err(e.to_string());
-    let one = |i: usize, b: Borrowed<'_, '_, PyAny>, tokens: &mut TokenTable| {
+    let mut seen = SeenKeys::default();
+    let mut one = |i: usize, b: Borrowed<'_, '_, PyAny>, tokens: &mut TokenTable| {
         if let Ok(d) = b.cast::<PyDict>() {
-            return parse_box_fields(source, i, &DictFields::of(&d), tokens, missing).map_err(fail);
+            return parse_box_fields(source, i, &DictFields::of(&d, &mut seen), tokens, missing)
+                .map_err(fail);
         }
         match to_value(&b, &|| format!("{name}[{i}]"))? {
             Value::Object(m) => parse_box_fields(source, i, &m, tokens, missing).map_err(fail),

@@ -158,6 +158,25 @@ def test_each_dict_has_its_boxs_keys_in_the_writers_order():
         v.fuse([[dict(plain(0), translation=[1.0, "x", 1.0])]])
 
 
+def test_keys_read_from_json_or_made_at_run_time_read_as_written_ones(untimed):
+    import json
+
+    boxes = load(untimed / "agent1.json")["results"]
+    first = next(iter(boxes.values()))
+    want = v.fuse([first, first[::-1]])
+    again = json.loads(json.dumps([first, first[::-1]]))  # keys the decoder shares, not interned
+    assert v.fuse(again) == want
+    made = [[{"".join(k): x for k, x in b.items()} for b in a] for a in again]
+    assert v.fuse(made) == want
+    # Keys that name no field, of any type, are passed over.
+    extra = [[dict(b, **{"translation_": 1, "x": None}) | {5: "five"} for b in a] for a in again]
+    assert v.fuse(extra) == want
+    # A missing field is missing whichever way the other keys were made.
+    no_size = [{k: x for k, x in b.items() if k != "size"} for b in again[0]]
+    with pytest.raises(ValueError, match=r"agents\[0\], box 0, field 'size': missing"):
+        v.fuse([no_size])
+
+
 def test_bad_input_says_what_is_wrong(untimed):
     boxes = load(untimed / "agent1.json")["results"]
     first = next(iter(boxes.values()))
