@@ -201,24 +201,18 @@ impl<'a> Ctx<'a> {
         f: Field,
     ) -> Result<Option<[f64; N]>, JsonError> {
         let field = f.name();
-        let Some(v) = obj.field(f) else {
-            return Ok(None);
-        };
-        let FieldValue::List(arr) = v else {
-            return Err(self.err(Some(field), format!("expected an array of {N} numbers")));
-        };
-        if arr.len() != N {
-            return Err(self.err(
-                Some(field),
-                format!("expected {N} numbers, found {}", arr.len()),
-            ));
-        }
-        let mut out = [0.0; N];
-        for (k, x) in arr.iter().enumerate() {
-            if !x.is_finite() {
-                return Err(self.err(Some(field), format!("element {k} is not a finite number")));
+        let out = match obj.numbers::<N>(f) {
+            None => return Ok(None),
+            Some(Numbers::List(out)) => out,
+            Some(Numbers::Len(n)) => {
+                return Err(self.err(Some(field), format!("expected {N} numbers, found {n}")))
             }
-            out[k] = *x;
+            Some(Numbers::Other) => {
+                return Err(self.err(Some(field), format!("expected an array of {N} numbers")))
+            }
+        };
+        if let Some(k) = out.iter().position(|x| !x.is_finite()) {
+            return Err(self.err(Some(field), format!("element {k} is not a finite number")));
         }
         Ok(Some(out))
     }
@@ -366,6 +360,34 @@ impl Field {
 pub trait BoxFields {
     /// The field `f`, `None` when the box has no such field.
     fn field(&self, f: Field) -> Option<FieldValue<'_>>;
+
+    /// The field `f` as a list of `N` numbers ([`Numbers::of`] of [`BoxFields::field`]; a
+    /// source may read it more directly, to the same result).
+    fn numbers<const N: usize>(&self, f: Field) -> Option<Numbers<N>> {
+        self.field(f).map(Numbers::of)
+    }
+}
+
+/// A field read as a list of `N` numbers.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Numbers<const N: usize> {
+    /// A list of `N` elements: each one's number, NaN where an element is not a number.
+    List([f64; N]),
+    /// A list of another length.
+    Len(usize),
+    /// Not a list.
+    Other,
+}
+
+impl<const N: usize> Numbers<N> {
+    /// A field as a list of `N` numbers.
+    pub fn of(v: FieldValue<'_>) -> Numbers<N> {
+        match v {
+            FieldValue::List(xs) if xs.len() == N => Numbers::List(std::array::from_fn(|k| xs[k])),
+            FieldValue::List(xs) => Numbers::Len(xs.len()),
+            _ => Numbers::Other,
+        }
+    }
 }
 
 impl BoxFields for Map<String, Value> {

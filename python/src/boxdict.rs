@@ -14,8 +14,8 @@ use smallvec::SmallVec;
 use std::path::Path;
 use std::sync::{Mutex, OnceLock};
 use v2x_protocol::nuscenes_json::{
-    box_fields, parse_box_fields, BoxFields, Field, FieldValue, JsonError, MissingStd, OutField,
-    TokenTable,
+    box_fields, parse_box_fields, BoxFields, Field, FieldValue, JsonError, MissingStd, Numbers,
+    OutField, TokenTable,
 };
 use v2x_protocol::Detection;
 
@@ -140,6 +140,36 @@ impl BoxFields for DictFields<'_> {
     fn field(&self, f: Field) -> Option<FieldValue<'_>> {
         self.0[f as usize].as_ref().map(field_value)
     }
+
+    fn numbers<const N: usize>(&self, f: Field) -> Option<Numbers<N>> {
+        let v = self.0[f as usize].as_ref()?;
+        // A list of N exact floats straight into the array; anything else as `field` reads it.
+        if let Ok(l) = v.cast::<PyList>() {
+            if l.len() != N {
+                return Some(Numbers::Len(l.len()));
+            }
+            if let Some(xs) = exact_floats::<N>(l) {
+                return Some(Numbers::List(xs));
+            }
+        }
+        Some(Numbers::of(field_value(v)))
+    }
+}
+
+/// The values of a list of `N` exact floats (`None` when an element is anything else).
+fn exact_floats<const N: usize>(l: &Bound<'_, PyList>) -> Option<[f64; N]> {
+    debug_assert_eq!(l.len(), N);
+    let mut out = [0.0; N];
+    for (k, o) in out.iter_mut().enumerate() {
+        // SAFETY: the caller has seen the list N long, and no Python code runs here (an exact
+        // float's value is read without running any of its code).
+        let x = unsafe { ffi::PyList_GET_ITEM(l.as_ptr(), k as ffi::Py_ssize_t) };
+        if unsafe { ffi::PyFloat_CheckExact(x) } == 0 {
+            return None;
+        }
+        *o = unsafe { ffi::PyFloat_AS_DOUBLE(x) };
+    }
+    Some(out)
 }
 
 /// A Python value as a box field: floats, ints, strings, lists and tuples directly, anything else

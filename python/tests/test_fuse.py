@@ -156,6 +156,13 @@ def test_each_dict_has_its_boxs_keys_in_the_writers_order():
     assert got["translation"] == [3.0, 0.5, 1.0] and got["size"] == [2.0, 4.5, 1.5]
     with pytest.raises(ValueError, match="field 'translation': element 1 is not a finite number"):
         v.fuse([[dict(plain(0), translation=[1.0, "x", 1.0])]])
+    with pytest.raises(ValueError, match="field 'translation': element 2 is not a finite number"):
+        v.fuse([[dict(plain(0), translation=[1.0, 2.0, math.inf])]])
+    with pytest.raises(ValueError, match="field 'size': expected 3 numbers, found 2"):
+        v.fuse([[dict(plain(0), size=[2.0, 4.5])]])
+    with pytest.raises(ValueError, match="field 'size': expected an array of 3 numbers"):
+        v.fuse([[dict(plain(0), size="big")]])
+    assert v.fuse([[dict(plain(0), size=(2.0, 4.5, 1.6))]]) == v.fuse([[plain(0)]])
 
 
 def test_keys_read_from_json_or_made_at_run_time_read_as_written_ones(untimed):
