@@ -44,6 +44,26 @@ const MORE: [&str; 5] = [
     "tracking_score",
 ];
 
+/// A key the package adds to the dicts it returns, after the box's own.
+#[derive(Copy, Clone, Debug)]
+pub enum Extra {
+    /// `v2x_sources`.
+    Sources = 1,
+    /// `tracking_id`.
+    TrackingId = 2,
+    /// `tracking_name`.
+    TrackingName = 3,
+    /// `tracking_score`.
+    TrackingScore = 4,
+}
+
+impl Extra {
+    /// Its place in [`key_table`].
+    fn index(self) -> usize {
+        Field::ALL.len() + self as usize
+    }
+}
+
 /// The interned keys: the [`Field`]s first, then [`MORE`], made on the first call.
 fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
     static KEYS: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
@@ -321,7 +341,7 @@ pub fn box_dict<'py>(
     py: Python<'py>,
     d: &Detection,
     tokens: &TokenTable,
-    extra: &[(&str, Bound<'py, PyAny>)],
+    extra: &[(Extra, Bound<'py, PyAny>)],
 ) -> PyResult<Bound<'py, PyDict>> {
     let no_key = |k: &str| PyValueError::new_err(format!("no key for the field {k}"));
     let keys = key_table(py);
@@ -363,9 +383,8 @@ pub fn box_dict<'py>(
     });
     result?;
     for (k, v) in extra {
-        let i = key_index(k).ok_or_else(|| no_key(k))?;
-        order.push(i as u8);
-        dict.set_item(keys[i].bind(py), v)?;
+        order.push(k.index() as u8);
+        dict.set_item(keys[k.index()].bind(py), v)?;
     }
     if order == guess {
         return Ok(dict);

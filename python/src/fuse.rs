@@ -1,7 +1,7 @@
 //! Fusion of boxes in results-file form: one time step (`fuse`), whole results documents
 //! (`fuse_results`) and files (`fuse_files`, `track_files`, as `v2x-fuser fuse` and `track`).
 
-use crate::boxdict::{box_dict, read_agents};
+use crate::boxdict::{box_dict, read_agents, Extra};
 use crate::options::{method, missing_std, Options};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -35,7 +35,7 @@ pub fn fuse_step<'py>(
         .iter()
         .map(|s| {
             let sources = PyList::new(py, s.sources.iter())?.into_any();
-            box_dict(py, &s.det, &tokens, &[("v2x_sources", sources)])
+            box_dict(py, &s.det, &tokens, &[(Extra::Sources, sources)])
         })
         .collect::<PyResult<Vec<_>>>()?;
     Ok(PyList::new(py, out)?.into_any())

@@ -1,6 +1,6 @@
 //! The tracker as a Python object, stepped window by window (`v2x_fuser::tracker`).
 
-use crate::boxdict::{box_dict, class_name, read_agents, read_boxes};
+use crate::boxdict::{box_dict, class_name, read_agents, read_boxes, Extra};
 use crate::options::{missing_std, tracker_params};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -108,11 +108,14 @@ fn tracked_dicts<'py>(
     for t in tracked {
         let extra = [
             (
-                "tracking_id",
+                Extra::TrackingId,
                 t.tracking_id.to_string().into_pyobject(py)?.into_any(),
             ),
-            ("tracking_name", class_name(py, t.det.class).into_any()),
-            ("tracking_score", t.det.score.into_pyobject(py)?.into_any()),
+            (Extra::TrackingName, class_name(py, t.det.class).into_any()),
+            (
+                Extra::TrackingScore,
+                t.det.score.into_pyobject(py)?.into_any(),
+            ),
         ];
         out.append(box_dict(py, &t.det, tokens, &extra)?)?;
     }
