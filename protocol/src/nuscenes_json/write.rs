@@ -2,6 +2,7 @@
 //! meta block, so that what [`super::parse_results`] reads is written back.
 
 use super::*;
+use smallvec::SmallVec;
 
 /// One field of a box as it is written.
 #[derive(Debug, Clone, PartialEq)]
@@ -13,7 +14,7 @@ pub enum OutField<'a> {
     /// A number.
     Number(f64),
     /// A list of numbers.
-    Numbers(smallvec::SmallVec<[f64; 9]>),
+    Numbers(SmallVec<[f64; 9]>),
     /// An object id.
     Id(u32),
 }
@@ -35,37 +36,37 @@ pub fn box_fields<'a>(
     }
     put(
         Field::Translation.name(),
-        Numbers(d.center.into_iter().collect()),
+        Numbers(SmallVec::from_slice(&d.center)),
     );
-    put(Field::Size.name(), Numbers([w, l, h].into_iter().collect()));
+    put(Field::Size.name(), Numbers(SmallVec::from_slice(&[w, l, h])));
     put(
         Field::Rotation.name(),
-        Numbers(yaw_quaternion(d.yaw).into_iter().collect()),
+        Numbers(SmallVec::from_slice(&yaw_quaternion(d.yaw))),
     );
     let v = d.velocity.map_or([0.0, 0.0], |v| v.v);
-    put(Field::Velocity.name(), Numbers(v.into_iter().collect()));
+    put(Field::Velocity.name(), Numbers(SmallVec::from_slice(&v)));
     put(Field::DetectionName.name(), OutField::Class(d.class));
     put(Field::DetectionScore.name(), Number(d.score));
     put("attribute_name", Str(""));
     put(
         Field::TranslationStd.name(),
-        Numbers(d.std.pos.into_iter().collect()),
+        Numbers(SmallVec::from_slice(&d.std.pos)),
     );
     put(
         Field::SizeStd.name(),
-        Numbers([sw, sl, sh].into_iter().collect()),
+        Numbers(SmallVec::from_slice(&[sw, sl, sh])),
     );
     put(Field::YawStd.name(), Number(d.std.yaw));
     if let Some(c) = d.pos_cov.as_deref() {
         put(
             Field::TranslationCov.name(),
-            Numbers(c.iter().flatten().copied().collect()),
+            Numbers(SmallVec::from_slice(c.as_flattened())),
         );
     }
     if let Some(v) = d.velocity {
         put(
             Field::VelocityStd.name(),
-            Numbers(v.std.into_iter().collect()),
+            Numbers(SmallVec::from_slice(&v.std)),
         );
     }
     if let Some(t) = tokens.name(d.id) {
