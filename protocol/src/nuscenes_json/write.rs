@@ -38,7 +38,10 @@ pub fn box_fields<'a>(
         Field::Translation.name(),
         Numbers(SmallVec::from_slice(&d.center)),
     );
-    put(Field::Size.name(), Numbers(SmallVec::from_slice(&[w, l, h])));
+    put(
+        Field::Size.name(),
+        Numbers(SmallVec::from_slice(&[w, l, h])),
+    );
     put(
         Field::Rotation.name(),
         Numbers(SmallVec::from_slice(&yaw_quaternion(d.yaw))),
