@@ -208,12 +208,13 @@ def main():
                     help="instead: N calls of the dict path (csba-wls) and nothing else, for a profiler")
     ap.add_argument("--from-json", action="store_true", help="with --calls: the dicts from json.loads")
     args = ap.parse_args()
+    agents = scene(80, 2, args.noise, 1)
+    boxes = [as_boxes(a) for a in agents]
+    # The same dicts as a results file gives them: keys the JSON decoder made, not interned.
+    read = json.loads(json.dumps(boxes))
     if args.calls is not None:
-        boxes = [as_boxes(a) for a in scene(80, 2, args.noise, 1)]
-        if args.from_json:
-            boxes = json.loads(json.dumps(boxes))
         for _ in range(args.calls):
-            v.fuse(boxes, "csba-wls")
+            v.fuse(read if args.from_json else boxes, "csba-wls")
         return
     if args.size:
         n_agents, n_objects = (int(x) for x in args.size.split("x"))
@@ -222,10 +223,6 @@ def main():
         print(f"fuse_arrays at {n_agents} x {n_objects}, {args.noise} noise (median of 25 repeats): "
               f"csba-wls+ {times[0]:.2f} ms, csba-wls {times[1]:.2f} ms")
         return
-    agents = scene(80, 2, args.noise, 1)
-    boxes = [as_boxes(a) for a in agents]
-    # The same dicts as a results file gives them: keys the JSON decoder made, not interned.
-    read = json.loads(json.dumps(boxes))
     print(f"2 agents x 80 boxes, {args.noise} noise (median of 25 repeats)")
     print("| step | csba-wls | csba-wls+ |\n|---|---:|---:|")
     rows = {}

@@ -21,58 +21,69 @@ use v2x_protocol::Detection;
 
 /// Where `name` stands in [`key_table`].
 fn key_index(name: &str) -> Option<usize> {
-    let names = || (0..Field::ALL.len() + MORE.len()).map(key_name);
+    let names = || (0..KEYS).map(key_name);
     // The writer's names are the same constants: their address finds them, their text if not.
     names()
         .position(|k| std::ptr::eq(k, name))
         .or_else(|| names().position(|k| k == name))
 }
 
+/// How many keys [`key_table`] holds: the [`Field`]s, `attribute_name`, the [`Extra`]s.
+const KEYS: usize = Field::ALL.len() + 1 + Extra::ALL.len();
+
 /// The name of [`key_table`]'s key `i`.
 fn key_name(i: usize) -> &'static str {
-    Field::ALL
-        .get(i)
-        .map_or_else(|| MORE[i - Field::ALL.len()], |f| f.name())
+    match i.checked_sub(Field::ALL.len()) {
+        None => Field::ALL[i].name(),
+        Some(0) => "attribute_name",
+        Some(j) => Extra::ALL[j - 1].name(),
+    }
 }
-
-/// The keys written besides the [`Field`]s.
-const MORE: [&str; 5] = [
-    "attribute_name",
-    "v2x_sources",
-    "tracking_id",
-    "tracking_name",
-    "tracking_score",
-];
 
 /// A key the package adds to the dicts it returns, after the box's own.
 #[derive(Copy, Clone, Debug)]
 pub enum Extra {
-    /// `v2x_sources`.
-    Sources = 1,
-    /// `tracking_id`.
-    TrackingId = 2,
-    /// `tracking_name`.
-    TrackingName = 3,
-    /// `tracking_score`.
-    TrackingScore = 4,
+    /// The indices of the agents whose boxes a fused box holds.
+    Sources,
+    /// A track's id.
+    TrackingId,
+    /// A track's class.
+    TrackingName,
+    /// A track's score.
+    TrackingScore,
 }
 
 impl Extra {
+    /// Every extra key, each at its own place (`e as usize`).
+    const ALL: [Extra; 4] = [
+        Extra::Sources,
+        Extra::TrackingId,
+        Extra::TrackingName,
+        Extra::TrackingScore,
+    ];
+
+    /// The key.
+    const fn name(self) -> &'static str {
+        match self {
+            Extra::Sources => "v2x_sources",
+            Extra::TrackingId => "tracking_id",
+            Extra::TrackingName => "tracking_name",
+            Extra::TrackingScore => "tracking_score",
+        }
+    }
+
     /// Its place in [`key_table`].
     fn index(self) -> usize {
-        Field::ALL.len() + self as usize
+        Field::ALL.len() + 1 + self as usize
     }
 }
 
-/// The interned keys: the [`Field`]s first, then [`MORE`], made on the first call.
+/// The interned keys, in [`key_name`]'s order, made on the first call.
 fn key_table(py: Python<'_>) -> &'static [Py<PyString>] {
-    static KEYS: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
-    KEYS.get_or_init(py, || {
-        Field::ALL
-            .iter()
-            .map(|f| f.name())
-            .chain(MORE)
-            .map(|k| PyString::intern(py, k).unbind())
+    static KEYS_MADE: PyOnceLock<Vec<Py<PyString>>> = PyOnceLock::new();
+    KEYS_MADE.get_or_init(py, || {
+        (0..KEYS)
+            .map(|i| PyString::intern(py, key_name(i)).unbind())
             .collect()
     })
 }
@@ -178,18 +189,25 @@ impl BoxFields for DictFields<'_> {
 
 /// The values of a list of `N` exact floats (`None` when an element is anything else).
 fn exact_floats<const N: usize>(l: &Bound<'_, PyList>) -> Option<[f64; N]> {
-    debug_assert_eq!(l.len(), N);
     let mut out = [0.0; N];
     for (k, o) in out.iter_mut().enumerate() {
-        // SAFETY: the caller has seen the list N long, and no Python code runs here (an exact
-        // float's value is read without running any of its code).
-        let x = unsafe { ffi::PyList_GET_ITEM(l.as_ptr(), k as ffi::Py_ssize_t) };
-        if unsafe { ffi::PyFloat_CheckExact(x) } == 0 {
-            return None;
-        }
-        *o = unsafe { ffi::PyFloat_AS_DOUBLE(x) };
+        *o = exact_float(l, k)?;
     }
     Some(out)
+}
+
+/// Element `k` of a list when it is an exact float, read in place; `None` when it is anything
+/// else or beyond the list's end.
+fn exact_float(l: &Bound<'_, PyList>, k: usize) -> Option<f64> {
+    if k >= l.len() {
+        return None;
+    }
+    // SAFETY: k is below the list's length, read just now, and the element is only read (an
+    // exact float's value, without running any of its code), so no Python code runs between.
+    unsafe {
+        let x = ffi::PyList_GET_ITEM(l.as_ptr(), k as ffi::Py_ssize_t);
+        (ffi::PyFloat_CheckExact(x) != 0).then(|| ffi::PyFloat_AS_DOUBLE(x))
+    }
 }
 
 /// A Python value as a box field: floats, ints, strings, lists and tuples directly, anything else
@@ -226,21 +244,14 @@ fn field_value<'a>(v: &'a Bound<'_, PyAny>) -> FieldValue<'a> {
 /// A list's numbers ([`element`]): its floats read in place, up to the first element that is
 /// not one, the rest one by one.
 fn list_numbers(l: &Bound<'_, PyList>) -> SmallVec<[f64; 4]> {
-    let n = l.len();
-    let mut out = SmallVec::with_capacity(n);
-    while out.len() < n {
-        // SAFETY: the index is below the length read above, and no Python code has run since
-        // (only exact floats are read here, by their value, without running any of their code).
-        let x = unsafe { ffi::PyList_GET_ITEM(l.as_ptr(), out.len() as ffi::Py_ssize_t) };
-        if unsafe { ffi::PyFloat_CheckExact(x) } == 0 {
-            break;
-        }
-        out.push(unsafe { ffi::PyFloat_AS_DOUBLE(x) });
+    let mut out: SmallVec<[f64; 4]> = SmallVec::with_capacity(l.len());
+    while let Some(x) = exact_float(l, out.len()) {
+        out.push(x);
     }
     // Anything else may run Python code (a numpy scalar's conversion): through the list's own
     // checked access from here on.
     let rest = out.len();
-    if rest < n {
+    if rest < l.len() {
         out.extend(l.iter().skip(rest).map(|x| element(&x)));
     }
     out
