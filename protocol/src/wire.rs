@@ -218,13 +218,9 @@ impl Reader<'_> {
             other => DecodeError::Malformed(other.to_string()),
         })?;
         let used = self.0.len() - rest.len();
-        let mut buf = [0u8; 128];
-        let canonical = match postcard::to_slice(&v, &mut buf) {
-            Ok(b) => b.len() == used,
-            // Longer than the buffer (a header with a long name): encode it in full.
-            Err(_) => postcard::to_allocvec(&v).is_ok_and(|b| b.len() == used),
-        };
-        if !canonical {
+        // Written back, the value takes as many bytes as it was read from (counted, not written).
+        let size = postcard::serialize_with_flavor(&v, postcard::ser_flavors::Size::default());
+        if size.ok() != Some(used) {
             return Err(DecodeError::Malformed(
                 "a number is not in its shortest encoding (padded varint)".into(),
             ));
@@ -367,8 +363,14 @@ pub fn encode_with(frame: &Frame, provenance: Option<&Provenance>) -> Result<Vec
     let origin_cm = origin_code(frame.origin)?;
     let mut codes = Vec::with_capacity(frame.detections.len());
     let mut vel_codes = Vec::new();
+    // A std equal to the last box's has its codes (boxes often share their stds).
+    let mut last: Option<(&Uncertainty, [u16; 7])> = None;
     for (i, d) in frame.detections.iter().enumerate() {
-        let c = check_stds(&d.std, i)?;
+        let c = match last {
+            Some((u, c)) if *u == d.std => c,
+            _ => check_stds(&d.std, i)?,
+        };
+        last = Some((&d.std, c));
         let v = match &d.velocity {
             Some(v) => Some(check_velocity(v, i)?),
             None => None,
