@@ -215,6 +215,27 @@ pub fn position_std(d: &Detection) -> f64 {
     ((c[0][0] + c[1][1] + c[2][2]) / 3.0).sqrt()
 }
 
+/// The farthest apart along x two of `boxes`, or boxes WLS-3D fused from them, can lie and still
+/// be eligible: lambda_max sqrt(Sa_xx + Sb_xx) at its largest, since fusing only shrinks the
+/// variances and keeps a centre within its members' span. `None` when a box has a full
+/// covariance (a fused centre may then leave its members' span) or the bound is not finite.
+pub fn x_reach<'a>(p: &CsbaParams, boxes: impl IntoIterator<Item = &'a Detection>) -> Option<f64> {
+    let (mut var_x, mut std) = (0.0f64, 0.0f64);
+    for d in boxes {
+        if d.pos_cov.is_some() {
+            return None;
+        }
+        var_x = var_x.max(d.std.pos[0].powi(2));
+        std = std.max(position_std(d));
+    }
+    let lambda = match p.gate {
+        Gate::Paper { factor } => factor * std,
+        Gate::Mahalanobis { lambda } => lambda,
+    };
+    let reach = lambda * (2.0 * var_x).sqrt();
+    (reach.is_finite() && reach >= 0.0).then_some(reach)
+}
+
 /// lambda_max for a pair under the chosen gate.
 pub fn lambda_max(gate: Gate, a: &Detection, b: &Detection) -> f64 {
     match gate {

@@ -2,10 +2,10 @@
 //! A [`Method`] is a value, so CSBA-WLS, its variants, the baselines and the oracle are used the
 //! same way, by name, from the library, the `v2x-fuser fuse` command and the fuser node.
 
-use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
+use crate::maths::association::{associate, mahalanobis, x_reach, CsbaParams, CHI2_3_999};
 use crate::maths::baselines;
-use crate::maths::by_class::by_class;
 use crate::maths::fusion::GroupSum;
+use crate::maths::parts::in_parts;
 use std::fmt;
 use std::str::FromStr;
 use v2x_protocol::{AgentSet, Detection, UnknownName};
@@ -253,12 +253,13 @@ fn csba_wls_parts(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>,
     (fused, sources)
 }
 
-pub use crate::maths::by_class::Members;
+pub use crate::maths::parts::Members;
 
 /// CSBA-3D association and WLS-3D fusion ([`csba_wls`]): the fused boxes and the members of
 /// each, in the same order.
 pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
-    by_class(agents, |a| csba_one_pass(p, a)).unwrap_or_else(|| csba_one_pass(p, agents))
+    let reach = || x_reach(p, agents.iter().flatten());
+    in_parts(agents, reach, |a| csba_one_pass(p, a)).unwrap_or_else(|| csba_one_pass(p, agents))
 }
 
 /// [`csba_groups`] in one pass over the agents' lists.
@@ -430,25 +431,23 @@ mod tests {
     }
 }
 
-/// A large window split by class ([`by_class`]) fuses as one pass does.
+/// A large window split into parts ([`in_parts`]) fuses as one pass does.
 #[cfg(test)]
-mod by_class_tests {
+mod parts_tests {
     use super::*;
-    use crate::maths::by_class::{by_class, PARALLEL_FROM};
+    use crate::maths::association::Gate;
+    use crate::maths::parts::PARALLEL_FROM;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use v2x_protocol::fixtures::{car, URBAN_MIX};
 
-    /// `agents` noisy views of `n` objects of the urban mix (1 m position noise).
-    fn window(n: usize, agents: usize, seed: u64) -> Vec<Vec<Detection>> {
+    /// `agents` noisy views of `n` objects of the urban mix within `half` m of the origin (1 m
+    /// position std, up to `off` m off in x, 1.5 m in y).
+    fn window(n: usize, agents: usize, half: f64, off: f64, seed: u64) -> Vec<Vec<Detection>> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let truth: Vec<Detection> = (0..n)
             .map(|i| {
-                let mut d = car(
-                    rng.gen_range(-300.0..300.0),
-                    rng.gen_range(-300.0..300.0),
-                    1.0,
-                );
+                let mut d = car(rng.gen_range(-half..half), rng.gen_range(-half..half), 1.0);
                 d.class = URBAN_MIX[i % URBAN_MIX.len()];
                 d.size = d.class.typical_size();
                 d
@@ -460,7 +459,7 @@ mod by_class_tests {
                 for d in &truth {
                     if rng.gen_bool(0.9) {
                         let mut d = d.clone();
-                        d.center[0] += rng.gen_range(-1.5..1.5);
+                        d.center[0] += rng.gen_range(-off..off);
                         d.center[1] += rng.gen_range(-1.5..1.5);
                         seen.push(d);
                     }
@@ -470,38 +469,68 @@ mod by_class_tests {
             .collect()
     }
 
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
     #[test]
-    fn a_window_fused_class_by_class_equals_one_pass() {
-        let p = CsbaParams::default();
-        let one_pass = |a: &[Vec<Detection>]| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap();
-            pool.install(|| csba_groups(&p, a))
+    fn a_window_fused_in_parts_equals_one_pass() {
+        let mahalanobis = CsbaParams {
+            gate: Gate::Mahalanobis { lambda: 4.0 },
+            ..CsbaParams::PLUS
         };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        for seed in [1, 2] {
-            let agents = window(300, 16, seed);
-            assert!(agents.iter().map(Vec::len).sum::<usize>() >= PARALLEL_FROM);
-            let split = pool.install(|| by_class(&agents, one_pass)).expect("split");
-            let whole = one_pass(&agents);
-            assert_eq!(split.1, whole.1, "seed {seed}");
-            assert_eq!(split.0, whole.0, "seed {seed}");
-            assert!(whole.1.iter().any(|g| g.len() > 8), "groups span agents");
+        let (one, two) = (pool(1), pool(2));
+        for p in [CsbaParams::default(), CsbaParams::PLUS, mahalanobis] {
+            // Dense and sparse; the last with pairs up to 8 m apart in x and little between
+            // them, near the default gate's reach (6 x 1 m x sqrt 2).
+            let windows = [
+                (300, 16, 300.0, 1.5),
+                (300, 16, 60.0, 1.5),
+                (2500, 2, 3000.0, 4.0),
+            ];
+            for (seed, &(n, agents, half, off)) in (1..).zip(&windows) {
+                let agents = window(n, agents, half, off, seed);
+                assert!(agents.iter().map(Vec::len).sum::<usize>() >= PARALLEL_FROM);
+                let one_pass = |a: &[Vec<Detection>]| one.install(|| csba_groups(&p, a));
+                let reach = || x_reach(&p, agents.iter().flatten());
+                let split = two
+                    .install(|| in_parts(&agents, reach, one_pass))
+                    .expect("split");
+                let whole = one_pass(&agents);
+                assert_eq!(split.1, whole.1, "{p:?} seed {seed}");
+                assert_eq!(split.0, whole.0, "{p:?} seed {seed}");
+                let span = agents.len().min(9);
+                assert!(
+                    whole.1.iter().any(|g| g.len() >= span),
+                    "groups span agents"
+                );
+                // Through the method itself, on both threads.
+                assert_eq!(two.install(|| csba_groups(&p, &agents)), whole);
+            }
         }
+        // A full covariance: cut by class alone, still the one pass's groups.
+        let mut agents = window(300, 16, 60.0, 1.5, 4);
+        agents[3][0].pos_cov = Some(Box::new([
+            [1.0, 0.2, 0.0],
+            [0.2, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]));
+        let p = CsbaParams::PLUS;
+        assert_eq!(x_reach(&p, agents.iter().flatten()), None);
+        let whole = one.install(|| csba_groups(&p, &agents));
+        assert_eq!(two.install(|| csba_groups(&p, &agents)), whole);
         // Below the bound, or with one thread, there is no split.
-        let small = window(100, 4, 3);
-        assert!(pool.install(|| by_class(&small, one_pass)).is_none());
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
+        let one_pass = |a: &[Vec<Detection>]| csba_one_pass(&p, a);
+        let small = window(100, 4, 300.0, 1.5, 3);
+        assert!(two
+            .install(|| in_parts(&small, || Some(1.0), one_pass))
+            .is_none());
+        let large = window(300, 16, 300.0, 1.5, 1);
         assert!(one
-            .install(|| by_class(&window(300, 16, 1), one_pass))
+            .install(|| in_parts(&large, || Some(1.0), one_pass))
             .is_none());
     }
 }
