@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release -p v2x-fuser --example steps -- METHOD NOISE OBJECTS STEPS [SEED]`
 //!
-//! e.g. `csba-wls+ large 1000 60`: 60 steps of 2 x 1,000 objects at large noise (seed 1).
+//! e.g. `csba-wls+ large 1000 60`: 60 steps of 2 x 1,000 objects at large noise (seed 1);
+//! OBJECTS may name the agents too, `64x200` for 64 agents of 200 objects.
 
 use std::hint::black_box;
 use std::process::ExitCode;
@@ -23,19 +24,28 @@ fn main() -> ExitCode {
     let parsed = (
         method.parse::<Method>().ok(),
         NoiseProfile::ALL.into_iter().find(|p| p.name() == noise),
-        objects.parse::<usize>().ok(),
+        parse_size(objects),
         steps.parse::<usize>().ok(),
         rest.first().map_or(Some(1), |s| s.parse::<u64>().ok()),
     );
-    let (Some(method), Some(noise), Some(objects), Some(steps), Some(seed)) = parsed else {
-        eprintln!("{usage}\n  METHOD a fusion method (csba-wls+, ...), NOISE one of mild, moderate, large");
+    let (Some(method), Some(noise), Some((agents, objects)), Some(steps), Some(seed)) = parsed
+    else {
+        eprintln!("{usage}\n  METHOD a fusion method (csba-wls+, ...), NOISE one of mild, moderate, large, OBJECTS N or AGENTSxN");
         return ExitCode::FAILURE;
     };
-    let scene = common::scene(objects, 2, noise, seed);
+    let scene = common::scene(objects, agents, noise, seed);
     let mut fused = 0;
     for _ in 0..steps {
         fused += black_box(method.fuse(black_box(&scene))).len();
     }
     println!("{steps} steps, {} fused boxes each", fused / steps.max(1));
     ExitCode::SUCCESS
+}
+
+/// `N` (two agents) or `AxN`: the agents and the objects.
+fn parse_size(s: &str) -> Option<(usize, usize)> {
+    match s.split_once('x') {
+        Some((a, n)) => Some((a.parse().ok()?, n.parse().ok()?)),
+        None => Some((2, s.parse().ok()?)),
+    }
 }

@@ -20,7 +20,9 @@ struct Grid {
     origin: [f64; 2],
     cell: f64,
     n: [usize; 2],
-    /// Bucket (class c, column i, row j) holds `slots[start[k]..start[k + 1]]`,
+    /// Each class's place among the classes present (by wire code; `u8::MAX`: absent).
+    class_slot: [u8; Class::ALL.len()],
+    /// Bucket (class slot c, column i, row j) holds `slots[start[k]..start[k + 1]]`,
     /// k = (c n_0 + i) n_1 + j: the rows of one column of one class are adjacent.
     start: Vec<u32>,
     slots: Vec<Slot>,
@@ -52,12 +54,25 @@ impl Grid {
         while cells(cell) > budget {
             cell *= 1.5;
         }
-        let n = [0, 1].map(|k| ((hi[k] - lo[k]) / cell) as usize + 1);
+        let n = [
+            ((hi[0] - lo[0]) / cell) as usize + 1,
+            ((hi[1] - lo[1]) / cell) as usize + 1,
+        ];
+        let mut class_slot = [u8::MAX; Class::ALL.len()];
+        let mut classes = 0;
+        for d in dets {
+            let slot = &mut class_slot[d.class.code() as usize];
+            if *slot == u8::MAX {
+                *slot = classes;
+                classes += 1;
+            }
+        }
         let mut grid = Grid {
             origin: lo,
             cell,
             n,
-            start: vec![0; Class::ALL.len() * n[0] * n[1] + 1],
+            class_slot,
+            start: vec![0; classes as usize * n[0] * n[1] + 1],
             slots: Vec::with_capacity(dets.len()),
             xy: vec![[0.0; 2]; dets.len()],
         };
@@ -92,10 +107,10 @@ impl Grid {
         (((p - self.origin[k]) / self.cell).max(0.0) as usize).min(self.n[k] - 1)
     }
 
-    /// The bucket of a detection: its class and the cell its centre lies in.
+    /// The bucket of a detection of a class present: its class and the cell its centre lies in.
     fn bucket(&self, d: &Detection) -> usize {
         let (i, j) = (self.index(0, d.center[0]), self.index(1, d.center[1]));
-        (d.class.code() as usize * self.n[0] + i) * self.n[1] + j
+        (self.class_slot[d.class.code() as usize] as usize * self.n[0] + i) * self.n[1] + j
     }
 
     /// The indices of `dets` ordered by cell (a counting sort), so that detections visited
@@ -132,12 +147,22 @@ impl Grid {
         centre: [f64; 3],
         radius: [f64; 2],
     ) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
-        let [lo, hi] =
-            [-1.0, 1.0].map(|s| [0, 1].map(|k| self.index(k, centre[k] + s * radius[k])));
-        let base = class.code() as usize * self.n[0];
-        (lo[0]..=hi[0]).map(move |i| {
+        let (x_lo, x_hi) = (
+            self.index(0, centre[0] - radius[0]),
+            self.index(0, centre[0] + radius[0]),
+        );
+        let (y_lo, y_hi) = (
+            self.index(1, centre[1] - radius[1]),
+            self.index(1, centre[1] + radius[1]),
+        );
+        // A class absent from the grid scans no column.
+        let (base, columns) = match self.class_slot[class.code() as usize] {
+            u8::MAX => (0, 0),
+            c => (c as usize * self.n[0], x_hi - x_lo + 1),
+        };
+        (x_lo..x_lo + columns).map(move |i| {
             let row = (base + i) * self.n[1];
-            self.start[row + lo[1]] as usize..self.start[row + hi[1] + 1] as usize
+            self.start[row + y_lo] as usize..self.start[row + y_hi + 1] as usize
         })
     }
 }
