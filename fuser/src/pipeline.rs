@@ -161,9 +161,9 @@ impl Pipeline {
         if let Some(l) = &mut self.learner {
             l.learn_window(&mut closed);
         }
-        let (t_ref, lists) = align_window(&closed, self.steps.motion.as_ref());
         let agents: Vec<String> = closed.frames.keys().cloned().collect();
         let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
+        let (t_ref, lists) = align_window(closed, self.steps.motion.as_ref());
         let (lists, registration) = self.register(Some(t_ref), &agents, &kinds, lists);
         Prepared {
             t_ref,

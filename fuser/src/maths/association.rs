@@ -220,16 +220,18 @@ pub fn position_std(d: &Detection) -> f64 {
 /// variances and keeps a centre within its members' span. `None` when a box has a full
 /// covariance (a fused centre may then leave its members' span) or the bound is not finite.
 pub fn x_reach<'a>(p: &CsbaParams, boxes: impl IntoIterator<Item = &'a Detection>) -> Option<f64> {
-    let (mut var_x, mut std) = (0.0f64, 0.0f64);
+    // The largest x variance and the largest trace (position_std's, squared and tripled).
+    let (mut var_x, mut trace) = (0.0f64, 0.0f64);
     for d in boxes {
         if d.pos_cov.is_some() {
             return None;
         }
-        var_x = var_x.max(d.std.pos[0].powi(2));
-        std = std.max(position_std(d));
+        let [x, y, z] = d.std.pos.map(|s| s * s);
+        var_x = var_x.max(x);
+        trace = trace.max(x + y + z);
     }
     let lambda = match p.gate {
-        Gate::Paper { factor } => factor * std,
+        Gate::Paper { factor } => factor * (trace / 3.0).sqrt(),
         Gate::Mahalanobis { lambda } => lambda,
     };
     let reach = lambda * (2.0 * var_x).sqrt();

@@ -87,34 +87,34 @@ where
 /// run of occupied bins along x, bins at least `reach` wide (one bin without it), so that two
 /// pieces of a class lie more than `reach` apart.
 fn pieces(agents: &[Vec<Detection>], reach: Option<f64>) -> (Vec<u32>, Vec<usize>) {
-    let boxes = || agents.iter().flatten();
-    let (lo, hi) = boxes().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| {
-        (lo.min(d.center[0]), hi.max(d.center[0]))
-    });
+    let (lo, hi) = agents
+        .iter()
+        .flatten()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| {
+            (lo.min(d.center[0]), hi.max(d.center[0]))
+        });
     // A margin above the reach for the rounding of the bins' edges.
     let width = reach.map(|r| r * (1.0 + 1e-3) + 1e-9 * (lo.abs() + hi.abs() + 1.0));
     let bins = match width {
-        Some(w) if w > 0.0 && (hi - lo).is_finite() && ((hi - lo) / w).is_finite() => {
-            ((hi - lo) / w) as usize + 1
-        }
+        Some(w) if w > 0.0 && ((hi - lo) / w).is_finite() => ((hi - lo) / w) as usize + 1,
         _ => 1,
     };
-    let (bins, width) = if bins > MAX_BINS {
-        (MAX_BINS, (hi - lo) / (MAX_BINS - 1) as f64)
-    } else {
-        (bins, width.unwrap_or(f64::INFINITY))
+    let (bins, per_bin) = match bins {
+        1 => (1, 0.0),
+        b if b > MAX_BINS => (MAX_BINS, (MAX_BINS - 1) as f64 / (hi - lo)),
+        b => (b, 1.0 / width.unwrap_or(f64::INFINITY)),
     };
-    let bin = |d: &Detection| {
-        if bins == 1 {
-            0
-        } else {
-            (((d.center[0] - lo) / width) as usize).min(bins - 1)
-        }
-    };
-    let cell = |d: &Detection| d.class.code() as usize * bins + bin(d);
+    // Each box's cell (class, bin), agent after agent.
+    let mut cell = Vec::with_capacity(agents.iter().map(Vec::len).sum());
+    for list in agents {
+        cell.extend(list.iter().map(|d| {
+            let bin = (((d.center[0] - lo) * per_bin) as usize).min(bins - 1);
+            (d.class.code() as usize * bins + bin) as u32
+        }));
+    }
     let mut piece_of = vec![u32::MAX; Class::ALL.len() * bins];
-    for d in boxes() {
-        piece_of[cell(d)] = 0;
+    for &c in &cell {
+        piece_of[c as usize] = 0;
     }
     // Number the runs of occupied bins, class by class.
     let mut weights = Vec::new();
@@ -132,11 +132,11 @@ fn pieces(agents: &[Vec<Detection>], reach: Option<f64>) -> (Vec<u32>, Vec<usize
             *p = (weights.len() - 1) as u32;
         }
     }
-    let piece: Vec<u32> = boxes().map(|d| piece_of[cell(d)]).collect();
-    for &p in &piece {
-        weights[p as usize] += 1;
+    for c in &mut cell {
+        *c = piece_of[*c as usize];
+        weights[*c as usize] += 1;
     }
-    (piece, weights)
+    (cell, weights)
 }
 
 /// Each piece's part: the heaviest piece first into the lightest of `parts` parts, numbered in

@@ -60,36 +60,42 @@ pub fn added_variance(d: &Detection, dt_s: f64, p: &MotionParams) -> [f64; 2] {
 /// A detection predicted `dt_s` seconds ahead (negative: back).
 pub fn predict(d: &Detection, dt_s: f64, p: &MotionParams) -> Detection {
     let mut out = d.clone();
-    if dt_s == 0.0 {
-        return out;
-    }
-    let add = added_variance(d, dt_s, p);
-    if let Some(v) = &mut out.velocity {
-        for k in 0..2 {
-            out.center[k] += v.v[k] * dt_s;
-            v.std[k] = (v.std[k] * v.std[k] + (p.accel_std * dt_s).powi(2)).sqrt();
-        }
-    }
-    match &mut out.pos_cov {
-        Some(c) => {
-            c[0][0] += add[0];
-            c[1][1] += add[1];
-            out.std.pos[0] = c[0][0].sqrt();
-            out.std.pos[1] = c[1][1].sqrt();
-        }
-        None => {
-            for k in 0..2 {
-                out.std.pos[k] = (out.std.pos[k] * out.std.pos[k] + add[k]).sqrt();
-            }
-        }
-    }
+    predict_in_place(&mut out, dt_s, p);
     out
 }
 
+/// [`predict`] in place.
+pub fn predict_in_place(d: &mut Detection, dt_s: f64, p: &MotionParams) {
+    if dt_s == 0.0 {
+        return;
+    }
+    let add = added_variance(d, dt_s, p);
+    if let Some(v) = &mut d.velocity {
+        for k in 0..2 {
+            d.center[k] += v.v[k] * dt_s;
+            v.std[k] = (v.std[k] * v.std[k] + (p.accel_std * dt_s).powi(2)).sqrt();
+        }
+    }
+    match &mut d.pos_cov {
+        Some(c) => {
+            c[0][0] += add[0];
+            c[1][1] += add[1];
+            d.std.pos[0] = c[0][0].sqrt();
+            d.std.pos[1] = c[1][1].sqrt();
+        }
+        None => {
+            for k in 0..2 {
+                d.std.pos[k] = (d.std.pos[k] * d.std.pos[k] + add[k]).sqrt();
+            }
+        }
+    }
+}
+
 /// A closed window's reference time t_ref (its latest capture) and its frames' detections in
-/// agent order, predicted to t_ref with `motion` (as captured without).
+/// agent order, taken from the window and predicted to t_ref with `motion` (as captured
+/// without).
 pub fn align_window(
-    closed: &crate::time::window::Closed,
+    closed: crate::time::window::Closed,
     motion: Option<&MotionParams>,
 ) -> (u64, Vec<Vec<Detection>>) {
     let t_ref = closed
@@ -98,22 +104,26 @@ pub fn align_window(
         .map(|f| f.capture_us)
         .max()
         .unwrap_or(closed.anchor_us);
-    let lists = match motion {
-        Some(p) => {
-            let frames: Vec<(&[Detection], u64)> = closed
-                .frames
-                .values()
-                .map(|f| (f.detections.as_slice(), f.capture_us))
-                .collect();
-            compensate(&frames, t_ref, p)
-        }
-        None => closed
-            .frames
-            .values()
-            .map(|f| f.detections.clone())
-            .collect(),
-    };
+    let lists = closed
+        .frames
+        .into_values()
+        .map(|f| {
+            let mut dets = f.detections;
+            if let Some(p) = motion {
+                let dt = seconds_to(t_ref, f.capture_us, p);
+                for d in &mut dets {
+                    predict_in_place(d, dt, p);
+                }
+            }
+            dets
+        })
+        .collect();
     (t_ref, lists)
+}
+
+/// The motion's seconds from a capture at `t_us` to `t_ref_us` (at the replay's time scale).
+fn seconds_to(t_ref_us: u64, t_us: u64, p: &MotionParams) -> f64 {
+    (t_ref_us as f64 - t_us as f64) / 1e6 * p.time_scale
 }
 
 /// Each agent's detections predicted from its capture time to `t_ref_us`.
@@ -125,7 +135,7 @@ pub fn compensate(
     frames
         .iter()
         .map(|(dets, t)| {
-            let dt = (t_ref_us as f64 - *t as f64) / 1e6 * p.time_scale;
+            let dt = seconds_to(t_ref_us, *t, p);
             dets.iter().map(|d| predict(d, dt, p)).collect()
         })
         .collect()
