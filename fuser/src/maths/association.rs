@@ -215,27 +215,43 @@ pub fn position_std(d: &Detection) -> f64 {
     ((c[0][0] + c[1][1] + c[2][2]) / 3.0).sqrt()
 }
 
-/// The farthest apart along x two of `boxes`, or boxes WLS-3D fused from them, can lie and still
-/// be eligible: lambda_max sqrt(Sa_xx + Sb_xx) at its largest, since fusing only shrinks the
-/// variances and keeps a centre within its members' span. `None` when a box has a full
-/// covariance (a fused centre may then leave its members' span) or the bound is not finite.
-pub fn x_reach<'a>(p: &CsbaParams, boxes: impl IntoIterator<Item = &'a Detection>) -> Option<f64> {
-    // The largest x variance and the largest trace (position_std's, squared and tripled).
-    let (mut var_x, mut trace) = (0.0f64, 0.0f64);
-    for d in boxes {
-        if d.pos_cov.is_some() {
+/// How spread the boxes' centres are stated to be, gathered one box at a time, for
+/// [`Spread::x_reach`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Spread {
+    /// The largest x variance.
+    var_x: f64,
+    /// The largest trace of a centre's covariance (position_std's, squared and tripled).
+    trace: f64,
+    /// Whether a box has a full covariance.
+    full: bool,
+}
+
+impl Spread {
+    /// Takes in one box.
+    pub fn add(&mut self, d: &Detection) {
+        let [x, y, z] = d.std.pos.map(|s| s * s);
+        self.var_x = self.var_x.max(x);
+        self.trace = self.trace.max(x + y + z);
+        self.full |= d.pos_cov.is_some();
+    }
+
+    /// The farthest apart along x two of the boxes taken in, or boxes WLS-3D fused from them,
+    /// can lie and still be eligible: lambda_max sqrt(Sa_xx + Sb_xx) at its largest, since
+    /// fusing only shrinks the variances and keeps a centre within its members' span. `None`
+    /// when a box has a full covariance (a fused centre may then leave its members' span) or the
+    /// bound is not finite.
+    pub fn x_reach(&self, p: &CsbaParams) -> Option<f64> {
+        if self.full {
             return None;
         }
-        let [x, y, z] = d.std.pos.map(|s| s * s);
-        var_x = var_x.max(x);
-        trace = trace.max(x + y + z);
+        let lambda = match p.gate {
+            Gate::Paper { factor } => factor * (self.trace / 3.0).sqrt(),
+            Gate::Mahalanobis { lambda } => lambda,
+        };
+        let reach = lambda * (2.0 * self.var_x).sqrt();
+        (reach.is_finite() && reach >= 0.0).then_some(reach)
     }
-    let lambda = match p.gate {
-        Gate::Paper { factor } => factor * (trace / 3.0).sqrt(),
-        Gate::Mahalanobis { lambda } => lambda,
-    };
-    let reach = lambda * (2.0 * var_x).sqrt();
-    (reach.is_finite() && reach >= 0.0).then_some(reach)
 }
 
 /// lambda_max for a pair under the chosen gate.
@@ -695,7 +711,11 @@ fn greedy(comp: &[Edge], pairs: &mut Vec<(usize, usize)>) {
 }
 
 /// CSBA-3D on two lists: the matched (index in `a`, index in `b`) pairs.
-pub fn associate(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<(usize, usize)> {
+pub fn associate<A, B>(p: &CsbaParams, a: &[A], b: &[B]) -> Vec<(usize, usize)>
+where
+    A: std::borrow::Borrow<Detection>,
+    B: std::borrow::Borrow<Detection>,
+{
     EDGES.with_borrow_mut(|edges| {
         eligible_pairs_into(p, a, b, edges);
         let pairs = assign(a.len(), b.len(), edges);

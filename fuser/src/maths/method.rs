@@ -2,10 +2,11 @@
 //! A [`Method`] is a value, so CSBA-WLS, its variants, the baselines and the oracle are used the
 //! same way, by name, from the library, the `v2x-fuser fuse` command and the fuser node.
 
-use crate::maths::association::{associate, mahalanobis, x_reach, CsbaParams, CHI2_3_999};
+use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
 use crate::maths::baselines;
 use crate::maths::fusion::GroupSum;
 use crate::maths::parts::in_parts;
+use std::borrow::Borrow;
 use std::fmt;
 use std::str::FromStr;
 use v2x_protocol::{AgentSet, Detection, UnknownName};
@@ -258,17 +259,19 @@ pub use crate::maths::parts::Members;
 /// CSBA-3D association and WLS-3D fusion ([`csba_wls`]): the fused boxes and the members of
 /// each, in the same order.
 pub fn csba_groups(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
-    let reach = || x_reach(p, agents.iter().flatten());
-    in_parts(agents, reach, |a| csba_one_pass(p, a)).unwrap_or_else(|| csba_one_pass(p, agents))
+    in_parts(p, agents, |a| csba_one_pass(p, a)).unwrap_or_else(|| csba_one_pass(p, agents))
 }
 
 /// [`csba_groups`] in one pass over the agents' lists.
-fn csba_one_pass(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, Vec<Members>) {
+fn csba_one_pass<D: Borrow<Detection>>(
+    p: &CsbaParams,
+    agents: &[Vec<D>],
+) -> (Vec<Detection>, Vec<Members>) {
     let n: usize = agents.iter().map(Vec::len).sum();
     let mut groups: Vec<Members> = Vec::with_capacity(n);
     // Each group's WLS-3D sums once it has two members: a member joining adds its own terms.
     let mut sums: Vec<Option<GroupSum>> = Vec::with_capacity(n);
-    let member = |&(k, j): &(usize, usize)| &agents[k][j];
+    let member = |&(k, j): &(usize, usize)| agents[k][j].borrow();
     let sum_of = |g: &Members| {
         let refs: smallvec::SmallVec<[&Detection; 4]> = g.iter().map(member).collect();
         GroupSum::of(&refs)
@@ -276,21 +279,21 @@ fn csba_one_pass(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, 
     // The running fused boxes. Until a second agent's boxes arrive they are the first agent's
     // list itself (`base`), copied once, with its groups already re-fused, when they do.
     let mut fused: Vec<Detection> = Vec::new();
-    let mut base: Option<&[Detection]> = None;
+    let mut base: Option<&[D]> = None;
     for (k, list) in agents.iter().enumerate() {
         if list.is_empty() {
             continue;
         }
-        let Some(current) = base.or((!fused.is_empty()).then_some(&fused[..])) else {
-            base = Some(list);
-            groups.extend((0..list.len()).map(|j| smallvec::smallvec![(k, j)]));
-            sums.resize(groups.len(), None);
-            continue;
+        let pairs: Vec<(usize, usize)> = match (base, fused.is_empty()) {
+            (None, true) => {
+                base = Some(list);
+                groups.extend((0..list.len()).map(|j| smallvec::smallvec![(k, j)]));
+                sums.resize(groups.len(), None);
+                continue;
+            }
+            (Some(first), _) => consistent_pairs(p, first, list),
+            (None, false) => consistent_pairs(p, &fused, list),
         };
-        let pairs: Vec<(usize, usize)> = associate(p, current, list)
-            .into_iter()
-            .filter(|&(g, j)| consistent(p, &current[g], &list[j]))
-            .collect();
         let mut taken = vec![false; list.len()];
         for &(g, j) in &pairs {
             taken[j] = true;
@@ -304,14 +307,14 @@ fn csba_one_pass(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, 
                     fused.push(sum.fused());
                     sums[g] = Some(sum);
                 } else {
-                    fused.push(d.clone());
+                    fused.push(d.borrow().clone());
                 }
             }
         } else {
             for &(g, j) in &pairs {
                 let sum = match &mut sums[g] {
                     Some(sum) => {
-                        sum.add(&list[j]);
+                        sum.add(list[j].borrow());
                         sum
                     }
                     slot => slot.insert(sum_of(&groups[g])),
@@ -323,14 +326,26 @@ fn csba_one_pass(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<Detection>, 
             if !taken[j] {
                 groups.push(smallvec::smallvec![(k, j)]);
                 sums.push(None);
-                fused.push(d.clone());
+                fused.push(d.borrow().clone());
             }
         }
     }
     if let Some(first) = base {
-        fused = first.to_vec();
+        fused = first.iter().map(|d| d.borrow().clone()).collect();
     }
     (fused, groups)
+}
+
+/// CSBA-3D's pairs of the running boxes `current` and an agent's `list` that pass [`consistent`].
+fn consistent_pairs<A, B>(p: &CsbaParams, current: &[A], list: &[B]) -> Vec<(usize, usize)>
+where
+    A: Borrow<Detection>,
+    B: Borrow<Detection>,
+{
+    associate(p, current, list)
+        .into_iter()
+        .filter(|&(g, j)| consistent(p, current[g].borrow(), list[j].borrow()))
+        .collect()
 }
 
 /// The chi-square test of a new member against its group's fused box: its squared centre
@@ -435,7 +450,7 @@ mod tests {
 #[cfg(test)]
 mod parts_tests {
     use super::*;
-    use crate::maths::association::Gate;
+    use crate::maths::association::{Gate, Spread};
     use crate::maths::parts::PARALLEL_FROM;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -494,12 +509,11 @@ mod parts_tests {
             for (seed, &(n, agents, half, off)) in (1..).zip(&windows) {
                 let agents = window(n, agents, half, off, seed);
                 assert!(agents.iter().map(Vec::len).sum::<usize>() >= PARALLEL_FROM);
-                let one_pass = |a: &[Vec<Detection>]| one.install(|| csba_groups(&p, a));
-                let reach = || x_reach(&p, agents.iter().flatten());
+                let one_pass = |a: &[Vec<&Detection>]| one.install(|| csba_one_pass(&p, a));
                 let split = two
-                    .install(|| in_parts(&agents, reach, one_pass))
+                    .install(|| in_parts(&p, &agents, one_pass))
                     .expect("split");
-                let whole = one_pass(&agents);
+                let whole = one.install(|| csba_groups(&p, &agents));
                 assert_eq!(split.1, whole.1, "{p:?} seed {seed}");
                 assert_eq!(split.0, whole.0, "{p:?} seed {seed}");
                 let span = agents.len().min(9);
@@ -519,18 +533,16 @@ mod parts_tests {
             [0.0, 0.0, 1.0],
         ]));
         let p = CsbaParams::PLUS;
-        assert_eq!(x_reach(&p, agents.iter().flatten()), None);
+        let mut spread = Spread::default();
+        agents.iter().flatten().for_each(|d| spread.add(d));
+        assert_eq!(spread.x_reach(&p), None);
         let whole = one.install(|| csba_groups(&p, &agents));
         assert_eq!(two.install(|| csba_groups(&p, &agents)), whole);
         // Below the bound, or with one thread, there is no split.
-        let one_pass = |a: &[Vec<Detection>]| csba_one_pass(&p, a);
+        let one_pass = |a: &[Vec<&Detection>]| csba_one_pass(&p, a);
         let small = window(100, 4, 300.0, 1.5, 3);
-        assert!(two
-            .install(|| in_parts(&small, || Some(1.0), one_pass))
-            .is_none());
+        assert!(two.install(|| in_parts(&p, &small, one_pass)).is_none());
         let large = window(300, 16, 300.0, 1.5, 1);
-        assert!(one
-            .install(|| in_parts(&large, || Some(1.0), one_pass))
-            .is_none());
+        assert!(one.install(|| in_parts(&p, &large, one_pass)).is_none());
     }
 }

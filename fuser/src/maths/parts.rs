@@ -4,6 +4,7 @@
 //! gaps wider than that reach, the pieces are packed into one part per thread, and each part's
 //! one pass gives the groups one pass over the whole would, put back in its order.
 
+use crate::maths::association::{CsbaParams, Spread};
 use rayon::prelude::*;
 use v2x_protocol::{Class, Detection};
 
@@ -21,22 +22,20 @@ pub type Groups = (Vec<Detection>, Vec<Members>);
 /// The most bins along x a window is cut on (their width grows past the reach beyond it).
 const MAX_BINS: usize = 1 << 14;
 
-/// `fuse` (one pass over the agents' lists, its groups in the order of their first members) run
-/// part by part in parallel when the window holds at least [`PARALLEL_FROM`] boxes, they fall
-/// into two pieces or more and rayon has two threads; `None` otherwise, for the caller's one
-/// pass. `reach` gives the distance along x beyond which no two boxes, nor boxes fused from
-/// them, associate (`None`: cut by class alone).
-pub fn in_parts<F, R>(agents: &[Vec<Detection>], reach: R, fuse: F) -> Option<Groups>
+/// `fuse` (one pass over the agents' lists with the parameters `p`, its groups in the order of
+/// their first members) run part by part in parallel when the window holds at least
+/// [`PARALLEL_FROM`] boxes, they fall into two pieces or more and rayon has two threads; `None`
+/// otherwise, for the caller's one pass.
+pub fn in_parts<F>(p: &CsbaParams, agents: &[Vec<Detection>], fuse: F) -> Option<Groups>
 where
-    F: Fn(&[Vec<Detection>]) -> Groups + Sync,
-    R: FnOnce() -> Option<f64>,
+    F: Fn(&[Vec<&Detection>]) -> Groups + Sync,
 {
     let n: usize = agents.iter().map(Vec::len).sum();
     let threads = rayon::current_num_threads();
     if n < PARALLEL_FROM || threads < 2 {
         return None;
     }
-    let (piece, weights) = pieces(agents, reach());
+    let (piece, weights) = pieces(p, agents);
     if weights.len() < 2 {
         return None;
     }
@@ -56,14 +55,14 @@ where
         .into_par_iter()
         .map(|t| {
             // Each agent's boxes of this part, and where each stands in the agent's list.
-            let (lists, places): (Vec<Vec<Detection>>, Vec<Vec<usize>>) = agents
+            let (lists, places): (Vec<Vec<&Detection>>, Vec<Vec<usize>>) = agents
                 .iter()
                 .zip(&starts)
                 .map(|(list, &s)| {
                     list.iter()
                         .enumerate()
                         .filter(|&(j, _)| part[s + j] == t)
-                        .map(|(j, d)| (d.clone(), j))
+                        .map(|(j, d)| (d, j))
                         .unzip()
                 })
                 .unzip();
@@ -84,17 +83,25 @@ where
 }
 
 /// Each box's piece (agent after agent) and each piece's count of boxes. A piece is one class's
-/// run of occupied bins along x, bins at least `reach` wide (one bin without it), so that two
-/// pieces of a class lie more than `reach` apart.
-fn pieces(agents: &[Vec<Detection>], reach: Option<f64>) -> (Vec<u32>, Vec<usize>) {
-    let (lo, hi) = agents
+/// run of occupied bins along x, bins wider than the gate's reach along x ([`Spread::x_reach`];
+/// one bin without it), so that two pieces of a class lie farther apart than any pair it passes.
+fn pieces(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<u32>, Vec<usize>) {
+    // One read of the boxes: their x and class, apart, and what the reach needs.
+    let mut spread = Spread::default();
+    let mut xs: Vec<(f64, u8)> = Vec::with_capacity(agents.iter().map(Vec::len).sum());
+    for d in agents.iter().flatten() {
+        spread.add(d);
+        xs.push((d.center[0], d.class.code()));
+    }
+    let (lo, hi) = xs
         .iter()
-        .flatten()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), d| {
-            (lo.min(d.center[0]), hi.max(d.center[0]))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &(x, _)| {
+            (lo.min(x), hi.max(x))
         });
     // A margin above the reach for the rounding of the bins' edges.
-    let width = reach.map(|r| r * (1.0 + 1e-3) + 1e-9 * (lo.abs() + hi.abs() + 1.0));
+    let width = spread
+        .x_reach(p)
+        .map(|r| r * (1.0 + 1e-3) + 1e-9 * (lo.abs() + hi.abs() + 1.0));
     let bins = match width {
         Some(w) if w > 0.0 && ((hi - lo) / w).is_finite() => ((hi - lo) / w) as usize + 1,
         _ => 1,
@@ -105,13 +112,13 @@ fn pieces(agents: &[Vec<Detection>], reach: Option<f64>) -> (Vec<u32>, Vec<usize
         b => (b, 1.0 / width.unwrap_or(f64::INFINITY)),
     };
     // Each box's cell (class, bin), agent after agent.
-    let mut cell = Vec::with_capacity(agents.iter().map(Vec::len).sum());
-    for list in agents {
-        cell.extend(list.iter().map(|d| {
-            let bin = (((d.center[0] - lo) * per_bin) as usize).min(bins - 1);
-            (d.class.code() as usize * bins + bin) as u32
-        }));
-    }
+    let mut cell: Vec<u32> = xs
+        .iter()
+        .map(|&(x, code)| {
+            let bin = (((x - lo) * per_bin) as usize).min(bins - 1);
+            (code as usize * bins + bin) as u32
+        })
+        .collect();
     let mut piece_of = vec![u32::MAX; Class::ALL.len() * bins];
     for &c in &cell {
         piece_of[c as usize] = 0;
@@ -157,12 +164,24 @@ fn pack(weights: &[usize], parts: usize) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::maths::association::Gate;
     use v2x_protocol::fixtures::car;
 
+    /// A box of `class` at (x, 0) with a position std of 1 m.
     fn at(x: f64, class: Class) -> Detection {
         let mut d = car(x, 0.0, 1.0);
         d.class = class;
         d
+    }
+
+    /// The gate that reaches `reach` m along x between boxes of 1 m stds.
+    fn reaching(reach: f64) -> CsbaParams {
+        CsbaParams {
+            gate: Gate::Mahalanobis {
+                lambda: reach / 2f64.sqrt(),
+            },
+            ..CsbaParams::PLUS
+        }
     }
 
     #[test]
@@ -177,7 +196,7 @@ mod tests {
                 at(1.8, Class::Car),
             ],
         ];
-        let (piece, weights) = pieces(&agents, Some(1.0));
+        let (piece, weights) = pieces(&reaching(1.0), &agents);
         let [c0, c3, c09, t, c18] = piece[..] else {
             panic!("{piece:?}")
         };
@@ -188,13 +207,19 @@ mod tests {
         assert_ne!(t, c3);
         assert_eq!(weights.len(), 3);
         assert_eq!(weights[c0 as usize], 3);
-        // Without a reach, the classes alone.
-        let (piece, weights) = pieces(&agents, None);
+        // Without a reach (a full covariance), the classes alone.
+        let mut agents = agents;
+        agents[1][2].pos_cov = Some(Box::new([
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]));
+        let (piece, weights) = pieces(&reaching(1.0), &agents);
         assert_eq!(weights.len(), 2);
         assert_eq!(piece[0], piece[1]);
         // Boxes 1 m apart, a reach of 1 m: never cut (the bins are wider than the reach).
         let chain = vec![(0..50).map(|i| at(i as f64, Class::Car)).collect()];
-        assert_eq!(pieces(&chain, Some(1.0)).1, vec![50]);
+        assert_eq!(pieces(&reaching(1.0), &chain).1, vec![50]);
     }
 
     #[test]
@@ -208,7 +233,7 @@ mod tests {
             })
             .collect();
         for reach in [0.1, 1.0, 5.0] {
-            let (piece, weights) = pieces(std::slice::from_ref(&list), Some(reach));
+            let (piece, weights) = pieces(&reaching(reach), std::slice::from_ref(&list));
             assert!(weights.len() > 3, "reach {reach}: {} pieces", weights.len());
             for (i, a) in list.iter().enumerate() {
                 for (j, b) in list.iter().enumerate() {

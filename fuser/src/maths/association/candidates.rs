@@ -3,6 +3,7 @@
 //! candidates capped at [`MAX_CANDIDATES`].
 
 use super::*;
+use std::borrow::Borrow;
 
 /// A candidate in the grid: what its pairs need and its index in the list.
 #[derive(Copy, Clone, Debug)]
@@ -33,13 +34,14 @@ struct Grid {
 impl Grid {
     /// The grid of `dets` with cells at least `min_cell` wide, widened if need be so that
     /// there are at most about as many cells as detections (far-flung input stays small).
-    fn of(p: &CsbaParams, dets: &[Detection], min_cell: f64) -> Option<Grid> {
+    fn of<B: Borrow<Detection>>(p: &CsbaParams, dets: &[B], min_cell: f64) -> Option<Grid> {
         if dets.is_empty() || !(min_cell.is_finite() && min_cell > 0.0) {
             return None;
         }
         u32::try_from(dets.len()).expect("fewer than 2^32 boxes in a list");
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for d in dets {
+            let d = d.borrow();
             for k in 0..2 {
                 lo[k] = lo[k].min(d.center[k]);
                 hi[k] = hi[k].max(d.center[k]);
@@ -61,7 +63,7 @@ impl Grid {
         let mut class_slot = [u8::MAX; Class::ALL.len()];
         let mut classes = 0;
         for d in dets {
-            let slot = &mut class_slot[d.class.code() as usize];
+            let slot = &mut class_slot[d.borrow().class.code() as usize];
             if *slot == u8::MAX {
                 *slot = classes;
                 classes += 1;
@@ -76,7 +78,7 @@ impl Grid {
             slots: Vec::with_capacity(dets.len()),
             xy: vec![[0.0; 2]; dets.len()],
         };
-        let keys: Vec<usize> = dets.iter().map(|d| grid.bucket(d)).collect();
+        let keys: Vec<usize> = dets.iter().map(|d| grid.bucket(d.borrow())).collect();
         // 32-bit offsets (checked above): half the bytes keep them in the cache on large scenes.
         for &k in &keys {
             grid.start[k + 1] += 1;
@@ -88,12 +90,12 @@ impl Grid {
         grid.slots.resize(
             dets.len(),
             Slot {
-                prep: Prepared::of(p, &dets[0]),
+                prep: Prepared::of(p, dets[0].borrow()),
                 index: 0,
             },
         );
         for (index, (d, &k)) in dets.iter().zip(&keys).enumerate() {
-            let prep = Prepared::of(p, d);
+            let prep = Prepared::of(p, d.borrow());
             let at = fill[k] as usize;
             grid.slots[at] = Slot { prep, index };
             grid.xy[at] = [prep.center[0], prep.center[1]];
@@ -117,7 +119,7 @@ impl Grid {
     /// one after the other scan the same cells. Cells go column by column within strips
     /// [`STRIP`] rows high, so the cells a scan reads again a few detections later are still
     /// in the cache however large the scene.
-    fn visiting_order(&self, dets: &[Detection]) -> Vec<usize> {
+    fn visiting_order<A: Borrow<Detection>>(&self, dets: &[A]) -> Vec<usize> {
         let cell = |d: &Detection| {
             let (i, j) = (self.index(0, d.center[0]), self.index(1, d.center[1]));
             ((j / STRIP) * self.n[0] + i) * STRIP + j % STRIP
@@ -125,14 +127,14 @@ impl Grid {
         let strips = self.n[1].div_ceil(STRIP);
         let mut start = vec![0u32; strips * self.n[0] * STRIP + 1];
         for d in dets {
-            start[cell(d) + 1] += 1;
+            start[cell(d.borrow()) + 1] += 1;
         }
         for k in 1..start.len() {
             start[k] += start[k - 1];
         }
         let mut order = vec![0; dets.len()];
         for (i, d) in dets.iter().enumerate() {
-            let k = cell(d);
+            let k = cell(d.borrow());
             order[start[k] as usize] = i;
             start[k] += 1;
         }
@@ -180,10 +182,10 @@ pub fn eligible_pairs(p: &CsbaParams, a: &[Detection], b: &[Detection]) -> Vec<E
 }
 
 /// [`eligible_pairs`] into `edges` (cleared first), whose allocation is kept.
-pub(super) fn eligible_pairs_into(
+pub(super) fn eligible_pairs_into<A: Borrow<Detection>, B: Borrow<Detection>>(
     p: &CsbaParams,
-    a: &[Detection],
-    b: &[Detection],
+    a: &[A],
+    b: &[B],
     edges: &mut Vec<Edge>,
 ) {
     edges.clear();
@@ -192,6 +194,7 @@ pub(super) fn eligible_pairs_into(
     }
     // b's largest x and y variances and position std, in one pass.
     let (max_var_x_b, max_var_y_b, max_std_b) = b.iter().fold((0.0, 0.0, 0.0), |(x, y, s), d| {
+        let d = d.borrow();
         let c = d.position_covariance();
         (
             f64::max(x, c[0][0]),
@@ -214,7 +217,7 @@ pub(super) fn eligible_pairs_into(
     let widest = a
         .iter()
         .map(|da| {
-            let [rx, ry] = reach(da);
+            let [rx, ry] = reach(da.borrow());
             rx.max(ry)
         })
         .fold(0.0, f64::max);
@@ -223,7 +226,7 @@ pub(super) fn eligible_pairs_into(
     };
     for ia in grid.visiting_order(a) {
         // a's own quantities live on the stack for its whole scan.
-        let da = &a[ia];
+        let da = a[ia].borrow();
         let (pa, [rx, ry]) = (Prepared::of(p, da), reach(da));
         let row_start = edges.len();
         for range in grid.within(pa.class, pa.center, [rx, ry]) {
@@ -234,7 +237,7 @@ pub(super) fn eligible_pairs_into(
                 }
                 let slot = &grid.slots[k];
                 let ib = slot.index;
-                if let Some(cost) = prepared_cost(p, da, &pa, &b[ib], &slot.prep) {
+                if let Some(cost) = prepared_cost(p, da, &pa, b[ib].borrow(), &slot.prep) {
                     edges.push(Edge::new(ia, ib, cost));
                 }
             }
