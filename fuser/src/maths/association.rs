@@ -236,6 +236,15 @@ impl Spread {
         self.full |= d.pos_cov.is_some();
     }
 
+    /// The boxes of both taken in.
+    pub fn merge(self, other: &Spread) -> Spread {
+        Spread {
+            var_x: self.var_x.max(other.var_x),
+            trace: self.trace.max(other.trace),
+            full: self.full || other.full,
+        }
+    }
+
     /// The farthest apart along x two of the boxes taken in, or boxes WLS-3D fused from them,
     /// can lie and still be eligible: lambda_max sqrt(Sa_xx + Sb_xx) at its largest, since
     /// fusing only shrinks the variances and keeps a centre within its members' span. `None`

@@ -86,13 +86,26 @@ where
 /// run of occupied bins along x, bins wider than the gate's reach along x ([`Spread::x_reach`];
 /// one bin without it), so that two pieces of a class lie farther apart than any pair it passes.
 fn pieces(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<u32>, Vec<usize>) {
-    // One read of the boxes: their x and class, apart, and what the reach needs.
-    let mut spread = Spread::default();
-    let mut xs: Vec<(f64, u8)> = Vec::with_capacity(agents.iter().map(Vec::len).sum());
-    for d in agents.iter().flatten() {
-        spread.add(d);
-        xs.push((d.center[0], d.class.code()));
-    }
+    // One read of the boxes, agents in parallel: their x and class, apart, and what the reach
+    // needs.
+    let gathered: Vec<(Spread, Vec<(f64, u8)>)> = agents
+        .par_iter()
+        .map(|list| {
+            let mut spread = Spread::default();
+            let xs = list
+                .iter()
+                .map(|d| {
+                    spread.add(d);
+                    (d.center[0], d.class.code())
+                })
+                .collect();
+            (spread, xs)
+        })
+        .collect();
+    let spread = gathered
+        .iter()
+        .fold(Spread::default(), |all, (s, _)| all.merge(s));
+    let xs: Vec<(f64, u8)> = gathered.into_iter().flat_map(|(_, xs)| xs).collect();
     let (lo, hi) = xs
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &(x, _)| {
@@ -243,6 +256,32 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_spread_of_agents_gathered_apart_is_that_of_all_their_boxes() {
+        let p = CsbaParams::default();
+        let (a, b) = (car(0.0, 0.0, 1.0), car(5.0, 0.0, 2.0));
+        let mut all = Spread::default();
+        all.add(&a);
+        all.add(&b);
+        let (mut sa, mut sb) = (Spread::default(), Spread::default());
+        sa.add(&a);
+        sb.add(&b);
+        // The paper's gate: 6 x 2 m x sqrt(2 x 4) m.
+        let expected = 6.0 * 2.0 * 8f64.sqrt();
+        assert!((all.x_reach(&p).unwrap() - expected).abs() < 1e-12);
+        assert_eq!(sa.merge(&sb).x_reach(&p), all.x_reach(&p));
+        assert_eq!(sb.merge(&sa).x_reach(&p), all.x_reach(&p));
+        let mut full = b.clone();
+        full.pos_cov = Some(Box::new([
+            [4.0, 0.0, 0.0],
+            [0.0, 4.0, 0.0],
+            [0.0, 0.0, 4.0],
+        ]));
+        let mut sf = Spread::default();
+        sf.add(&full);
+        assert_eq!(sa.merge(&sf).x_reach(&p), None);
     }
 
     #[test]

@@ -172,7 +172,9 @@ fn tracks_frame(
 }
 
 /// What fusing one job gives: the fused window, how it was fitted, its bytes, the tracks frame's
-/// bytes with the tracker's counters, and the state carried to the next job.
+/// bytes with the tracker's counters, the state carried to the next job, the association's
+/// bounds, and the window's boxes (freed once the window is out: thousands of boxes take a
+/// while).
 type JobOutput = (
     Fused,
     Fit,
@@ -180,6 +182,7 @@ type JobOutput = (
     Option<(Result<Vec<u8>, wire::EncodeError>, TrackStats)>,
     Carried,
     (u64, u64),
+    Vec<Vec<Detection>>,
 );
 
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
@@ -216,7 +219,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
     });
     let after = crate::maths::association::bounds_applied();
     let degraded = (after.0 - bounds_before.0, after.1 - bounds_before.1);
-    (fused, fit, bytes, tracked, state, degraded)
+    (fused, fit, bytes, tracked, state, degraded, lists)
 }
 
 /// The empty window reported in place of one whose fusion panicked.
@@ -276,14 +279,14 @@ pub(super) async fn run(
         let f = fusion.clone();
         let work = tokio::task::spawn_blocking(move || fuse_job(&f, state, closed, this_seq)).await;
         // A fusion that panicked took the aligner and the tracks with it: start afresh.
-        let (work, tracked, degraded) = match work {
-            Ok((fused, fit, bytes, tracked, state, degraded)) => {
+        let (work, tracked, degraded, boxes) = match work {
+            Ok((fused, fit, bytes, tracked, state, degraded, boxes)) => {
                 carried = state;
-                (Ok((fused, fit, bytes)), tracked, degraded)
+                (Ok((fused, fit, bytes)), tracked, degraded, boxes)
             }
             Err(e) => {
                 carried = fusion.fresh();
-                (Err(e), None, (0, 0))
+                (Err(e), None, (0, 0), Vec::new())
             }
         };
         let mut track_stats = None;
@@ -317,5 +320,6 @@ pub(super) async fn run(
         if done.send(outcome).is_err() {
             break;
         }
+        drop(boxes);
     }
 }
