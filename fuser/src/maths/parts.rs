@@ -140,8 +140,8 @@ fn pieces(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<u32>, Vec<usize>) {
     let mut weights = Vec::new();
     for row in piece_of.chunks_mut(bins) {
         let mut open = false;
-        for p in row {
-            if *p == u32::MAX {
+        for slot in row {
+            if *slot == u32::MAX {
                 open = false;
                 continue;
             }
@@ -149,7 +149,7 @@ fn pieces(p: &CsbaParams, agents: &[Vec<Detection>]) -> (Vec<u32>, Vec<usize>) {
                 weights.push(0);
                 open = true;
             }
-            *p = (weights.len() - 1) as u32;
+            *slot = (weights.len() - 1) as u32;
         }
     }
     for c in &mut cell {
