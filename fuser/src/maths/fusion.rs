@@ -207,6 +207,8 @@ struct YawSum {
 pub struct GroupSum<'a> {
     members: smallvec::SmallVec<[&'a Detection; 4]>,
     best: usize,
+    /// The best member's total variance.
+    best_variance: f64,
     centre: CentreSum,
     size: [(f64, f64); 3],
     yaw: YawSum,
@@ -227,6 +229,7 @@ impl<'a> GroupSum<'a> {
         let mut g = GroupSum {
             members: smallvec::smallvec![first],
             best: 0,
+            best_variance: first.total_variance(),
             centre: CentreSum::Axes([(0.0, 0.0); 3]),
             size: [(0.0, 0.0); 3],
             yaw: YawSum {
@@ -252,9 +255,9 @@ impl<'a> GroupSum<'a> {
     /// Adds a member.
     pub fn add(&mut self, m: &'a Detection) {
         self.members.push(m);
-        let i = self.members.len() - 1;
-        if m.total_variance() < self.members[self.best].total_variance() {
-            self.best = i;
+        let (i, variance) = (self.members.len() - 1, m.total_variance());
+        if variance < self.best_variance {
+            (self.best, self.best_variance) = (i, variance);
         }
         match (&self.centre, &m.pos_cov) {
             (CentreSum::Axes(_), Some(_)) => self.redo_centre(),

@@ -126,15 +126,15 @@ impl Grid {
         };
         let strips = self.n[1].div_ceil(STRIP);
         let mut start = vec![0u32; strips * self.n[0] * STRIP + 1];
-        for d in dets {
-            start[cell(d.borrow()) + 1] += 1;
+        let cells: Vec<usize> = dets.iter().map(|d| cell(d.borrow())).collect();
+        for &k in &cells {
+            start[k + 1] += 1;
         }
         for k in 1..start.len() {
             start[k] += start[k - 1];
         }
         let mut order = vec![0; dets.len()];
-        for (i, d) in dets.iter().enumerate() {
-            let k = cell(d.borrow());
+        for (i, &k) in cells.iter().enumerate() {
             order[start[k] as usize] = i;
             start[k] += 1;
         }
