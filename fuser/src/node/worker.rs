@@ -172,9 +172,7 @@ fn tracks_frame(
 }
 
 /// What fusing one job gives: the fused window, how it was fitted, its bytes, the tracks frame's
-/// bytes with the tracker's counters, the state carried to the next job, the association's
-/// bounds, and the window's boxes (freed once the window is out: thousands of boxes take a
-/// while).
+/// bytes with the tracker's counters, and the state carried to the next job.
 type JobOutput = (
     Fused,
     Fit,
@@ -182,7 +180,6 @@ type JobOutput = (
     Option<(Result<Vec<u8>, wire::EncodeError>, TrackStats)>,
     Carried,
     (u64, u64),
-    Vec<Vec<Detection>>,
 );
 
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
@@ -219,7 +216,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
     });
     let after = crate::maths::association::bounds_applied();
     let degraded = (after.0 - bounds_before.0, after.1 - bounds_before.1);
-    (fused, fit, bytes, tracked, state, degraded, lists)
+    (fused, fit, bytes, tracked, state, degraded)
 }
 
 /// The empty window reported in place of one whose fusion panicked.
@@ -279,14 +276,14 @@ pub(super) async fn run(
         let f = fusion.clone();
         let work = tokio::task::spawn_blocking(move || fuse_job(&f, state, closed, this_seq)).await;
         // A fusion that panicked took the aligner and the tracks with it: start afresh.
-        let (work, tracked, degraded, boxes) = match work {
-            Ok((fused, fit, bytes, tracked, state, degraded, boxes)) => {
+        let (work, tracked, degraded) = match work {
+            Ok((fused, fit, bytes, tracked, state, degraded)) => {
                 carried = state;
-                (Ok((fused, fit, bytes)), tracked, degraded, boxes)
+                (Ok((fused, fit, bytes)), tracked, degraded)
             }
             Err(e) => {
                 carried = fusion.fresh();
-                (Err(e), None, (0, 0), Vec::new())
+                (Err(e), None, (0, 0))
             }
         };
         let mut track_stats = None;
@@ -320,6 +317,5 @@ pub(super) async fn run(
         if done.send(outcome).is_err() {
             break;
         }
-        drop(boxes);
     }
 }
