@@ -1,5 +1,6 @@
 //! Time per tracker step: 200 confirmed tracks of cars moving at constant velocity, one fused
-//! box each per window (0.5 m noise, with velocities), in steady state; and through the tracks
+//! box each per window (0.5 m noise, with velocities), in steady state, by the best assignment
+//! and by soft association (`--soft`); and through the tracks
 //! (`step_agents`), two agents' boxes of the same cars.
 //!
 //! Run: `cargo bench -p v2x-fuser --bench tracker`.
@@ -60,23 +61,28 @@ fn windows(n: usize, steps: usize, seed: u64) -> Vec<Vec<Detection>> {
 
 fn bench_step(c: &mut Criterion) {
     let w = windows(200, 40, 1);
-    let mut tracker = Tracker::new(TrackerParams::default());
-    for (k, boxes) in w.iter().take(20).enumerate() {
-        tracker.step(k as u64 * 100_000, boxes);
-    }
-    assert_eq!(tracker.stats().live, 200, "steady state: every car tracked");
     let mut group = c.benchmark_group("tracker");
     group
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(3))
         .sample_size(30);
-    group.bench_function("step/200-tracks", |b| {
-        b.iter_batched(
-            || tracker.clone(),
-            |mut t| black_box(t.step(2_000_000, black_box(&w[20]))),
-            criterion::BatchSize::SmallInput,
-        )
-    });
+    for (name, soft) in [("step/200-tracks", false), ("step-soft/200-tracks", true)] {
+        let mut tracker = Tracker::new(TrackerParams {
+            soft,
+            ..Default::default()
+        });
+        for (k, boxes) in w.iter().take(20).enumerate() {
+            tracker.step(k as u64 * 100_000, boxes);
+        }
+        assert_eq!(tracker.stats().live, 200, "steady state: every car tracked");
+        group.bench_function(name, |b| {
+            b.iter_batched(
+                || tracker.clone(),
+                |mut t| black_box(t.step(2_000_000, black_box(&w[20]))),
+                criterion::BatchSize::SmallInput,
+            )
+        });
+    }
     let agents: Vec<Vec<Vec<Detection>>> = (0..40)
         .map(|k| vec![w[k].clone(), windows(200, 40, 2)[k].clone()])
         .collect();

@@ -12,7 +12,8 @@
 //!    negative log-likelihood; pairs beyond the chi-square gate are not eligible (with
 //!    `by_id`, a simulation's perfect association, a box's only pair is the track its
 //!    ground-truth id had);
-//! 3. **assign** with the association's exact solver (`association::assign`);
+//! 3. **assign** with the association's exact solver (`association::assign`), or with `soft`
+//!    weigh each track's boxes by the chance each is its own (`soft.rs`, `docs/method.md` §8.2);
 //! 4. **update** matched tracks: each model with the Kalman gain (Joseph form) and its
 //!    probability by its likelihood; size by WLS against the box,
 //!    yaw as WLS-3D fuses it (period pi for barriers, a heading turned by pi beyond 4 stds taken
@@ -79,6 +80,15 @@ pub struct TrackerParams {
     /// ([`Tracker::step_agents`], `docs/method.md` §8.1), or (false) the fused boxes
     /// ([`Tracker::step`]).
     pub guided: bool,
+    /// Update each track with its boxes weighed by the chance each is its own (`docs/method.md`
+    /// §8.2) instead of with the one box of the best assignment; fused boxes only
+    /// ([`Tracker::step`]).
+    pub soft: bool,
+    /// With `soft`: the chance a tracked object yields a box in a window, in (0, 1).
+    pub detect_prob: f64,
+    /// With `soft`: the density of boxes no track explains (new objects, false positives) per
+    /// unit of the measurement's space (m^2 for a centre; m^2 (m/s)^2 with a velocity), > 0.
+    pub new_density: f64,
 }
 
 impl Default for TrackerParams {
@@ -99,6 +109,9 @@ impl Default for TrackerParams {
             by_id: false,
             all_classes: false,
             guided: false,
+            soft: false,
+            detect_prob: 0.9,
+            new_density: 1e-5,
         }
     }
 }
@@ -214,31 +227,44 @@ impl Tracker {
         let mut ids = vec![NO_ID; all.len()];
         // 1. predict
         let dt = self.advance(t_us);
-        // 2. cost of every eligible pair, 3. assignment
-        let edges = if self.params.by_id {
-            by_id_edges(&self.tracks, boxes)
+        // 2. cost of every eligible pair, 3. assignment, 4. update
+        let (hit, taken) = if self.params.soft && !self.params.by_id {
+            self.associate_soft(boxes, dt)
         } else {
-            self.likelihood_edges(boxes)
+            self.associate_hard(boxes, dt)
         };
-        let pairs = assign(self.tracks.len(), boxes.len(), &edges);
-        // 4. update
-        let mut hit = vec![false; self.tracks.len()];
-        let mut used = vec![false; boxes.len()];
-        for (i, j) in pairs {
-            hit[i] = true;
-            used[j] = true;
-            ids[index[j]] = self.tracks[i].id;
-            update(&mut self.tracks[i], &boxes[j], dt, &self.params);
+        for (j, i) in taken.iter().enumerate() {
+            if let Some(i) = i {
+                ids[index[j]] = self.tracks[*i].id;
+            }
         }
         // 5. lifecycle
         let mut out = self.lifecycle(&hit);
-        for (j, (b, used)) in boxes.iter().zip(used).enumerate() {
-            if !used {
+        for (j, (b, taken)) in boxes.iter().zip(taken).enumerate() {
+            if taken.is_none() {
                 ids[index[j]] = self.next_id;
                 out.extend(self.birth(b));
             }
         }
         (out, ids)
+    }
+
+    /// Steps 2 to 4 with one best assignment: which tracks took a box, and the track each box
+    /// went to (`None`: it starts a track).
+    fn associate_hard(&mut self, boxes: &[Detection], dt: f64) -> (Vec<bool>, Vec<Option<usize>>) {
+        let edges = if self.params.by_id {
+            by_id_edges(&self.tracks, boxes)
+        } else {
+            self.likelihood_edges(boxes)
+        };
+        let mut hit = vec![false; self.tracks.len()];
+        let mut taken = vec![None; boxes.len()];
+        for (i, j) in assign(self.tracks.len(), boxes.len(), &edges) {
+            hit[i] = true;
+            taken[j] = Some(i);
+            update(&mut self.tracks[i], &boxes[j], dt, &self.params);
+        }
+        (hit, taken)
     }
 
     /// The boxes of the classes tracked (all of them with `all_classes`) and their indices in
@@ -685,6 +711,7 @@ fn estimate(t: &Track) -> Detection {
 
 mod guided;
 pub mod handover;
+mod soft;
 
 #[cfg(test)]
 mod tests;
