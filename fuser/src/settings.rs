@@ -360,6 +360,13 @@ pub struct TrackSettings {
     /// only the rest (`v2x-fuser track --guided`); the fused frames stay as they are.
     #[cfg_attr(feature = "node", arg(long, requires = "track"))]
     pub track_guided: bool,
+    /// With --track: update each track with its fused boxes weighed by the chance each is its
+    /// own (`v2x-fuser track --soft`, docs/method.md §8.2); not with --track-guided.
+    #[cfg_attr(
+        feature = "node",
+        arg(long, requires = "track", conflicts_with = "track_guided")
+    )]
+    pub track_soft: bool,
 }
 
 impl TrackSettings {
@@ -367,6 +374,7 @@ impl TrackSettings {
     pub fn params(&self) -> Result<Option<TrackerParams>, SettingsError> {
         for (on, key) in [
             (self.track_guided, "track_guided"),
+            (self.track_soft, "track_soft"),
             (self.track_all_classes, "track_all_classes"),
         ] {
             if on && !self.track {
@@ -376,9 +384,16 @@ impl TrackSettings {
                 ));
             }
         }
+        if self.track_guided && self.track_soft {
+            return Err(SettingsError::of(
+                "track_soft",
+                "not with track_guided (soft association is for the fused boxes)",
+            ));
+        }
         Ok(self.track.then(|| TrackerParams {
             all_classes: self.track_all_classes,
             guided: self.track_guided,
+            soft: self.track_soft,
             ..Default::default()
         }))
     }
@@ -633,7 +648,7 @@ mod tests {
     #[test]
     fn each_bad_value_names_its_key_and_its_flag() {
         type Case = (fn(&mut FuserSettings), &'static str, &'static str);
-        let cases: [Case; 6] = [
+        let cases: [Case; 8] = [
             (|s| s.window_ms = 0.0, "window_ms", "--window-ms"),
             (|s| s.motion.accel_std = -1.0, "accel_std", "--accel-std"),
             (
@@ -651,6 +666,16 @@ mod tests {
                 |s| s.track.track_guided = true,
                 "track_guided",
                 "--track-guided",
+            ),
+            (|s| s.track.track_soft = true, "track_soft", "--track-soft"),
+            (
+                |s| {
+                    s.track.track = true;
+                    s.track.track_guided = true;
+                    s.track.track_soft = true;
+                },
+                "track_soft",
+                "--track-soft",
             ),
         ];
         for (set, key, flag) in cases {

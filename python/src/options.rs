@@ -34,6 +34,7 @@ pub struct Options {
     max_misses: u32,
     all_classes: bool,
     guided: bool,
+    soft: bool,
 }
 
 /// A method by name.
@@ -152,7 +153,13 @@ impl Options {
         let confirm = v2x_fuser::offline::confirm_hits(self.confirm_hits, inputs, missing, opts);
         // As `v2x-fuser track`: the files' capture times are the data's own, not a replay's.
         let mut p = tracker_params(confirm, self.max_misses, self.all_classes, 1.0)?;
+        if self.guided && self.soft {
+            return Err(PyValueError::new_err(
+                "soft: not with guided (soft association is for the fused boxes)",
+            ));
+        }
         p.guided = self.guided;
+        p.soft = self.soft;
         Ok(p)
     }
 }

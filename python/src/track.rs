@@ -20,15 +20,19 @@ pub struct Tracker {
 impl Tracker {
     /// A tracker with the parameters of `v2x-fuser track`.
     #[new]
-    #[pyo3(signature = (confirm_hits=2, max_misses=3, all_classes=false, time_scale=1.0, default_std=None))]
+    #[pyo3(signature = (confirm_hits=2, max_misses=3, all_classes=false, time_scale=1.0, default_std=None, soft=false))]
     fn new(
         confirm_hits: u32,
         max_misses: u32,
         all_classes: bool,
         time_scale: f64,
         default_std: Option<&str>,
+        soft: bool,
     ) -> PyResult<Self> {
-        let params = tracker_params(confirm_hits, max_misses, all_classes, time_scale)?;
+        let params = v2x_fuser::tracker::TrackerParams {
+            soft,
+            ..tracker_params(confirm_hits, max_misses, all_classes, time_scale)?
+        };
         Ok(Tracker {
             inner: v2x_fuser::tracker::Tracker::new(params),
             tokens: TokenTable::new(),

@@ -151,3 +151,18 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
     assert len(kept) > len(scores)
     with pytest.raises(ValueError, match="detector"):
         v.fuse_files(paths, tmp_path / "x.json", detector=True, default_std="mild")
+
+
+def test_soft_association_equals_the_cli(generated, tmp_path):
+    """``soft``: the same file as `v2x-fuser track --soft`, and the same ids window by window
+    from ``Tracker(soft=True)`` fed the fused boxes; not with ``guided``."""
+    paths = [generated / a for a in AGENTS]
+    run("v2x-fuser", "track", "--soft", "-o", tmp_path / "cli.json", *paths)
+    v.track_files(paths, tmp_path / "py.json", soft=True)
+    assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
+    run("v2x-fuser", "track", "-o", tmp_path / "hard.json", *paths)
+    assert load(tmp_path / "hard.json") != load(tmp_path / "cli.json")
+    with pytest.raises(ValueError, match="soft: not with guided"):
+        v.track_files(paths, tmp_path / "x.json", soft=True, guided=True)
+    with pytest.raises(TypeError, match="soft"):
+        v.fuse_files(paths, tmp_path / "x.json", soft=True)

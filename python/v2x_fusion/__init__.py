@@ -248,6 +248,7 @@ def _options(
     max_misses: int = 3,
     all_classes: bool = False,
     guided: bool = False,
+    soft: bool = False,
 ) -> dict:
     return {
         "method": method,
@@ -266,10 +267,11 @@ def _options(
         "max_misses": max_misses,
         "all_classes": all_classes,
         "guided": guided,
+        "soft": soft,
     }
 
 
-_TRACK_ONLY = ("confirm_hits", "max_misses", "all_classes", "guided")
+_TRACK_ONLY = ("confirm_hits", "max_misses", "all_classes", "guided", "soft")
 
 
 def _fuse_options(options: dict) -> dict:
@@ -305,8 +307,9 @@ def track_files(
     paths: Sequence[PathLike], output: PathLike, method: str = "csba-wls+", **options: Any
 ) -> dict:
     """Reads, fuses, tracks and writes a nuScenes tracking results file: ``v2x-fuser track``.
-    Takes ``fuse_files``' options and ``confirm_hits``, ``max_misses``, ``all_classes`` and
-    ``guided`` (each agent's boxes through the tracks, ``--guided``); returns the
+    Takes ``fuse_files``' options and ``confirm_hits``, ``max_misses``, ``all_classes``,
+    ``guided`` (each agent's boxes through the tracks, ``--guided``) and ``soft`` (each track
+    updated with its boxes weighed by the chance each is its own, ``--soft``); returns the
     windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
     opts = _options(**dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, True))
@@ -314,8 +317,10 @@ def track_files(
 
 class Tracker:
     """Follows fused boxes over time, window by window, as ``v2x-fuser track`` and the node's
-    ``--track`` do: a constant-velocity Kalman filter per track, gated likeliest-box association,
-    confirmation after ``confirm_hits`` and an end after ``max_misses`` missed windows."""
+    ``--track`` do: a constant-velocity Kalman filter per track, gated likeliest-box association
+    (with ``soft``, each track updated with its boxes weighed by the chance each is its own,
+    ``--soft``), confirmation after ``confirm_hits`` and an end after ``max_misses`` missed
+    windows."""
 
     def __init__(
         self,
@@ -324,8 +329,11 @@ class Tracker:
         all_classes: bool = False,
         time_scale: float = 1.0,
         default_std: Std = None,
+        soft: bool = False,
     ):
-        self._inner = _native.Tracker(confirm_hits, max_misses, all_classes, float(time_scale), _std(default_std))
+        self._inner = _native.Tracker(
+            confirm_hits, max_misses, all_classes, float(time_scale), _std(default_std), bool(soft)
+        )
 
     def step(self, t_us: int, boxes: Iterable[Mapping[str, Any]]) -> list:
         """Steps the tracks to the window at ``t_us`` (microseconds, increasing) with its boxes

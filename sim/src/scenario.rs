@@ -748,6 +748,17 @@ mod tests {
         )
         .unwrap();
         assert!(guided.fuser.settings.track.track_guided);
+        assert!(bad(&format!(
+            "[fuser]\ntrack = true\ntrack_guided = true\ntrack_soft = true\n{agent}"
+        ))
+        .contains("fuser.track_soft: not with track_guided"));
+        let soft = Scenario::parse(
+            &format!("[fuser]\ntrack = true\ntrack_soft = true\n{agent}"),
+            "x.toml",
+            None,
+        )
+        .unwrap();
+        assert!(soft.fuser.settings.track.params().unwrap().unwrap().soft);
         let s = Scenario::parse(
             &format!("[fuser]\narea = [5, 6, 70]\n{agent}"),
             "x.toml",

@@ -159,7 +159,11 @@ pub fn tracked(
     let name = format!(
         "{} {}",
         method.name(),
-        if params.guided { "guided" } else { "tracked" }
+        match (params.guided, params.soft) {
+            (true, _) => "guided",
+            (false, true) => "tracked soft",
+            (false, false) => "tracked",
+        }
     );
     Ok(row(name, d, &seqs))
 }

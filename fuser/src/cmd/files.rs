@@ -137,6 +137,11 @@ pub(crate) struct TrackArgs {
     /// (docs/method.md §8.1). Default: track the fused boxes.
     #[arg(long)]
     pub(crate) guided: bool,
+    /// Update each track with its boxes weighed by the chance each is its own, where a box
+    /// could be either of two tracks' (docs/method.md §8.2), instead of with the one box of the
+    /// best assignment. For the fused boxes; not with --guided.
+    #[arg(long, conflicts_with = "guided")]
+    pub(crate) soft: bool,
     /// Where to write the tracking results file (a folder with --output-format kitti).
     #[arg(long, short)]
     pub(crate) output: PathBuf,
@@ -222,6 +227,7 @@ pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
         max_misses,
         all_classes,
         guided,
+        soft,
         output,
         inputs,
     } = args;
@@ -236,6 +242,7 @@ pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
         max_misses,
         all_classes,
         guided,
+        soft,
         ..Default::default()
     };
     let tracks = v2x_fuser::offline::track_files(

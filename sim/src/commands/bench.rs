@@ -77,6 +77,11 @@ pub struct BenchArgs {
     /// association of boxes to tracks gives.
     #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tracking: bool,
+    /// With --tracking (and --dataset v2v4real): the tracked rows update each track with its
+    /// boxes weighed by the chance each is its own (`v2x-fuser track --soft`, docs/method.md
+    /// §8.2) instead of the one box of the best assignment; guided rows are unchanged.
+    #[arg(long)]
+    pub soft: bool,
     /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
     /// this side (m) that some box lies in, each fusing its tile and a --halo around it and
     /// keeping the boxes centred in its tile; the two rows should agree. With --tracking:
@@ -268,6 +273,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         for guided in [false, true] {
             let params = v2x_fuser::tracker::TrackerParams {
                 guided,
+                soft: args.soft && !guided,
                 confirm_hits: v2x_fuser::uncertainty::detector::CONFIRM_HITS,
                 ..Default::default()
             };
@@ -388,7 +394,7 @@ fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
         let mut per_seed = Vec::with_capacity(args.seeds.len());
         for &seed in &args.seeds {
             let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, args.range)?;
-            per_seed.push(bench::run_tracking(gt, &cfg, Default::default()));
+            per_seed.push(bench::run_tracking(gt, &cfg, tracker_params(args)));
         }
         runs.push(bench::LogSeeds::new(
             name.clone(),
@@ -411,13 +417,21 @@ fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The tracker of the tracking tables (`--soft`).
+fn tracker_params(args: &BenchArgs) -> v2x_fuser::tracker::TrackerParams {
+    v2x_fuser::tracker::TrackerParams {
+        soft: args.soft,
+        ..Default::default()
+    }
+}
+
 /// `--tracking`: single-frame fusion against tracking.
 fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
     let (seed, range, format) = (args.seed, args.range, args.format);
     let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, range)?;
     let start = Instant::now();
-    let rows = bench::run_tracking(gt, &cfg, Default::default());
+    let rows = bench::run_tracking(gt, &cfg, tracker_params(args));
     let heading = format!(
         "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s",
         data.describe(gt),
