@@ -153,15 +153,24 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
         v.fuse_files(paths, tmp_path / "x.json", detector=True, default_std="mild")
 
 
-def test_soft_association_equals_the_cli(generated, tmp_path):
+def test_soft_association_equals_the_cli(cli, generated, tmp_path):
     """``soft``: the same file as `v2x-fuser track --soft`, and the same ids window by window
     from ``Tracker(soft=True)`` fed the fused boxes; not with ``guided``."""
     paths = [generated / a for a in AGENTS]
     run("v2x-fuser", "track", "--soft", "-o", tmp_path / "cli.json", *paths)
     v.track_files(paths, tmp_path / "py.json", soft=True)
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
-    run("v2x-fuser", "track", "-o", tmp_path / "hard.json", *paths)
-    assert load(tmp_path / "hard.json") != load(tmp_path / "cli.json")
+    assert load(cli / "tracks.json") != load(tmp_path / "cli.json")
+    fused = load(cli / "fused.json")
+    times = fused["meta"]["v2x_timestamps"]
+    expected = load(tmp_path / "cli.json")["results"]
+    tracker = v.Tracker(soft=True)
+    for sample in sorted(fused["results"], key=lambda s: times[s]):
+        got = tracker.step(times[sample], fused["results"][sample])
+        want = expected[sample]
+        assert [b["tracking_id"] for b in got] == [b["tracking_id"] for b in want], sample
+        for g, w in zip(got, want):
+            assert g["translation"] == pytest.approx(w["translation"], abs=1e-9), sample
     with pytest.raises(ValueError, match="soft: not with guided"):
         v.track_files(paths, tmp_path / "x.json", soft=True, guided=True)
     with pytest.raises(TypeError, match="soft"):
