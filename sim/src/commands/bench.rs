@@ -77,9 +77,10 @@ pub struct BenchArgs {
     /// association of boxes to tracks gives.
     #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tracking: bool,
-    /// With --tracking (and --dataset v2v4real): the tracked rows update each track with its
-    /// boxes weighed by the chance each is its own (`v2x-fuser track --soft`, docs/method.md
-    /// §8.2) instead of the one box of the best assignment; guided rows are unchanged.
+    /// With --tracking (also with --tile-size, and --dataset v2v4real): the tracked rows update
+    /// each track with its boxes weighed by the chance each is its own (`v2x-fuser track
+    /// --soft`, docs/method.md §8.2) instead of the one box of the best assignment; guided rows
+    /// are unchanged.
     #[arg(long)]
     pub soft: bool,
     /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
@@ -314,7 +315,13 @@ fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Res
     let tiling = tiling(size, args.halo)?;
     let cfg = paper_settings(methods, "csba-wls+", noise, args.seed, args.range)?;
     let start = Instant::now();
-    let rows = v2x_sim::region_bench::run_region_tracking(gt, &cfg, tiling, args.halo);
+    let rows = v2x_sim::region_bench::run_region_tracking(
+        gt,
+        &cfg,
+        tiling,
+        args.halo,
+        tracker_params(args),
+    );
     let heading = format!(
         "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s",
         args.data.describe(gt),
