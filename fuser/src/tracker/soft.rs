@@ -294,6 +294,45 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// On a forest (here each box in at most one track's gate) the messages give the exact
+        /// marginals; on any graph each track's chances sum to 1 and every chance lies in
+        /// [0, 1].
+        #[test]
+        fn marginals_are_exact_on_a_forest_and_chances_everywhere(
+            ratios in proptest::collection::vec(
+                proptest::collection::vec((0usize..5, 0.01f64..1e4), 0..4), 1..5),
+        ) {
+            let general: Ratios = ratios
+                .iter()
+                .map(|row| {
+                    let mut row = row.clone();
+                    row.sort_by_key(|&(j, _)| j);
+                    row.dedup_by_key(|p| p.0);
+                    row
+                })
+                .collect();
+            let m = marginals(&general, 5);
+            for (beta, missed) in m.beta.iter().zip(&m.missed) {
+                let total = beta.iter().sum::<f64>() + missed;
+                proptest::prop_assert!((total - 1.0).abs() < 1e-9);
+            }
+            let all = m.beta.iter().flatten().chain(&m.missed).chain(&m.unexplained);
+            for &c in all {
+                proptest::prop_assert!((0.0..=1.0).contains(&c));
+            }
+            // A forest: track i's boxes renumbered apart from every other track's.
+            let forest: Ratios = general
+                .iter()
+                .enumerate()
+                .map(|(i, row)| row.iter().map(|&(j, p)| (5 * i + j, p)).collect())
+                .collect();
+            let n = 5 * forest.len();
+            let (m, exact) = (marginals(&forest, n), joint(&forest, n));
+            proptest::prop_assert!(close(&m, &exact, 1e-9), "{:?}\n{:?}", m, exact);
+        }
+    }
+
     /// A box of `class` at (x, y) with `std` m of noise, of object `id`.
     fn obj(class: Class, x: f64, y: f64, std: f64, id: u32) -> Detection {
         let mut b = v2x_protocol::fixtures::car(x, y, std);
