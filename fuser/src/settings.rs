@@ -384,18 +384,19 @@ impl TrackSettings {
                 ));
             }
         }
-        if self.track_guided && self.track_soft {
-            return Err(SettingsError::of(
-                "track_soft",
-                "not with track_guided (soft association is for the fused boxes)",
-            ));
-        }
-        Ok(self.track.then(|| TrackerParams {
+        let params = TrackerParams {
             all_classes: self.track_all_classes,
             guided: self.track_guided,
             soft: self.track_soft,
             ..Default::default()
-        }))
+        };
+        if let Some(why) = params.conflict() {
+            return Err(SettingsError::of(
+                "track_soft",
+                format!("not with track_guided ({why})"),
+            ));
+        }
+        Ok(self.track.then_some(params))
     }
 }
 

@@ -116,6 +116,14 @@ impl Default for TrackerParams {
     }
 }
 
+impl TrackerParams {
+    /// Why these parameters cannot track together (`soft` with `guided`: soft association is
+    /// for the fused boxes), if they cannot.
+    pub fn conflict(&self) -> Option<&'static str> {
+        (self.soft && self.guided).then_some("soft association is for the fused boxes")
+    }
+}
+
 /// One track.
 #[derive(Clone, Debug)]
 struct Track {

@@ -153,14 +153,14 @@ impl Options {
         let confirm = v2x_fuser::offline::confirm_hits(self.confirm_hits, inputs, missing, opts);
         // As `v2x-fuser track`: the files' capture times are the data's own, not a replay's.
         let mut p = tracker_params(confirm, self.max_misses, self.all_classes, 1.0)?;
-        if self.guided && self.soft {
-            return Err(PyValueError::new_err(
-                "soft: not with guided (soft association is for the fused boxes)",
-            ));
-        }
         p.guided = self.guided;
         p.soft = self.soft;
-        Ok(p)
+        match p.conflict() {
+            Some(why) => Err(PyValueError::new_err(format!(
+                "soft: not with guided ({why})"
+            ))),
+            None => Ok(p),
+        }
     }
 }
 
