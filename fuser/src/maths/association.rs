@@ -90,6 +90,10 @@ pub struct CsbaParams {
     /// chi-square bound on the squared Mahalanobis distance of the member's centre to the
     /// group's fused centre; a member beyond it starts a group of its own. `None`: no test.
     pub consistency: Option<f64>,
+    /// The velocity gate (`docs/method.md` §1): the bound on the squared Mahalanobis distance
+    /// of a pair's velocities, when both boxes have one; a pair beyond it is not eligible.
+    /// `None`: velocities are not compared.
+    pub velocity_gate: Option<f64>,
 }
 
 impl CsbaParams {
@@ -102,6 +106,7 @@ impl CsbaParams {
         centre: Centre::Linear,
         combine: Combine::Sum,
         consistency: None,
+        velocity_gate: None,
     };
     /// The improved variant `csba-wls+`: a scale-consistent gate, the wrapped orientation
     /// score and the symmetric dimension score (docs/results.md, "The method, and csba-wls+").
@@ -115,6 +120,7 @@ impl CsbaParams {
         centre: Centre::Gaussian,
         combine: Combine::LogProduct,
         consistency: None,
+        velocity_gate: None,
     };
 }
 
@@ -132,6 +138,10 @@ pub const MAHALANOBIS_GATE: f64 = 6.0;
 /// The 99.9% quantile of the chi-square distribution with 3 degrees of freedom: a consistent
 /// member's squared centre distance to its group exceeds it once in a thousand.
 pub const CHI2_3_999: f64 = 16.266;
+
+/// The 99.9% quantile of the chi-square distribution with 2 degrees of freedom (-2 ln 0.001): a
+/// true pair's squared velocity distance exceeds it once in a thousand.
+pub const CHI2_2_999: f64 = 13.816;
 
 // ---------------------------------------------------------------------------------------------
 // The three scores
@@ -291,6 +301,17 @@ pub fn orientation_score(form: Orientation, a: &Detection, b: &Detection) -> f64
     }
 }
 
+/// Squared Mahalanobis distance of two boxes' velocities,
+/// sum_k (v_a,k - v_b,k)^2 / (s_a,k^2 + s_b,k^2); `None` unless both have one.
+pub fn velocity_distance2(a: &Detection, b: &Detection) -> Option<f64> {
+    let (va, vb) = (a.velocity.as_ref()?, b.velocity.as_ref()?);
+    Some(
+        (0..2)
+            .map(|k| (va.v[k] - vb.v[k]).powi(2) / (va.std[k].powi(2) + vb.std[k].powi(2)))
+            .sum(),
+    )
+}
+
 /// Smallest absolute yaw difference, with period pi for barriers and 2 pi otherwise.
 pub fn yaw_difference(class: Class, ya: f64, yb: f64) -> f64 {
     let d = wrap_angle(ya - yb).abs();
@@ -448,6 +469,12 @@ fn prepared_cost(
     // CS > 0 exactly when d_M < lambda_max.
     if !(d2 < lambda * lambda) {
         return None;
+    }
+    if let Some(gate) = p.velocity_gate {
+        // A pair whose velocities disagree beyond the gate is two objects, however close.
+        if velocity_distance2(a, b).is_some_and(|dv2| !(dv2 <= gate)) {
+            return None;
+        }
     }
     // CS, DS, OS as in centre_score, dimension_score*, orientation_score
     let cs = match p.centre {

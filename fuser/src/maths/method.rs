@@ -2,7 +2,7 @@
 //! A [`Method`] is a value, so CSBA-WLS, its variants, the baselines and the oracle are used the
 //! same way, by name, from the library, the `v2x-fuser fuse` command and the fuser node.
 
-use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_3_999};
+use crate::maths::association::{associate, mahalanobis, CsbaParams, CHI2_2_999, CHI2_3_999};
 use crate::maths::baselines;
 use crate::maths::fusion::GroupSum;
 use crate::maths::parts::in_parts;
@@ -84,6 +84,14 @@ pub const METHODS: &[Named] = &[
         "csba-wls+ where a member beyond the 99.9% chi-square bound of its group starts its own",
         Method::Csba(CsbaParams {
             consistency: Some(CHI2_3_999),
+            ..PLUS
+        }),
+    ),
+    named(
+        "csba-wls+vel",
+        "csba-wls+ where a pair whose velocities differ beyond their 99.9% chi-square bound is not eligible",
+        Method::Csba(CsbaParams {
+            velocity_gate: Some(CHI2_2_999),
             ..PLUS
         }),
     ),
@@ -383,6 +391,41 @@ mod tests {
         let e = "kalman".parse::<Method>().unwrap_err();
         assert_eq!(e.given, "kalman");
         assert!(e.expected.contains(&"csba-wls+"));
+    }
+
+    #[test]
+    fn the_velocity_gate_keeps_cars_passing_each_other_apart() {
+        // Two cars 2 m apart driving opposite ways, seen by two agents with 3 m of position
+        // noise: agent 2's boxes lie nearer the other car. csba-wls+ pairs by place and fuses
+        // each car with the other (velocities averaged to 0); csba-wls+vel finds the pairs'
+        // velocities 200 (dv^2 = 20^2 / 2) beyond its gate and pairs each car with itself.
+        let car = |x: f64, vy: f64, id: u32| Detection {
+            velocity: Some(v2x_protocol::Velocity {
+                v: [0.0, vy],
+                std: [1.0; 2],
+            }),
+            ..det(x, 0.0, 3.0, id)
+        };
+        let a1 = vec![car(0.0, 10.0, 1), car(2.0, -10.0, 2)];
+        let a2 = vec![car(2.2, 10.0, 1), car(-0.2, -10.0, 2)];
+        let vy = |out: &[Detection]| -> Vec<f64> {
+            let mut v: Vec<f64> = out
+                .iter()
+                .map(|d| d.velocity.as_ref().unwrap().v[1])
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let plain = Method::Csba(CsbaParams::PLUS).fuse(&[a1.clone(), a2.clone()]);
+        assert_eq!(vy(&plain), vec![0.0, 0.0]);
+        let gated: Method = "csba-wls+vel".parse().unwrap();
+        let out = gated.fuse(&[a1, a2]);
+        assert_eq!(vy(&out), vec![-10.0, 10.0]);
+        for d in &out {
+            // Each car's two boxes: x = (0 + 2.2) / 2 and (2 - 0.2) / 2.
+            let x = if d.id == 1 { 1.1 } else { 0.9 };
+            assert!((d.center[0] - x).abs() < 1e-9, "{d:?}");
+        }
     }
 
     #[test]

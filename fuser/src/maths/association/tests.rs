@@ -144,6 +144,50 @@ fn gate_rejects_other_classes_and_far_pairs() {
     assert_eq!(pair_cost(&CsbaParams::PLUS, &a, &farther), None);
 }
 
+/// `d` moving at `v` (m/s) with a std of `std` per axis.
+fn moving(mut d: Detection, v: [f64; 2], std: f64) -> Detection {
+    d.velocity = Some(v2x_protocol::Velocity { v, std: [std; 2] });
+    d
+}
+
+#[test]
+fn velocity_distance_hand_computed() {
+    let a = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1);
+    // (1 - 0)^2 / (0.25 + 0.25) + (0 - 1)^2 / 0.5 = 4
+    let (va, vb) = (
+        moving(a.clone(), [1.0, 0.0], 0.5),
+        moving(a.clone(), [0.0, 1.0], 0.5),
+    );
+    close(velocity_distance2(&va, &vb).unwrap(), 4.0);
+    assert_eq!(velocity_distance2(&va, &a), None);
+}
+
+#[test]
+fn velocity_gate_rejects_pairs_moving_apart_and_only_them() {
+    let gated = CsbaParams {
+        velocity_gate: Some(CHI2_2_999),
+        ..CsbaParams::PLUS
+    };
+    let a = moving(
+        det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1),
+        [0.0, 0.0],
+        1.0,
+    );
+    // dv^2 = v^2 / 2: 5.3^2 / 2 = 14.05 beyond 13.816, 5.2^2 / 2 = 13.52 inside
+    let apart = moving(a.clone(), [5.3, 0.0], 1.0);
+    let inside = moving(a.clone(), [5.2, 0.0], 1.0);
+    assert_eq!(pair_cost(&gated, &a, &apart), None);
+    assert!(pair_cost(&CsbaParams::PLUS, &a, &apart).is_some());
+    // Inside the gate the velocity does not change the cost.
+    assert_eq!(
+        pair_cost(&gated, &a, &inside),
+        pair_cost(&CsbaParams::PLUS, &a, &inside)
+    );
+    // A box without a velocity is not compared.
+    let still = det([0.0; 3], [4.0, 2.0, 1.5], 0.0, 0.5, 0.1, 0.1);
+    assert!(pair_cost(&gated, &apart, &still).is_some());
+}
+
 fn e(a: usize, b: usize, cost: f64) -> Edge {
     Edge::new(a, b, cost)
 }
