@@ -134,6 +134,31 @@ def test_velocities_cross_the_numpy_path():
     assert len(order) == 3
 
 
+def test_the_velocity_gate_reaches_both_paths():
+    # Two boxes 0.2 m apart whose velocities differ by 4 m/s at 0.5 m/s stds: dv^2 = 16 / 0.5 = 32,
+    # beyond csba-wls+vel's 13.816, so it keeps them apart where csba-wls+ fuses them.
+    a = {
+        "center": [[0.0, 0.0, 0.0]],
+        "size": [[4.5, 1.9, 1.6]],
+        "yaw": [0.0],
+        "std": [[0.5] * 6 + [0.1]],
+        "label": [0],
+        "score": [0.9],
+        "velocity": [[1.0, 0.0]],
+        "velocity_std": [[0.5, 0.5]],
+    }
+    b = dict(a, center=[[0.2, 0.0, 0.0]], velocity=[[5.0, 0.0]])
+    assert len(v.fuse_arrays([a, b], "csba-wls+")["center"]) == 1
+    apart = v.fuse_arrays([a, b], "csba-wls+vel")
+    assert sorted(apart["velocity"][:, 0].tolist()) == [1.0, 5.0]
+    box = {"translation": [0.0, 0.0, 0.0], "size": [1.9, 4.5, 1.6], "rotation": [1.0, 0.0, 0.0, 0.0],
+           "detection_name": "car", "detection_score": 0.9, "translation_std": [0.5] * 3,
+           "size_std": [0.1] * 3, "yaw_std": 0.1, "velocity": [1.0, 0.0], "velocity_std": [0.5, 0.5]}
+    other = dict(box, translation=[0.2, 0.0, 0.0], velocity=[5.0, 0.0])
+    assert len(v.fuse([[box], [other]], "csba-wls+")) == 1
+    assert len(v.fuse([[box], [other]], "csba-wls+vel")) == 2
+
+
 def test_each_dict_has_its_boxs_keys_in_the_writers_order():
     base = {"size": [2.0, 4.5, 1.6], "rotation": [1.0, 0.0, 0.0, 0.0], "detection_name": "car",
             "detection_score": 0.7, "translation_std": [0.5, 0.5, 0.5], "size_std": [0.1, 0.1, 0.1],

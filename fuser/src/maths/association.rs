@@ -5,11 +5,12 @@
 //! - the **centre score** CS from the Mahalanobis distance of the centres,
 //! - the **orientation score** OS from the yaws and their stds,
 //!
-//! combines them into the weighted cost C, gates (same class and CS > 0), and solves the
-//! rectangular minimum-cost assignment. Unmatched detections stay unmatched: the caller keeps
-//! them. The solve is split into independent connected components of the gated pair graph, so
-//! well-separated scenes cost near-linear time; a component is solved exactly with a
-//! Jonker-Volgenant shortest-augmenting-path solver (the scipy algorithm).
+//! combines them into the weighted cost C, gates (same class, CS > 0 and, with a velocity gate,
+//! velocities that agree), and solves the rectangular minimum-cost assignment. Unmatched
+//! detections stay unmatched: the caller keeps them. The solve is split into independent
+//! connected components of the gated pair graph, so well-separated scenes cost near-linear time;
+//! a component is solved exactly with a Jonker-Volgenant shortest-augmenting-path solver (the
+//! scipy algorithm).
 
 use v2x_protocol::{wrap_angle, Class, Detection};
 
