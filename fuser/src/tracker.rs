@@ -122,6 +122,16 @@ impl TrackerParams {
     pub fn conflict(&self) -> Option<&'static str> {
         (self.soft && self.guided).then_some("soft association is for the fused boxes")
     }
+
+    /// These parameters for tracking through the tracks (`guided`) or the fused boxes: soft
+    /// association kept for the fused boxes only, so that the two never [`conflict`](Self::conflict).
+    pub fn with_guided(self, guided: bool) -> Self {
+        TrackerParams {
+            guided,
+            soft: self.soft && !guided,
+            ..self
+        }
+    }
 }
 
 /// One track.

@@ -107,10 +107,9 @@ fn scene(
             let (guided, scope) = WAYS[slot % WAYS.len()];
             let params = TrackerParams {
                 all_classes: true,
-                guided,
-                soft: base.soft && !guided,
                 ..base
-            };
+            }
+            .with_guided(guided);
             let regions = |handover| RegionalTrackers::new(tiling, halo_m, params, handover);
             match scope {
                 Scope::One => Way::One(Tracker::new(params)),

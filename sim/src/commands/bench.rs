@@ -273,11 +273,10 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     for m in &track_methods {
         for guided in [false, true] {
             let params = v2x_fuser::tracker::TrackerParams {
-                guided,
-                soft: args.soft && !guided,
                 confirm_hits: v2x_fuser::uncertainty::detector::CONFIRM_HITS,
-                ..Default::default()
-            };
+                ..tracker_params(args)
+            }
+            .with_guided(guided);
             tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
         }
     }
