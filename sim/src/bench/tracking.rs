@@ -1,6 +1,6 @@
 //! The tracking table (`bench --tracking`): each agent and each method's fused boxes followed
-//! over each scene, the guided rows, the oracle's boxes tracked by id, and the summary over
-//! noise seeds.
+//! over each scene, the guided rows, the oracle's boxes tracked by id, the true-state oracle,
+//! and the summary over noise seeds.
 
 use super::*;
 use std::fmt;
@@ -25,6 +25,10 @@ pub enum Scored {
     /// `gt-wls tracked by id`: the true groups tracked by the true ids (a perfect association
     /// of boxes to tracks).
     TrackedById,
+    /// `gt-state-wls tracked`: each agent's boxes grouped with the likeliest true object by
+    /// centre and velocity, fused and tracked (the best grouping the boxes allow a frame at a
+    /// time; [`by_state`](super::by_state)).
+    TrackedByState,
 }
 
 /// Who tracks a row's boxes: one fuser, or a city of regional fusers.
@@ -68,6 +72,7 @@ impl fmt::Display for Scored {
                 write!(f, "{method} {how}{scope}")
             }
             Scored::TrackedById => f.write_str("gt-wls tracked by id"),
+            Scored::TrackedByState => f.write_str("gt-state-wls tracked"),
         }
     }
 }
@@ -95,7 +100,7 @@ pub struct TrackingRow {
 /// The tracking table: under each setting, each single agent tracked, each method single-frame,
 /// tracked ([`v2x_fuser::tracker`] over the fused boxes of each scene in time order) and, but
 /// the oracle, guided ([`Tracker::step_agents`]), and with gt-wls its boxes tracked by their
-/// true ids.
+/// true ids and the boxes grouped by the objects' true states, tracked.
 pub fn run_tracking(
     gt: &GroundTruth,
     cfg: &BenchConfig,
@@ -141,7 +146,11 @@ pub fn run_tracking(
                 .into_iter()
                 .chain(guided)
             }))
-            .chain(gt_wls.map(|_| (Scored::TrackedById, true)));
+            .chain(
+                gt_wls
+                    .into_iter()
+                    .flat_map(|_| [(Scored::TrackedById, true), (Scored::TrackedByState, true)]),
+            );
         for ((method, is_tracked), (acc, eval)) in names.zip(accs.iter().zip(evals)) {
             rows.push(TrackingRow {
                 noise: setting.name.clone(),
@@ -155,7 +164,8 @@ pub fn run_tracking(
 }
 
 /// Where each row's figures go: each agent tracked, then per method its single-frame, tracked
-/// and (but the oracle) guided rows, then with gt-wls its boxes tracked by id.
+/// and (but the oracle) guided rows, then with gt-wls its boxes tracked by id and the boxes
+/// grouped by true state, tracked.
 struct Slots {
     /// Per method: its single-frame slot (tracked next, guided after, when it has one).
     method: Vec<usize>,
@@ -174,18 +184,18 @@ impl Slots {
             guided.push(g);
             next += 2 + usize::from(g);
         }
-        let by_id = usize::from(methods.contains(&Method::GtWls));
+        let oracles = 2 * usize::from(methods.contains(&Method::GtWls));
         Slots {
             method,
             guided,
-            total: next + by_id,
+            total: next + oracles,
         }
     }
 }
 
 /// One scene of the tracking table: its frames in order, each agent's boxes and each method's
 /// fused boxes tracked, each agent's boxes through the tracks per method (and, with gt-wls, its
-/// fused boxes tracked by id), scored per slot.
+/// fused boxes tracked by id and the boxes grouped by true state, tracked), scored per slot.
 fn track_scene(
     gt: &GroundTruth,
     frames: &[usize],
@@ -204,7 +214,7 @@ fn track_scene(
             by_id: true,
             ..params
         };
-        trackers[slots - 1] = Tracker::new(by_id);
+        trackers[slots - 2] = Tracker::new(by_id);
     }
     let scene = gt.frames[frames[0]].scene;
     for &i in frames {
@@ -229,7 +239,10 @@ fn track_scene(
             }
         }
         if let Some(m) = gt_wls {
-            let out = trackers[slots - 1].step(t, &fused[m]);
+            let out = trackers[slots - 2].step(t, &fused[m]);
+            tracked(slots - 2, out);
+            let by_state = super::by_state::fuse_by_state(&dets, &f.objects);
+            let out = trackers[slots - 1].step(t, &by_state);
             tracked(slots - 1, out);
         }
         for (m, fused) in fused.iter().enumerate() {
