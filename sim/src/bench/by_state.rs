@@ -7,8 +7,8 @@
 //! Per frame and agent a, over the true objects o of the box's class:
 //! d2(b, o) = (c_b - c_o)^T C_b^-1 (c_b - c_o) + sum_k (v_bk - v_ok)^2 / s_vk^2 (x, y; the
 //! velocity term when both have one), inside the 99.9% chi-square gate for its degrees of
-//! freedom; the assignment of least total d2 gives each object at most one box per agent. A
-//! box no object takes stays a group of its own.
+//! freedom; the largest matching of least total d2 gives each object at most one box per
+//! agent. A box no object takes stays a group of its own.
 
 use v2x_fuser::maths::association::{assign, Edge, CHI2_2_999};
 use v2x_fuser::maths::fusion::fuse_group;
