@@ -74,7 +74,9 @@ pub struct BenchArgs {
     /// fused boxes and of each single agent, with MOTA, MOTP, IDS and FRAG, under each
     /// --noise setting; --methods defaults to csba-wls+ and gt-wls. With gt-wls, a row
     /// `gt-wls tracked by id` gives each box to its true object's track: what a perfect
-    /// association of boxes to tracks gives.
+    /// association of boxes to tracks gives; and a row `gt-state-wls tracked` groups each
+    /// agent's boxes with the likeliest true object by centre and velocity: the best grouping
+    /// the boxes allow a frame at a time.
     #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tracking: bool,
     /// With --tracking (also with --tile-size, and --dataset v2v4real): the tracked rows update
