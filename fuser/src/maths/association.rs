@@ -220,6 +220,14 @@ pub fn mahalanobis(a: &Detection, b: &Detection) -> f64 {
     }
 }
 
+/// Squared Mahalanobis distance d^T S^-1 d of an offset `d` in the plane (x, y) under its
+/// covariance `s`, or `None` when `s` is singular.
+pub fn mahalanobis2_plane([dx, dy]: [f64; 2], s: [[f64; 2]; 2]) -> Option<f64> {
+    let (sxx, sxy, syy) = (s[0][0], s[0][1], s[1][1]);
+    let det = sxx * syy - sxy * sxy;
+    (det > 0.0).then(|| (syy * dx * dx - 2.0 * sxy * dx * dy + sxx * dy * dy) / det)
+}
+
 /// Position std (m) of a detection: the root mean of its three centre variances.
 pub fn position_std(d: &Detection) -> f64 {
     let c = d.position_covariance();

@@ -22,7 +22,7 @@
 
 use super::{Tracked, Tracker};
 use crate::intake::region::{tiles_of, Region};
-use crate::maths::association::{assign, Edge};
+use crate::maths::association::{assign, mahalanobis2_plane, Edge};
 use crate::Method;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
@@ -147,14 +147,14 @@ fn distance(t: &super::Track, d: &Detection, dt: f64) -> Option<f64> {
     let c = d.position_covariance();
     let dx = d.center[0] + v[0] * dt - t.x[0];
     let dy = d.center[1] + v[1] * dt - t.x[1];
-    let sxx = t.p[(0, 0)] + c[0][0] + dt * dt * vv[0];
-    let syy = t.p[(1, 1)] + c[1][1] + dt * dt * vv[1];
     let sxy = t.p[(0, 1)] + c[0][1];
-    let det = sxx * syy - sxy * sxy;
-    if !(det > 0.0) {
-        return None;
-    }
-    Some((syy * dx * dx - 2.0 * sxy * dx * dy + sxx * dy * dy) / det)
+    mahalanobis2_plane(
+        [dx, dy],
+        [
+            [t.p[(0, 0)] + c[0][0] + dt * dt * vv[0], sxy],
+            [sxy, t.p[(1, 1)] + c[1][1] + dt * dt * vv[1]],
+        ],
+    )
 }
 
 /// A track takes a neighbour's id, and its velocity with its covariance when the neighbour's is

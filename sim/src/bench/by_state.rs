@@ -10,9 +10,11 @@
 //! freedom; the largest matching of least total d2 gives each object at most one box per
 //! agent. A box no object takes stays a group of its own.
 
-use v2x_fuser::maths::association::{assign, Edge, CHI2_2_999};
+use v2x_fuser::maths::association::{
+    assign, mahalanobis2_plane, velocity_distance2, Edge, CHI2_2_999,
+};
 use v2x_fuser::maths::fusion::fuse_group;
-use v2x_protocol::Detection;
+use v2x_protocol::{Detection, Velocity};
 
 use crate::dataset::GtObject;
 
@@ -20,27 +22,28 @@ use crate::dataset::GtObject;
 /// velocity in the plane).
 const CHI2_4_999: f64 = 18.467;
 
-/// The squared distance of box `b` to object `o` in the plane (centre, and velocity when both
-/// have one) and its gate, or `None` when the centre's covariance is singular.
-fn distance2(b: &Detection, o: &GtObject) -> Option<(f64, f64)> {
+/// An object as an exact box: its velocity without variance, so that a distance to it weighs
+/// by the other box's variance alone.
+fn exact(o: &GtObject) -> Detection {
+    let mut d = o.as_detection();
+    d.velocity = o.velocity.map(|v| Velocity { v, std: [0.0; 2] });
+    d
+}
+
+/// The squared distance of box `b` to the exact box `o` in the plane (centre, and velocity
+/// when both have one) and its gate, or `None` when the centre's covariance is singular.
+fn distance2(b: &Detection, o: &Detection) -> Option<(f64, f64)> {
     let c = b.position_covariance();
-    let (sxx, sxy, syy) = (c[0][0], c[0][1], c[1][1]);
-    let det = sxx * syy - sxy * sxy;
-    if !(det > 0.0) {
-        return None;
+    let d = [b.center[0] - o.center[0], b.center[1] - o.center[1]];
+    let d2 = mahalanobis2_plane(d, [[c[0][0], c[0][1]], [c[1][0], c[1][1]]])?;
+    let measured = b
+        .velocity
+        .as_ref()
+        .is_some_and(|v| v.std.iter().all(|s| *s > 0.0));
+    match velocity_distance2(b, o).filter(|_| measured) {
+        Some(dv2) => Some((d2 + dv2, CHI2_4_999)),
+        None => Some((d2, CHI2_2_999)),
     }
-    let (dx, dy) = (b.center[0] - o.center[0], b.center[1] - o.center[1]);
-    let mut d2 = (syy * dx * dx - 2.0 * sxy * dx * dy + sxx * dy * dy) / det;
-    let mut gate = CHI2_2_999;
-    if let (Some(v), Some(ov)) = (&b.velocity, o.velocity) {
-        if v.std.iter().all(|s| *s > 0.0) {
-            d2 += (0..2)
-                .map(|k| (v.v[k] - ov[k]).powi(2) / v.std[k].powi(2))
-                .sum::<f64>();
-            gate = CHI2_4_999;
-        }
-    }
-    Some((d2, gate))
 }
 
 /// The frame's fused boxes: each agent's boxes (`agents[a]`) grouped with the true objects
@@ -48,9 +51,10 @@ fn distance2(b: &Detection, o: &GtObject) -> Option<(f64, f64)> {
 pub fn fuse_by_state(agents: &[Vec<Detection>], objects: &[GtObject]) -> Vec<Detection> {
     let mut groups: Vec<Vec<&Detection>> = vec![Vec::new(); objects.len()];
     let mut alone = Vec::new();
+    let truths: Vec<Detection> = objects.iter().map(exact).collect();
     for boxes in agents {
         let mut edges = Vec::new();
-        for (o, obj) in objects.iter().enumerate() {
+        for (o, obj) in truths.iter().enumerate() {
             for (j, b) in boxes.iter().enumerate() {
                 if b.class != obj.class {
                     continue;
@@ -78,7 +82,7 @@ pub fn fuse_by_state(agents: &[Vec<Detection>], objects: &[GtObject]) -> Vec<Det
 #[cfg(test)]
 mod tests {
     use super::*;
-    use v2x_protocol::{Class, Uncertainty, Velocity};
+    use v2x_protocol::{Class, Uncertainty};
 
     fn object(id: u32, x: f64, vx: f64) -> GtObject {
         GtObject {
