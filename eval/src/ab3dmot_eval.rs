@@ -14,7 +14,9 @@
 //! - A tracked box left unmatched is ignored, not a false positive: the script ignores a box whose
 //!   2D box is at most 25 px tall, and the layout's rows carry no 2D box (zeros). Unless an
 //!   earlier pass matched it: the script's `valid` mark outlives the pass, and such a box counts
-//!   as a false positive. So FP is small but not always 0.
+//!   as a false positive. So FP is small but not always 0, and the figures measure recall and
+//!   identities. [`FalsePositives::Counted`] scores the same rows as the script does when their
+//!   2D box is tall enough to pass its test: every unmatched tracked box is a false positive.
 //! - Identity switches and fragmentations are counted along each label track
 //!   (`compute3rdPartyMetrics`'s second pass); MT above 80% of its frames tracked, ML below 20%.
 //! - MOTA = 1 - (FN + FP + IDS) / GT; sMOTA at recall r = clip(1 - (FN + FP + IDS - (1 - r) GT)
@@ -28,6 +30,18 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use v2x_fuser::maths::association::{assign, Edge};
 use v2x_protocol::Detection;
+
+/// Whether unmatched tracked boxes count.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum FalsePositives {
+    /// As the script scores this layout (rows without a 2D box): an unmatched box is ignored
+    /// unless an earlier pass matched it. DMSTrack's published figures.
+    #[default]
+    AsScript,
+    /// Every unmatched tracked box is a false positive (the script on rows whose 2D box is
+    /// taller than 25 px).
+    Counted,
+}
 
 /// The IoU-3D a label and a tracked box need to match.
 pub const MIN_OVERLAP: f64 = 0.25;
@@ -410,6 +424,11 @@ fn thresholds(scores: &[f64], num_gt: usize) -> Vec<(f64, f64)> {
 
 /// Evaluates the sequences as the script does (see the module's notes); `None` without labels.
 pub fn evaluate(sequences: &[Sequence]) -> Option<Ab3dmotMetrics> {
+    evaluate_with(sequences, FalsePositives::AsScript)
+}
+
+/// [`evaluate`] with unmatched tracked boxes treated as `fp` says.
+pub fn evaluate_with(sequences: &[Sequence], fp: FalsePositives) -> Option<Ab3dmotMetrics> {
     let mut seqs: Vec<Vec<Frame>> = sequences
         .iter()
         .map(|s| {
@@ -430,7 +449,7 @@ pub fn evaluate(sequences: &[Sequence]) -> Option<Ab3dmotMetrics> {
                     Frame {
                         gt: g.iter().map(|d| d.id).collect(),
                         tracks: t.iter().map(|d| (d.id, d.score)).collect(),
-                        valid: vec![false; t.len()],
+                        valid: vec![fp == FalsePositives::Counted; t.len()],
                         pairs,
                     }
                 })

@@ -50,7 +50,7 @@ impl Inputs {
     pub fn options(&self, opts: &OfflineOptions) -> OfflineOptions {
         let mut o = opts.clone();
         if detector_applies(self.from_detector, &o) {
-            o.detector = Some(DetectorParams::default());
+            o.detector = Some(o.detector_params);
         }
         o
     }
@@ -203,6 +203,9 @@ pub struct OfflineOptions {
     /// detector's stds (the first input is the receiver), and CSBA-3D groups are scored by the
     /// noisy-OR of their members with the tail dropped. `None`: the stds are the inputs' own.
     pub detector: Option<DetectorParams>,
+    /// The detector's parameters wherever its treatment applies: given with `detector`, or
+    /// for a detector's KITTI rows ([`Inputs::options`]).
+    pub detector_params: DetectorParams,
 }
 
 impl Default for OfflineOptions {
@@ -214,6 +217,7 @@ impl Default for OfflineOptions {
             learn: None,
             models: BTreeMap::new(),
             detector: None,
+            detector_params: DetectorParams::default(),
         }
     }
 }
@@ -282,7 +286,7 @@ pub fn fuse_step(
     let names: Vec<String> = (0..per_agent.len()).map(name).collect();
     let kinds = vec![AgentKind::Vehicle; per_agent.len()];
     let (lists, _) = p.register(None, &names, &kinds, per_agent.to_vec());
-    p.steps().fuse_boxes(&lists)
+    p.steps().fuse_boxes(&lists, p.receiver_in(&names))
 }
 
 /// Fuses the agents' files: by capture-time windows when every file has capture times, else by
@@ -360,8 +364,9 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
             .collect();
         let (per_agent, regs) = pipeline.register(None, &names, &kinds, per_agent);
         registered.extend(registration_json(&names, &regs).map(|r| (s.clone(), r)));
+        let receiver = pipeline.receiver_in(&names);
         out.samples
-            .insert(s.clone(), pipeline.steps().fuse_boxes(&per_agent));
+            .insert(s.clone(), pipeline.steps().fuse_boxes(&per_agent, receiver));
     }
     if opts.align.is_some() {
         set_meta(&mut out, "v2x_registration", Value::Object(registered));
@@ -381,7 +386,10 @@ fn fuse_by_time(
     };
     let mut samples = BTreeMap::new();
     let meta = by_time(method, agents, times, opts, |steps, sample, prepared| {
-        samples.insert(sample.clone(), steps.fuse_boxes(&prepared.lists));
+        samples.insert(
+            sample.clone(),
+            steps.fuse_boxes(&prepared.lists, prepared.receiver),
+        );
     });
     out.samples = samples;
     meta.set(&mut out);

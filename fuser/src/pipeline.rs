@@ -78,18 +78,19 @@ impl Steps {
         }
     }
 
-    /// Step 6: the agents' prepared boxes fused, each fused box with its agents.
-    pub fn fuse(&self, lists: &[Vec<Detection>]) -> Vec<Sourced> {
+    /// Step 6: the agents' prepared boxes fused, each fused box with its agents; `receiver`:
+    /// the position in `lists` of the agent whose frame the others' boxes arrive in.
+    pub fn fuse(&self, lists: &[Vec<Detection>], receiver: Option<usize>) -> Vec<Sourced> {
         match (&self.detector, self.method.csba_params()) {
-            (Some(p), Some(csba)) => detector::fuse_scored_sourced(p, &csba, lists),
+            (Some(p), Some(csba)) => detector::fuse_scored_sourced(p, &csba, lists, receiver),
             _ => self.method.fuse_sourced(lists),
         }
     }
 
     /// [`Steps::fuse`] without the agents of each box.
-    pub fn fuse_boxes(&self, lists: &[Vec<Detection>]) -> Vec<Detection> {
+    pub fn fuse_boxes(&self, lists: &[Vec<Detection>], receiver: Option<usize>) -> Vec<Detection> {
         match (&self.detector, self.method.csba_params()) {
-            (Some(p), Some(csba)) => detector::fuse_scored(p, &csba, lists),
+            (Some(p), Some(csba)) => detector::fuse_scored(p, &csba, lists, receiver),
             _ => self.method.fuse(lists),
         }
     }
@@ -116,6 +117,8 @@ pub struct Prepared {
     pub lists: Vec<Vec<Detection>>,
     /// Each agent's registration (`agents` order; `None`: not registered).
     pub registration: Vec<Option<Registration>>,
+    /// The receiver's position in `agents`, if it is among them.
+    pub receiver: Option<usize>,
 }
 
 /// The steps with what they carry from window to window (the learner's and the registration's
@@ -165,12 +168,20 @@ impl Pipeline {
         let kinds: Vec<AgentKind> = closed.frames.values().map(|f| f.kind).collect();
         let (t_ref, lists) = align_window(closed, self.steps.motion.as_ref());
         let (lists, registration) = self.register(Some(t_ref), &agents, &kinds, lists);
+        let receiver = self.receiver_in(&agents);
         Prepared {
             t_ref,
             agents,
             lists,
             registration,
+            receiver,
         }
+    }
+
+    /// The receiver's position among `agents`, if it is there.
+    pub fn receiver_in(&self, agents: &[String]) -> Option<usize> {
+        let r = self.receiver.as_ref()?;
+        agents.iter().position(|a| a == r)
     }
 
     /// Steps 4-5 for the agents' boxes at time `t_us` (`None`: boxes without a time, each
@@ -288,7 +299,15 @@ mod tests {
         assert_eq!(ready[0][0].std, detector::stds(&p, &lists[0][0], true));
         assert_eq!(ready[1][0].std, modelled[1][0].std);
         // Fused as a detector's: one group, scored 1 - 0.1 x 0.4 = 0.96.
-        let fused = pipeline(Models::default()).steps().fuse(&ready);
+        let noisy_or = |models| {
+            let mut p = pipeline(models);
+            p.steps.detector = p.steps.detector.map(|d| DetectorParams {
+                existence: None,
+                ..d
+            });
+            p
+        };
+        let fused = noisy_or(Models::default()).steps().fuse(&ready, Some(0));
         assert_eq!(fused.len(), 1);
         assert!((fused[0].det.score - 0.96).abs() < 1e-12);
     }

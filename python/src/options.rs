@@ -110,6 +110,7 @@ impl Options {
             detector: self
                 .detector
                 .then(v2x_fuser::uncertainty::detector::DetectorParams::default),
+            ..Default::default()
         };
         opts.set_time_scale(self.time_scale);
         Ok((method(&self.method)?, missing, opts))

@@ -18,6 +18,7 @@ pub mod bench;
 pub mod certs;
 pub mod cli;
 pub mod dair_bench;
+pub mod existence_fit;
 pub mod gen;
 pub mod load;
 pub mod plot;

@@ -27,6 +27,10 @@ enum Command {
     /// centre, size, yaw and velocity per class and score bin, with counts and 95% intervals,
     /// written as JSON for `v2x-fuser fuse/track/node --std-model AGENT=FILE`.
     Calibrate(commands::calibrate::CalibrateArgs),
+    /// Fit the existence model of a detector's fused boxes (their score: the chance each is a
+    /// real object) against a split's labels, written as JSON for `v2x-fuser fuse/track
+    /// --existence-model FILE`.
+    FitScore(commands::fit_score::FitScoreArgs),
     /// Reproduce the paper's Table 2: every method under each noise setting, with the single
     /// agents and the lower bound.
     Bench(commands::bench::BenchArgs),
@@ -61,6 +65,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => commands::gen::run(args)?,
         Command::Eval(args) => commands::eval::run(args)?,
         Command::Calibrate(args) => commands::calibrate::run(args)?,
+        Command::FitScore(args) => commands::fit_score::run(args)?,
         Command::Bench(args) => commands::bench::run(args)?,
         Command::Mcap(args) => commands::mcap::run(args)?,
         Command::Wire(args) => commands::wire::run(args)?,

@@ -13,9 +13,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use v2x_eval::ab3dmot_eval::{evaluate, Ab3dmotMetrics, Sequence};
+use v2x_eval::ab3dmot_eval::{evaluate_with, Ab3dmotMetrics, FalsePositives, Sequence};
 use v2x_eval::dair_eval::View;
-use v2x_eval::v2v4real_eval::{V2v4realEval, V2v4realMetrics, THRESHOLDS};
+use v2x_eval::v2v4real_eval::{Ordering, V2v4realEval, V2v4realMetrics, RANGES, THRESHOLDS};
 use v2x_fuser::maths::baselines::nms;
 use v2x_fuser::maths::geometry::bev_iou;
 use v2x_fuser::offline::{fuse_step, read_inputs, track_sequences, FilesError, OfflineOptions};
@@ -42,6 +42,9 @@ pub struct V2v4realRow {
     pub cpm_bytes_per_frame: Option<f64>,
 }
 
+/// The score the late-fusion rule's cut row drops boxes below.
+pub const RULE_CUT: f64 = 0.4;
+
 /// What a row fuses or shows.
 #[derive(Clone, Debug)]
 pub enum Source {
@@ -51,7 +54,7 @@ pub enum Source {
     Reference(usize),
     /// The dataset's late-fusion rule: both cars' boxes pooled, greedy NMS on BEV IoU > 0.15.
     LateFusionRule,
-    /// The late-fusion rule with the tail a CSBA-3D method drops ([`DetectorParams::min_score`]).
+    /// The late-fusion rule with boxes below [`RULE_CUT`] dropped: what a cut alone does.
     LateFusionRuleTail,
     /// A method fusing both cars, as `v2x-fuser fuse` fuses a detector's rows.
     Method(Method),
@@ -65,10 +68,7 @@ impl Source {
             Source::Car(k) => format!("car {} alone", CARS[*k]),
             Source::Reference(k) => d.references[*k].0.clone(),
             Source::LateFusionRule => "late fusion rule (BEV NMS 0.15)".into(),
-            Source::LateFusionRuleTail => format!(
-                "late fusion rule, score >= {}",
-                DetectorParams::default().min_score
-            ),
+            Source::LateFusionRuleTail => format!("late fusion rule, score >= {RULE_CUT}"),
             Source::Method(m) => m.name(),
         }
     }
@@ -81,10 +81,7 @@ impl Source {
             Source::Car(k) => d.cars[*k][i].clone(),
             Source::Reference(k) => d.references[*k].1[i].clone(),
             Source::LateFusionRule => rule().collect(),
-            Source::LateFusionRuleTail => {
-                let min = DetectorParams::default().min_score;
-                rule().filter(|b| b.score >= min).collect()
-            }
+            Source::LateFusionRuleTail => rule().filter(|b| b.score >= RULE_CUT).collect(),
             Source::Method(m) => {
                 let opts = OfflineOptions {
                     detector: Some(DetectorParams::default()),
@@ -121,15 +118,64 @@ pub fn car_bytes(car: usize, capture_us: u64, dets: &[Detection]) -> Bytes {
     frame_bytes(CARS[car], AgentKind::Vehicle, capture_us, dets)
 }
 
+/// A row's name as a folder name: letters and digits kept, `+` spelled `plus`, every other
+/// run one `-`.
+pub fn slug(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c == '+' {
+            out.push_str(if out.ends_with('-') {
+                "plus-"
+            } else {
+                "-plus-"
+            });
+        } else if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_matches('-').to_string()
+}
+
+/// Writes each source's boxes as KITTI detection rows into `dir/SLUG/` ([`slug`] of its
+/// name), one `NNNN.txt` per sequence; returns each folder with its rows.
+pub fn write_rows(
+    d: &V2v4real,
+    sources: &[Source],
+    dir: &Path,
+) -> Result<Vec<(PathBuf, usize)>, KittiError> {
+    let sequences: std::collections::BTreeSet<u32> = d.frames.iter().map(|f| f.seq).collect();
+    sources
+        .iter()
+        .map(|src| {
+            let out = dir.join(slug(&src.name(d)));
+            let results = v2x_protocol::nuscenes_json::Results {
+                samples: (0..d.frames.len())
+                    .into_par_iter()
+                    .map(|i| (d.frames[i].token(), src.boxes(d, i)))
+                    .collect(),
+                ..Default::default()
+            };
+            let n = kitti::write_detection_dir(&out, &results, sequences.iter().copied())?;
+            Ok((out, n))
+        })
+        .collect()
+}
+
 /// A tracked row: `v2x-fuser track` over both cars' folders, scored by AB3DMOT's evaluation.
 #[derive(Clone, Debug, Serialize)]
 pub struct TrackedRow {
     /// `METHOD tracked`, or `METHOD guided`.
     pub method: String,
-    /// AB3DMOT's figures.
+    /// AB3DMOT's figures as its script scores this layout (no false positive counted).
     pub metrics: Ab3dmotMetrics,
+    /// The same with every unmatched tracked box a false positive.
+    pub counted: Ab3dmotMetrics,
     /// Tracked boxes per frame.
     pub boxes_per_frame: f64,
+    /// Labelled cars per frame.
+    pub labels_per_frame: f64,
 }
 
 /// Tracks both cars' folders (`cars`, the receiving car first) as `v2x-fuser track` does, with
@@ -250,11 +296,19 @@ pub fn ceiling(d: &V2v4real) -> TrackedRow {
 
 /// A tracked row of these sequences.
 fn row(method: String, d: &V2v4real, seqs: &[Sequence]) -> TrackedRow {
+    let per_frame = |n: usize| n as f64 / d.frames.len().max(1) as f64;
     let boxes: usize = seqs.iter().flat_map(|s| &s.tracks).map(Vec::len).sum();
+    let labels: usize = seqs.iter().flat_map(|s| &s.gt).map(Vec::len).sum();
+    let (metrics, counted) = rayon::join(
+        || evaluate_with(seqs, FalsePositives::AsScript).unwrap_or_default(),
+        || evaluate_with(seqs, FalsePositives::Counted).unwrap_or_default(),
+    );
     TrackedRow {
         method,
-        metrics: evaluate(seqs).unwrap_or_default(),
-        boxes_per_frame: boxes as f64 / d.frames.len().max(1) as f64,
+        metrics,
+        counted,
+        boxes_per_frame: per_frame(boxes),
+        labels_per_frame: per_frame(labels),
     }
 }
 
@@ -268,11 +322,12 @@ pub fn score_detection_dir(d: &V2v4real, dir: &Path) -> Result<V2v4realMetrics, 
 }
 
 impl Rows for [TrackedRow] {
-    /// The tracked rows as a Markdown table (percent, as AB3DMOT's script prints them).
+    /// The tracked rows as two Markdown tables (percent, as AB3DMOT's script prints them):
+    /// scored as the script scores this layout, then with false positives counted.
     fn table(&self) -> String {
         let rows = self;
         let pct = |v: f64| format!("{:.2}", 100.0 * v);
-        markdown(
+        let stock = markdown(
             &[
                 ("tracks", Left),
                 ("sAMOTA", Right),
@@ -304,6 +359,42 @@ impl Rows for [TrackedRow] {
                     format!("{:.1}", r.boxes_per_frame),
                 ]
             }),
+        );
+        let counted = markdown(
+            &[
+                ("tracks", Left),
+                ("sAMOTA", Right),
+                ("AMOTA", Right),
+                ("AMOTP", Right),
+                ("MOTA", Right),
+                ("IDS", Right),
+                ("FP", Right),
+                ("precision", Right),
+                ("recall", Right),
+                ("boxes/frame", Right),
+                ("labels/frame", Right),
+            ],
+            rows.iter().map(|r| {
+                let m = &r.counted;
+                vec![
+                    r.method.clone(),
+                    pct(m.samota),
+                    pct(m.amota),
+                    pct(m.amotp),
+                    pct(m.mota),
+                    m.ids.to_string(),
+                    m.fp.to_string(),
+                    pct(m.tp as f64 / (m.tp + m.fp).max(1) as f64),
+                    pct(m.recall),
+                    format!("{:.1}", r.boxes_per_frame),
+                    format!("{:.1}", r.labels_per_frame),
+                ]
+            }),
+        );
+        format!(
+            "AB3DMOT's evaluation as its script scores these rows (no false positive counted):\n\n\
+             {stock}\nThe same, every unmatched tracked box a false positive (precision and recall \
+             at the threshold of best MOTA):\n\n{counted}"
         )
     }
 }
@@ -386,20 +477,70 @@ fn ap_headers() -> Vec<String> {
         .collect()
 }
 
-fn ap_cells(m: &V2v4realMetrics) -> Vec<String> {
-    [&m.ap_bev, &m.ap_3d]
-        .iter()
-        .flat_map(|map| {
-            THRESHOLDS.iter().map(move |t| {
-                map.get(&format!("{t:.2}"))
+fn ap_cells(m: &V2v4realMetrics, ordering: Ordering) -> Vec<String> {
+    let aps = m.aps(ordering);
+    [View::Bev, View::ThreeD]
+        .into_iter()
+        .flat_map(|view| {
+            let aps = &aps;
+            THRESHOLDS.iter().map(move |&t| {
+                aps.get(view, t)
                     .map_or_else(|| "-".into(), |v| format!("{v:.3}"))
             })
         })
         .collect()
 }
 
+impl V2v4realRow {
+    /// The row's cells of one ordering's table.
+    fn cells(&self, ordering: Ordering) -> Vec<String> {
+        let mut cells = vec![self.method.clone()];
+        cells.extend(ap_cells(&self.ap, ordering));
+        cells.push(format!(
+            "{:.1}",
+            self.ap.predictions as f64 / self.ap.frames.max(1) as f64
+        ));
+        for b in [self.bytes_per_frame, self.cpm_bytes_per_frame] {
+            cells.push(b.map_or_else(|| "-".into(), |b| format!("{b:.0}")));
+        }
+        cells
+    }
+}
+
+/// Each row's BEV AP at 0.5 and 0.7 by range, both orderings in a cell (`frame / global`).
+fn range_table(rows: &[V2v4realRow]) -> String {
+    let heads: Vec<String> = RANGES
+        .iter()
+        .flat_map(|(lo, hi)| [0.5, 0.7].map(|t| format!("{lo}-{hi} m @{t}")))
+        .collect();
+    let mut columns = vec![("boxes / method", Left)];
+    columns.extend(heads.iter().map(|h| (h.as_str(), Right)));
+    markdown(
+        &columns,
+        rows.iter().map(|r| {
+            let mut cells = vec![r.method.clone()];
+            for band in &r.ap.ranges {
+                for t in [0.5, 0.7] {
+                    let f = |o: Ordering| {
+                        let aps = if o == Ordering::Frame {
+                            &band.frame
+                        } else {
+                            &band.global
+                        };
+                        aps.get(View::Bev, t)
+                            .map_or_else(|| "-".into(), |v| format!("{v:.3}"))
+                    };
+                    cells.push(format!("{} / {}", f(Ordering::Frame), f(Ordering::Global)));
+                }
+            }
+            cells
+        }),
+    )
+}
+
 impl Rows for [V2v4realRow] {
-    /// The rows as a Markdown table.
+    /// The rows as Markdown tables: V2V4Real's AP in frame order (its published figure), the
+    /// same boxes globally sorted by score, and BEV AP by range in both orderings.
     fn table(&self) -> String {
         let rows = self;
         let heads = ap_headers();
@@ -410,21 +551,22 @@ impl Rows for [V2v4realRow] {
             ("bytes/frame", Right),
             ("CPM bytes/frame", Right),
         ]);
-        markdown(
-            &columns,
-            rows.iter().map(|r| {
-                let mut cells = vec![r.method.clone()];
-                cells.extend(ap_cells(&r.ap));
-                cells.push(format!(
-                    "{:.1}",
-                    r.ap.predictions as f64 / r.ap.frames.max(1) as f64
-                ));
-                for b in [r.bytes_per_frame, r.cpm_bytes_per_frame] {
-                    cells.push(b.map_or_else(|| "-".into(), |b| format!("{b:.0}")));
+        let mut out = String::new();
+        for o in Ordering::ALL {
+            out.push_str(&format!(
+                "AP, {} ({}):\n\n",
+                o.name(),
+                match o {
+                    Ordering::Frame => "V2V4Real's published protocol",
+                    Ordering::Global => "OpenCOOD's --global_sort_detections",
                 }
-                cells
-            }),
-        )
+            ));
+            out.push_str(&markdown(&columns, rows.iter().map(|r| r.cells(o))));
+            out.push('\n');
+        }
+        out.push_str("AP-BEV by distance from the ego car, frame order / global sort:\n\n");
+        out.push_str(&range_table(rows));
+        out
     }
 }
 

@@ -124,3 +124,27 @@ fn the_scripts_iou_is_kept_where_it_is_no_iou() {
         script_iou(&flat, &along)
     );
 }
+
+#[test]
+fn counted_false_positives_charge_every_unmatched_box() {
+    // As the script scores this layout, track 7 (far from the label, never matched) is free;
+    // counted, it is 3 false positives wherever it stands.
+    let close = |a: f64, b: f64| assert!((a - b).abs() < 1e-12, "{a} against {b}");
+    let m = evaluate_with(&[switching()], FalsePositives::Counted).unwrap();
+    // At 0.9 tracks 6 (0.3) and 7 (0.8) are dropped: MOTA 2/3; at 0.3 every box stands:
+    // 3 hits, 1 switch, 3 false positives, MOTA 1 - 4/3.
+    close(m.amota, (2.0 / 3.0 - 1.0 / 3.0) / 40.0);
+    assert_eq!((m.threshold, m.fp), (0.9, 0));
+    // One frame: an exact box and a far one, both 0.9.
+    let s = Sequence {
+        gt: vec![vec![boxed(0.0, 0.0, 1.5, 1, 1.0)]],
+        tracks: vec![vec![
+            boxed(0.0, 0.0, 1.5, 3, 0.9),
+            boxed(50.0, 0.0, 1.5, 4, 0.9),
+        ]],
+    };
+    let free = evaluate(std::slice::from_ref(&s)).unwrap();
+    assert_eq!((free.fp, free.mota), (0, 1.0));
+    let counted = evaluate_with(&[s], FalsePositives::Counted).unwrap();
+    assert_eq!((counted.fp, counted.mota), (1, 0.0));
+}

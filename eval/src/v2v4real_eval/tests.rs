@@ -90,9 +90,9 @@ fn a_merge_is_the_frames_in_order() {
 
 #[test]
 fn edge_cases() {
-    assert_eq!(voc_ap(&[], 0), None);
-    assert_eq!(voc_ap(&[], 3), Some(0.0));
-    assert_eq!(voc_ap(&[true, true], 2), Some(1.0));
+    assert_eq!(voc_ap(Vec::new(), 0), None);
+    assert_eq!(voc_ap(Vec::new(), 3), Some(0.0));
+    assert_eq!(voc_ap([true, true], 2), Some(1.0));
     // A taken box is not matched twice: the second exact duplicate is a false positive.
     let mut e = V2v4realEval::new();
     e.add_frame(
@@ -100,6 +100,96 @@ fn edge_cases() {
         &[car(0.0, 0.0, 0.0, 0.9), car(0.0, 0.0, 0.0, 0.8)],
     );
     assert_eq!(e.ap(View::Bev, 0.5), Some(1.0));
-    assert_eq!(e.tallies[1][1].tp, [true, false]);
+    assert_eq!(e.tallies[0][1][1].tp, [(0.9, true), (0.8, false)]);
     assert_eq!(e.ap(View::Bev, 0.4), None);
+}
+
+#[test]
+fn a_global_sort_ranks_every_prediction_of_the_split_by_score() {
+    // Ranked over both frames: 0.95 (frame 2, BEV IoU 0.6), 0.9 (tp), 0.8 (fp), 0.5.
+    let s = worked().summary();
+    let close = |got: f64, want: f64| assert!((got - want).abs() < 1e-12, "{got} against {want}");
+    // BEV at 0.7: fp tp fp tp: 1/3 x 1/2 + 1/3 x 1/2.
+    close(s.global.bev["0.70"], 1.0 / 3.0);
+    // BEV at 0.5: tp tp fp tp: 2/3 x 1 + 1/3 x 3/4.
+    close(s.global.bev["0.50"], 2.0 / 3.0 + 0.25);
+    // 3D at 0.5: tp tp fp fp: 2/3.
+    close(s.global.three_d["0.50"], 2.0 / 3.0);
+    // In frame order the same boxes score 5/6 and 5/9 (above).
+    close(s.ap_bev["0.50"], 5.0 / 6.0);
+    assert_eq!(s.aps(Ordering::Global), s.global);
+    assert_eq!(s.aps(Ordering::Frame).bev, s.ap_bev);
+    // A box added below every other one cannot lower a globally sorted AP; in frame order a
+    // false positive in the first frame can.
+    let mut e = worked();
+    e.add_frame(&[], &[car(70.0, 0.0, 0.0, 0.01)]);
+    assert_eq!(e.summary().global.bev, s.global.bev);
+    let mut early = V2v4realEval::new();
+    early.add_frame(
+        &[car(0.0, 0.0, 0.0, 1.0)],
+        &[
+            car(50.0, 50.0, 0.0, 0.8),
+            car(0.0, 0.0, 0.0, 0.9),
+            car(-40.0, 0.0, 0.0, 0.01),
+        ],
+    );
+    early.merge({
+        let mut b = V2v4realEval::new();
+        b.add_frame(
+            &[car(10.0, 0.0, 0.0, 1.0), car(20.0, 5.0, 0.0, 1.0)],
+            &[car(20.0, 5.0, 0.8, 0.5), car(11.0, 0.0, 0.0, 0.95)],
+        );
+        b
+    });
+    assert!(early.summary().ap_bev["0.50"] < s.ap_bev["0.50"] - 0.05);
+    assert_eq!(early.summary().global.bev["0.50"], s.global.bev["0.50"]);
+}
+
+#[test]
+fn range_bands_keep_the_boxes_strictly_inside_them() {
+    // Labels at 10 m, 40 m and 60 m; predictions exact at 10 m and 60 m, one at 29.9 m (a false
+    // positive of the near band), one exactly at 30 m (in no band).
+    let mut e = V2v4realEval::new();
+    e.add_frame(
+        &[
+            car(10.0, 0.0, 0.0, 1.0),
+            car(0.0, 40.0, 0.0, 1.0),
+            car(60.0, 0.0, 0.0, 1.0),
+        ],
+        &[
+            car(10.0, 0.0, 0.0, 0.9),
+            car(60.0, 0.0, 0.0, 0.8),
+            car(29.9, 0.0, 0.0, 0.95),
+            car(30.0, 0.0, 0.0, 0.7),
+        ],
+    );
+    let s = e.summary();
+    let bands: Vec<(&str, usize, usize)> = s
+        .ranges
+        .iter()
+        .map(|b| (b.range.as_str(), b.gt, b.predictions))
+        .collect();
+    assert_eq!(bands, [("0-30", 1, 2), ("30-50", 1, 0), ("50-100", 1, 1)]);
+    // Near: fp tp against one label: 1 x 1/2. Middle: nothing found. Far: exact.
+    assert_eq!(s.ranges[0].frame.bev["0.50"], 0.5);
+    assert_eq!(s.ranges[1].frame.bev["0.50"], 0.0);
+    assert_eq!(s.ranges[2].global.three_d["0.70"], 1.0);
+    assert_eq!((s.gt, s.predictions), (3, 4));
+}
+
+#[test]
+fn the_curve_follows_the_ordering() {
+    let e = worked();
+    let frame = e.curve(View::Bev, 0.7, Ordering::Frame);
+    let global = e.curve(View::Bev, 0.7, Ordering::Global);
+    let third = 1.0 / 3.0;
+    assert_eq!(
+        frame,
+        [(third, 1.0), (third, 0.5), (third, third), (2.0 / 3.0, 0.5)]
+    );
+    assert_eq!(
+        global,
+        [(0.0, 0.0), (third, 0.5), (third, third), (2.0 / 3.0, 0.5)]
+    );
+    assert!(e.curve(View::Bev, 0.4, Ordering::Frame).is_empty());
 }

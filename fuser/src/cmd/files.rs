@@ -28,6 +28,15 @@ pub(crate) struct FilesArgs {
     /// `v2x-sim gen --dataset v2v4real` writes.
     #[arg(long, conflicts_with_all = ["default_std", "learn_std"])]
     pub(crate) detector: bool,
+    /// A detector's fused boxes are scored by the chance each is a real object: by the model
+    /// fitted on V2V4Real's train split (`default`), by a model `v2x-sim fit-score` wrote for
+    /// your detector (a JSON file), or (`noisy-or`) by the noisy-OR of the members' scores.
+    #[arg(long, default_value = "default", value_name = "default|noisy-or|FILE")]
+    pub(crate) existence_model: String,
+    /// A detector's fused boxes scoring below this are left out of `fuse`'s output (`track`
+    /// keeps every box: its tracks' scores rank them).
+    #[arg(long, default_value_t = v2x_fuser::uncertainty::detector::DetectorParams::default().min_score)]
+    pub(crate) min_score: f64,
     #[command(flatten)]
     pub(crate) motion: v2x_fuser::settings::MotionSettings,
     #[command(flatten)]
@@ -79,10 +88,10 @@ impl FilesArgs {
             align: None,
             learn: self.stds.learn().map_err(flag_error)?,
             models: models_by_input(&self.stds, inputs)?,
-            detector: self
-                .detector
-                .then(v2x_fuser::uncertainty::detector::DetectorParams::default),
+            detector: None,
+            detector_params: self.detector_params()?,
         };
+        opts.detector = self.detector.then_some(opts.detector_params);
         opts.set_time_scale(self.motion.time_scale);
         let missing = match self.detector {
             // Every std is replaced by the detector's.
@@ -90,6 +99,35 @@ impl FilesArgs {
             false => missing(&self.stds, self.default_std, inputs),
         };
         Ok((missing, opts))
+    }
+}
+
+impl FilesArgs {
+    /// The detector's parameters these flags give.
+    fn detector_params(&self) -> anyhow::Result<v2x_fuser::uncertainty::detector::DetectorParams> {
+        use v2x_fuser::uncertainty::existence::{self, ExistenceFile, ExistenceModel};
+        if !(0.0..=1.0).contains(&self.min_score) {
+            anyhow::bail!("--min-score must be in [0, 1], not {}", self.min_score);
+        }
+        let existence = match self.existence_model.as_str() {
+            "default" => Some(existence::DETECTOR_DEFAULT),
+            "noisy-or" => None,
+            path => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?;
+                let file: ExistenceFile = serde_json::from_str(&text)
+                    .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?;
+                Some(
+                    ExistenceModel::try_from(file)
+                        .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?,
+                )
+            }
+        };
+        Ok(v2x_fuser::uncertainty::detector::DetectorParams {
+            min_score: self.min_score,
+            existence,
+            ..Default::default()
+        })
     }
 }
 

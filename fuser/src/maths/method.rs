@@ -67,6 +67,15 @@ const fn named(name: &'static str, about: &'static str, method: Method) -> Named
 const PAPER: CsbaParams = CsbaParams::PAPER;
 const PLUS: CsbaParams = CsbaParams::PLUS;
 
+/// The method every command, scenario and bench uses unless told otherwise: csba-wls+.
+pub const DEFAULT: Method = Method::Csba(PLUS);
+
+impl Default for Method {
+    fn default() -> Self {
+        DEFAULT
+    }
+}
+
 /// Every method, registered once: names, parsing, `--help` and [`Method::all`] come from here.
 pub const METHODS: &[Named] = &[
     named(

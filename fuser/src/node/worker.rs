@@ -49,7 +49,7 @@ pub fn fuse_window(
     let learned = pipeline.learned();
     let (detections, sources) = pipeline
         .steps()
-        .fuse(&prepared.lists)
+        .fuse(&prepared.lists, prepared.receiver)
         .into_iter()
         .map(|s| (s.det, s.sources))
         .unzip();
@@ -58,6 +58,7 @@ pub fn fuse_window(
         agents,
         lists,
         registration,
+        ..
     } = prepared;
     let registration = agents
         .iter()

@@ -106,6 +106,12 @@ pub struct BenchArgs {
     /// per sequence, e.g. `v2x-fuser fuse --output-format kitti`'s output), a row each.
     #[arg(long, value_name = "DIR")]
     pub results: Vec<PathBuf>,
+    /// With --dataset v2v4real: write each detection row's boxes into DIR/ROW/ (a folder of
+    /// KITTI detection rows per sequence, as AB3DMOT's trackers read them; ROW the row's name
+    /// in lower case, `+` spelled `plus`, every other run of characters but letters and digits
+    /// one `-`: `csba-wls-plus`).
+    #[arg(long, value_name = "DIR")]
+    pub write_rows: Option<PathBuf>,
 }
 
 /// What one `v2x-sim bench` run measures, told from its flags once.
@@ -259,6 +265,11 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     let sources = v2x_sim::v2v4real_bench::sources(&d, &methods);
     let rows = v2x_sim::v2v4real_bench::run(&d, &sources);
     let detection_s = start.elapsed().as_secs_f64();
+    if let Some(dir) = &args.write_rows {
+        for (dir, n) in v2x_sim::v2v4real_bench::write_rows(&d, &sources, dir)? {
+            eprintln!("{}: {n} rows", dir.display());
+        }
+    }
     let start = Instant::now();
     let root = args
         .data

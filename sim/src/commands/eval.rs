@@ -243,10 +243,14 @@ fn v2v4real(
         match format {
             Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
             _ => println!(
-                "{}: AP-BEV {} · AP-3D {} ({} frames, {} labelled cars, {} boxes)",
+                "{}: AP-BEV {} · AP-3D {} in frame order (V2V4Real's protocol); globally sorted \
+                 (OpenCOOD's --global_sort_detections) AP-BEV {} · AP-3D {} ({} frames, {} \
+                 labelled cars, {} boxes)",
                 dir.display(),
                 serde_json::to_string(&m.ap_bev)?,
                 serde_json::to_string(&m.ap_3d)?,
+                serde_json::to_string(&m.global.bev)?,
+                serde_json::to_string(&m.global.three_d)?,
                 m.frames,
                 m.gt,
                 m.predictions

@@ -10,6 +10,7 @@ pub mod bench;
 pub mod calibrate;
 pub mod certs;
 pub mod eval;
+pub mod fit_score;
 pub mod gen;
 pub mod load;
 pub mod mcap;

@@ -38,10 +38,12 @@ fn each_row_scores_as_worked_by_hand() {
     assert_eq!(rows[3].ap.predictions, 9);
     // The tail below 0.4 dropped: the false box goes, and so does the last frame's lone 0.3 car.
     close(bev(4), 7.0 / 8.0);
-    // csba-wls+ on a detector's boxes: the ego car's and car 1's first car fuse (0.96), the
-    // same two boxes fall below 0.4.
-    close(bev(5), 7.0 / 8.0);
-    assert_eq!((rows[4].ap.predictions, rows[5].ap.predictions), (7, 7));
+    // csba-wls+ on a detector's boxes: the ego car's and car 1's first car fuse; the false
+    // box 42 m out (0.25, its chance 0.10) falls below 0.2, the lone 0.3 car near the ego car
+    // (its chance 0.22) stays: every car found, nothing else.
+    close(bev(5), 1.0);
+    assert_eq!((rows[4].ap.predictions, rows[5].ap.predictions), (7, 8));
+    assert_eq!(rows[5].ap.global.bev["0.50"], 1.0);
     // Bytes: a fusion sends both cars' frames; a reference, none of the project's.
     let b = |k: usize| rows[k].bytes_per_frame;
     assert!(b(0).unwrap() > 0.0 && b(1).unwrap() > 0.0);
@@ -63,6 +65,8 @@ fn the_fixtures_tracks_score_as_ab3dmots_script_scores_them() {
     let d = fixture();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../truth/fixtures/v2v4real/tracks");
     let row = score_track_dir(&d, &dir).unwrap();
+    // Every unmatched box counted: at least as many false positives, and no higher MOTA.
+    assert!(row.counted.fp >= row.metrics.fp && row.counted.mota <= row.metrics.mota);
     let m = &row.metrics;
     let four = |v: f64| format!("{v:.4}");
     assert_eq!(
@@ -83,4 +87,38 @@ fn the_ceiling_shows_every_box_with_its_labels_id() {
     assert!((c.boxes_per_frame - boxes as f64 / 5.0).abs() < 1e-12);
     assert!((c.metrics.recall - 1.0).abs() < 1e-12, "{:?}", c.metrics);
     assert_eq!((c.metrics.ids, c.metrics.fp), (0, 0), "{:?}", c.metrics);
+}
+
+#[test]
+fn rows_are_written_where_a_tracker_reads_them() {
+    let d = fixture();
+    let dir = std::env::temp_dir().join(format!("v2x-rows-{}", std::process::id()));
+    let methods = ["csba-wls+".parse().unwrap()];
+    let written = write_rows(&d, &sources(&d, &methods), &dir).unwrap();
+    let names: Vec<String> = written
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "ego-alone",
+            "car-1-alone",
+            "dataset-late-fusion",
+            "late-fusion-rule-bev-nms-0-15",
+            "late-fusion-rule-score-0-4",
+            "csba-wls-plus"
+        ]
+    );
+    // Read back, each folder scores as its row did.
+    let rows = run(&d, &sources(&d, &methods));
+    for ((path, n), row) in written.iter().zip(&rows) {
+        assert_eq!(*n, row.ap.predictions, "{}", path.display());
+        let back = score_detection_dir(&d, path).unwrap();
+        for (k, v) in &row.ap.ap_bev {
+            assert!((back.ap_bev[k] - v).abs() < 1e-6, "{}", path.display());
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(slug("csba-wls+chi2"), "csba-wls-plus-chi2");
 }

@@ -1,5 +1,13 @@
 use super::*;
 
+/// The detector's parameters with groups scored by noisy-OR (no existence model).
+fn noisy_or() -> DetectorParams {
+    DetectorParams {
+        existence: None,
+        ..DetectorParams::default()
+    }
+}
+
 fn car(x: f64, score: f64) -> Detection {
     Detection {
         score,
@@ -16,6 +24,8 @@ fn stds_follow_the_score_and_the_pose() {
     // Another agent's box: sqrt(0.15^2 + 0.5^2).
     let other = stds(&p, &car(0.0, 1.0), false);
     assert!((other.pos[1] - 0.15f64.hypot(0.5)).abs() < 1e-12);
+    // Its height less certain: sqrt(0.15^2 + 1^2).
+    assert!((other.pos[2] - 0.15f64.hypot(1.0)).abs() < 1e-12);
     assert_eq!((other.size, other.yaw), ([0.2; 3], 0.15));
 }
 
@@ -29,12 +39,15 @@ fn a_group_scores_the_noisy_or_of_its_members() {
 
 #[test]
 fn seen_twice_is_kept_and_the_lone_tail_is_dropped() {
-    let p = DetectorParams::default();
+    let p = DetectorParams {
+        min_score: 0.4,
+        ..noisy_or()
+    };
     let mut ego = vec![car(10.0, 0.6), car(40.0, 0.3), car(-30.0, 0.45)];
     let mut other = vec![car(10.3, 0.5), car(70.0, 0.35)];
     ready(&p, &mut ego, true);
     ready(&p, &mut other, false);
-    let fused = fuse_scored(&p, &CsbaParams::PLUS, &[ego, other]);
+    let fused = fuse_scored(&p, &CsbaParams::PLUS, &[ego, other], Some(0));
     let mut got: Vec<(f64, f64)> = fused.iter().map(|d| (d.center[0], d.score)).collect();
     got.sort_by(|a, b| a.0.total_cmp(&b.0));
     assert_eq!(got.len(), 2, "{got:?}");
@@ -59,27 +72,31 @@ fn a_tracker_gets_the_tail_too() {
     let p = DetectorParams::default().for_tracking();
     assert_eq!(p.min_score, 0.0);
     assert_eq!(p.pose_std, DetectorParams::default().pose_std);
-    assert_eq!(p.height_gap, 1.0);
+    assert_eq!(p.height_gap, f64::INFINITY);
 }
 
 #[test]
-fn a_tracker_gets_both_boxes_of_a_group_whose_heights_disagree() {
-    // One car seen by both agents, the other agent's box 1.5 m higher: fused for a benchmark
-    // (one box at the weighted height), both kept for a tracker (each with its own score).
+fn a_height_gap_keeps_both_boxes_of_a_group_whose_heights_disagree() {
+    // One car seen by both agents, the other agent's box 1.5 m higher: fused by default (one
+    // box at the weighted height), both kept with a gap of 1 m (each with its own score).
     let mut ego = vec![car(10.0, 0.6)];
     let mut other = vec![Detection {
         center: [10.2, 0.0, 1.5],
         ..car(10.2, 0.5)
     }];
-    let p = DetectorParams::default();
+    let p = noisy_or();
     ready(&p, &mut ego, true);
     ready(&p, &mut other, false);
     let lists = [ego, other];
-    let fused = fuse_scored_sourced(&p, &CsbaParams::PLUS, &lists);
+    let fused = fuse_scored_sourced(&p, &CsbaParams::PLUS, &lists, Some(0));
     assert_eq!(fused.len(), 1);
     assert!(fused[0].det.center[2] > 0.0 && fused[0].det.center[2] < 1.5);
     assert_eq!(fused[0].sources.len(), 2);
-    let split = fuse_scored_sourced(&p.for_tracking(), &CsbaParams::PLUS, &lists);
+    let gap = DetectorParams {
+        height_gap: 1.0,
+        ..p.for_tracking()
+    };
+    let split = fuse_scored_sourced(&gap, &CsbaParams::PLUS, &lists, Some(0));
     let mut got: Vec<(f64, f64, usize)> = split
         .iter()
         .map(|s| {
@@ -93,7 +110,7 @@ fn a_tracker_gets_both_boxes_of_a_group_whose_heights_disagree() {
     got.sort_by(|a, b| a.0.total_cmp(&b.0));
     assert_eq!(got, vec![(0.0, 0.6, 0), (1.5, 0.5, 1)]);
     // 0.9 m apart: still one box.
-    lists_fused_once(&p.for_tracking(), 0.9);
+    lists_fused_once(&gap, 0.9);
 }
 
 /// Two agents' boxes of one car `dz` apart in height fuse to one box.
@@ -105,7 +122,39 @@ fn lists_fused_once(p: &DetectorParams, dz: f64) {
     }];
     ready(p, &mut ego, true);
     ready(p, &mut other, false);
-    let fused = fuse_scored_sourced(p, &CsbaParams::PLUS, &[ego, other]);
+    let fused = fuse_scored_sourced(p, &CsbaParams::PLUS, &[ego, other], Some(0));
     assert_eq!(fused.len(), 1, "{dz} m apart");
     assert!((fused[0].det.score - 0.8).abs() < 1e-12);
+}
+
+#[test]
+fn by_default_a_group_scores_its_chance_of_being_real() {
+    // A car both agents see near the receiver, and a far 0.25 box only the other agent has.
+    let p = DetectorParams::default();
+    let mut ego = vec![car(10.0, 0.6)];
+    let mut other = vec![car(10.3, 0.5), car(70.0, 0.25)];
+    ready(&p, &mut ego, true);
+    ready(&p, &mut other, false);
+    let lists = [ego, other];
+    let described = fuse_described(&p, &CsbaParams::PLUS, &lists, Some(0));
+    assert_eq!(described.len(), 2);
+    for (s, x) in &described {
+        assert_eq!(s.det.score, existence::DETECTOR_DEFAULT.probability(x));
+    }
+    let score = |x0: f64| {
+        described
+            .iter()
+            .find(|(s, _)| (s.det.center[0] - x0).abs() < 1.0)
+            .map(|(s, _)| s.det.score)
+            .unwrap()
+    };
+    // Seen by both: above either member's score; seen once, far, weakly: below the cut.
+    assert!(score(10.0) > 0.95, "{}", score(10.0));
+    assert!(score(70.0) < p.min_score, "{}", score(70.0));
+    let kept = fuse_scored(&p, &CsbaParams::PLUS, &lists, Some(0));
+    assert_eq!(kept.len(), 1);
+    // Without the receiver among the members the same pair loses the receiver's term.
+    let as_other = fuse_described(&p, &CsbaParams::PLUS, &lists, None);
+    assert_eq!(as_other[0].1[3], 0.0);
+    assert_eq!(described[0].1[3], 1.0);
 }
