@@ -10,10 +10,13 @@
 //! - Matching, per frame, class and threshold: ground-truth boxes in order each take, among the
 //!   predictions not yet taken (by score, highest first), the last one with the highest IoU at
 //!   or above the threshold.
-//! - AP: the frames' predictions in the order they were added, sorted by score (stably);
+//! - AP: the frames' predictions in the order they were added, sorted by score (stably): every
+//!   prediction of the split ranked by its score, the ordering OpenCOOD calls a global sort;
 //!   precision made non-increasing from the right; the sum over the steps where recall changes
 //!   of the recall step times the precision after it. As in the official code, the first step
-//!   (from recall 0 to the first prediction's) is not counted.
+//!   (from recall 0 to the first prediction's) is not counted. Beside it, the same steps in
+//!   frame order (each frame's predictions by score, the frames in the order added, as V2V4Real
+//!   publishes its AP): [`DairMetrics::frame_order_ap_3d`].
 //!
 //! Classes: car is car, truck and bus (the official "car" merges Car, Van, Truck and Bus),
 //! cyclist is bicycle, pedestrian is pedestrian; other classes are not scored.
@@ -260,11 +263,16 @@ fn compute_type(
 
 /// The official AP of predictions in the order they were gathered; `None` without ground truth.
 pub fn compute_ap(preds: &[Scored], num_gt: usize) -> Option<f64> {
+    let mut sorted = preds.to_vec();
+    sorted.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
+    ap_in_order(&sorted, num_gt)
+}
+
+/// The official AP's steps over predictions in the order given; `None` without ground truth.
+pub fn ap_in_order(sorted: &[Scored], num_gt: usize) -> Option<f64> {
     if num_gt == 0 {
         return None;
     }
-    let mut sorted = preds.to_vec();
-    sorted.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
     let n = sorted.len();
     let mut tp = 0.0;
     let mut precision = Vec::with_capacity(n);
@@ -301,6 +309,10 @@ pub struct DairMetrics {
     pub ap_3d: BTreeMap<String, f64>,
     /// BEV AP, keyed likewise.
     pub ap_bev: BTreeMap<String, f64>,
+    /// 3D AP in frame order (not the official figure), keyed likewise.
+    pub frame_order_ap_3d: BTreeMap<String, f64>,
+    /// BEV AP in frame order, keyed likewise.
+    pub frame_order_ap_bev: BTreeMap<String, f64>,
     /// Ground-truth boxes in range per class.
     pub gt: BTreeMap<String, usize>,
 }
@@ -319,7 +331,11 @@ impl DairEval {
             *self.gt.entry(class).or_default() += g.len();
             for &t in class.thresholds() {
                 for view in [View::ThreeD, View::Bev] {
-                    let (scored, _) = compute_type(&g, &p, t, view);
+                    let (mut scored, _) = compute_type(&g, &p, t, view);
+                    // Each frame's by score (stably): the global sort is unchanged by it, and
+                    // frame order reads it as gathered.
+                    scored
+                        .sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap_or(std::cmp::Ordering::Equal));
                     self.preds
                         .entry((view, class, t.to_bits()))
                         .or_default()
@@ -341,13 +357,23 @@ impl DairEval {
 
     /// The AP of one view, class and threshold; `None` without ground truth.
     pub fn ap(&self, view: View, class: DairClass, threshold: f64) -> Option<f64> {
-        let n = self.gt.get(&class).copied().unwrap_or(0);
-        let preds = self
-            .preds
+        compute_ap(self.gathered(view, class, threshold), self.gt_of(class))
+    }
+
+    /// [`DairEval::ap`] in frame order.
+    pub fn frame_order_ap(&self, view: View, class: DairClass, threshold: f64) -> Option<f64> {
+        ap_in_order(self.gathered(view, class, threshold), self.gt_of(class))
+    }
+
+    fn gt_of(&self, class: DairClass) -> usize {
+        self.gt.get(&class).copied().unwrap_or(0)
+    }
+
+    fn gathered(&self, view: View, class: DairClass, threshold: f64) -> &[Scored] {
+        self.preds
             .get(&(view, class, threshold.to_bits()))
             .map(Vec::as_slice)
-            .unwrap_or(&[]);
-        compute_ap(preds, n)
+            .unwrap_or(&[])
     }
 
     /// Every AP of the classes with ground truth.
@@ -365,7 +391,13 @@ impl DairEval {
                     m.ap_3d.insert(key.clone(), ap);
                 }
                 if let Some(ap) = self.ap(View::Bev, class, t) {
-                    m.ap_bev.insert(key, ap);
+                    m.ap_bev.insert(key.clone(), ap);
+                }
+                if let Some(ap) = self.frame_order_ap(View::ThreeD, class, t) {
+                    m.frame_order_ap_3d.insert(key.clone(), ap);
+                }
+                if let Some(ap) = self.frame_order_ap(View::Bev, class, t) {
+                    m.frame_order_ap_bev.insert(key, ap);
                 }
             }
         }

@@ -10,12 +10,14 @@
 //! - [`calibrate`]: an agent's errors against the ground truth, for its error model.
 //! - [`ab3dmot_eval`]: AB3DMOT's KITTI tracking evaluation (sAMOTA, AMOTA, MOTA at 3D IoU 0.25).
 //! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
+//! - [`hota`]: HOTA with DetA, AssA and LocA, as TrackEval computes them.
 
 pub mod ab3dmot_eval;
 pub mod calibrate;
 pub mod dair_eval;
 pub mod detection_eval;
 pub mod file_eval;
+pub mod hota;
 pub mod metrics;
 pub mod tracking_eval;
 pub mod v2v4real_eval;

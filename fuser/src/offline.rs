@@ -55,6 +55,18 @@ impl Inputs {
         o
     }
 
+    /// The tracker's parameters for these inputs: a detector's tracks are output from its
+    /// operating point on ([`DetectorParams::min_score`]).
+    pub fn tracker_params(&self, opts: &OfflineOptions, params: TrackerParams) -> TrackerParams {
+        match self.options(opts).detector {
+            Some(d) => TrackerParams {
+                min_score: d.min_score,
+                ..params
+            },
+            None => params,
+        }
+    }
+
     /// [`Inputs::options`] for tracking: a detector's boxes reach the tracker without their
     /// tail dropped ([`DetectorParams::for_tracking`]).
     pub fn tracking_options(&self, opts: &OfflineOptions) -> OfflineOptions {
@@ -133,23 +145,6 @@ pub fn from_detector(paths: &[PathBuf], missing: MissingStd) -> bool {
 /// already, or learned stds or error models replace it.
 fn detector_applies(from_detector: bool, opts: &OfflineOptions) -> bool {
     from_detector && opts.detector.is_none() && opts.learn.is_none() && opts.models.is_empty()
-}
-
-/// The hits that confirm a track: `given`, else 1 for a detector's boxes (`opts.detector`, or
-/// rows that [`Inputs::options`] gives the detector's treatment;
-/// [`crate::uncertainty::detector::CONFIRM_HITS`]), else the tracker's default.
-pub fn confirm_hits(
-    given: Option<u32>,
-    paths: &[PathBuf],
-    missing: MissingStd,
-    opts: &OfflineOptions,
-) -> u32 {
-    let detector = opts.detector.is_some() || detector_applies(from_detector(paths, missing), opts);
-    given.unwrap_or(if detector {
-        crate::uncertainty::detector::CONFIRM_HITS
-    } else {
-        TrackerParams::default().confirm_hits
-    })
 }
 
 /// Reads one input per agent with a shared token table: a results file, or a folder of KITTI

@@ -56,6 +56,10 @@ pub struct TrackerParams {
     /// boxes merged, a lost window) neither drops the object nor hands it to a neighbouring
     /// track, and the halved score lets the benchmark's thresholds drop long coasts.
     pub coast_output: u32,
+    /// A confirmed track's box scoring below this is not output (the track goes on): the
+    /// operating point of a detector's tracks ([`crate::uncertainty::detector::DetectorParams::min_score`]),
+    /// 0 for boxes whose scores are not chances.
+    pub min_score: f64,
     /// Longest gap between windows (s) tracks are carried over; beyond, they all end.
     pub max_gap_s: f64,
     /// Std (m/s) of the velocity of a new track from a box without one.
@@ -101,6 +105,7 @@ impl Default for TrackerParams {
             confirm_hits: 2,
             max_misses: 3,
             coast_output: 3,
+            min_score: 0.0,
             max_gap_s: 2.0,
             init_velocity_std: 10.0,
             yaw_rate_std: 0.5,
@@ -332,7 +337,7 @@ impl Tracker {
     /// Step 5 for the existing tracks, `hit` saying which got a box: confirmed after
     /// `confirm_hits` hits, a tentative track dropped at its first miss, a confirmed one after
     /// `max_misses`; returns the confirmed tracks updated, and those coasting at their
-    /// prediction with their score halved per miss.
+    /// prediction with their score halved per miss, that score at least `min_score`.
     fn lifecycle(&mut self, hit: &[bool]) -> Vec<Tracked> {
         let mut out = Vec::new();
         let mut kept = Vec::with_capacity(self.tracks.len());
@@ -373,10 +378,12 @@ impl Tracker {
             kept.push(t);
         }
         self.tracks = kept;
+        out.retain(|t| t.det.score >= self.params.min_score);
         out
     }
 
-    /// Step 5 for a box no track took: a new track, output at once when one hit confirms it.
+    /// Step 5 for a box no track took: a new track, output at once when one hit confirms it
+    /// and it scores at least the operating point.
     fn birth(&mut self, b: &Detection) -> Option<Tracked> {
         let mut t = birth(self.next_id, b, &self.params);
         self.next_id = if self.next_id + 1 >= self.ids.1 {
@@ -392,6 +399,7 @@ impl Tracker {
                 det: estimate(&t),
             }
         });
+        let shown = shown.filter(|s| s.det.score >= self.params.min_score);
         self.tracks.push(t);
         shown
     }

@@ -81,7 +81,7 @@ pub fn run_files(
     track: bool,
 ) -> PyResult<String> {
     let (method, missing, opts) = options.offline(inputs.len())?;
-    let params = options.tracker(&inputs, missing, &opts)?;
+    let params = options.tracker()?;
     py.detach(|| {
         if !track {
             let report = offline::fuse_files(

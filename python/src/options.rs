@@ -143,15 +143,11 @@ impl Options {
         Ok(out)
     }
 
-    /// The tracker's parameters for these inputs (`confirm_hits` resolved as `v2x-fuser track`
-    /// resolves it).
-    pub fn tracker(
-        &self,
-        inputs: &[PathBuf],
-        missing: MissingStd,
-        opts: &OfflineOptions,
-    ) -> PyResult<TrackerParams> {
-        let confirm = v2x_fuser::offline::confirm_hits(self.confirm_hits, inputs, missing, opts);
+    /// The tracker's parameters (`confirm_hits` as `v2x-fuser track` takes it).
+    pub fn tracker(&self) -> PyResult<TrackerParams> {
+        let confirm = self
+            .confirm_hits
+            .unwrap_or(TrackerParams::default().confirm_hits);
         // As `v2x-fuser track`: the files' capture times are the data's own, not a replay's.
         let mut p = tracker_params(confirm, self.max_misses, self.all_classes, 1.0)?;
         p.guided = self.guided;

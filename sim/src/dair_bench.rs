@@ -195,6 +195,16 @@ fn ap_cell(m: &DairMetrics, (three_d, key): &(bool, String)) -> String {
         .map_or_else(|| "-".into(), |v| format!("{:.2}", 100.0 * v))
 }
 
+fn frame_order_cell(m: &DairMetrics, (three_d, key): &(bool, String)) -> String {
+    let map = if *three_d {
+        &m.frame_order_ap_3d
+    } else {
+        &m.frame_order_ap_bev
+    };
+    map.get(key)
+        .map_or_else(|| "-".into(), |v| format!("{:.2}", 100.0 * v))
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |v| format!("{v:.3}"))
 }
@@ -222,7 +232,17 @@ impl Rows for [DairRow] {
             ("AB (official)", Right),
         ]);
         let bytes = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.0}"));
-        markdown(
+        let mut frame_order = vec![("agents / method", Left)];
+        frame_order.extend(aps.iter().map(|h| (h.as_str(), Right)));
+        let frame_order = markdown(
+            &frame_order,
+            rows.iter().map(|r| {
+                let mut cells = vec![r.method.clone()];
+                cells.extend(keys.iter().map(|k| frame_order_cell(&r.dair, k)));
+                cells
+            }),
+        );
+        let official = markdown(
             &columns,
             rows.iter().map(|r| {
                 let mut cells = vec![
@@ -240,6 +260,11 @@ impl Rows for [DairRow] {
                 ]);
                 cells
             }),
+        );
+        format!(
+            "{official}\nDAIR-V2X's AP ranks every prediction of the split by score (a global \
+             sort); the same AP in frame order (each frame's predictions by score, frames in \
+             order, as V2V4Real publishes its AP):\n\n{frame_order}"
         )
     }
 

@@ -22,6 +22,7 @@ pub mod existence_fit;
 pub mod gen;
 pub mod load;
 pub mod plot;
+pub mod pr_plot;
 pub mod region_bench;
 pub mod run;
 pub mod scenario;

@@ -15,9 +15,10 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use v2x_eval::ab3dmot_eval::{evaluate_with, Ab3dmotMetrics, FalsePositives, Sequence};
 use v2x_eval::dair_eval::View;
+use v2x_eval::hota::{hota, Frame as HotaFrame, HotaMetrics};
 use v2x_eval::v2v4real_eval::{Ordering, V2v4realEval, V2v4realMetrics, RANGES, THRESHOLDS};
 use v2x_fuser::maths::baselines::nms;
-use v2x_fuser::maths::geometry::bev_iou;
+use v2x_fuser::maths::geometry::{bev_iou, iou_3d};
 use v2x_fuser::offline::{fuse_step, read_inputs, track_sequences, FilesError, OfflineOptions};
 use v2x_fuser::tracker::TrackerParams;
 use v2x_fuser::uncertainty::detector::DetectorParams;
@@ -40,6 +41,9 @@ pub struct V2v4realRow {
     pub bytes_per_frame: Option<f64>,
     /// The same boxes as ETSI CPMs: mean bytes per frame.
     pub cpm_bytes_per_frame: Option<f64>,
+    /// Precision-recall curves, BEV at 0.5 and 0.7 in both orderings (thinned).
+    #[serde(skip)]
+    pub curves: Vec<crate::pr_plot::Line>,
 }
 
 /// The score the late-fusion rule's cut row drops boxes below.
@@ -172,6 +176,8 @@ pub struct TrackedRow {
     pub metrics: Ab3dmotMetrics,
     /// The same with every unmatched tracked box a false positive.
     pub counted: Ab3dmotMetrics,
+    /// HOTA over 3D IoU, every tracked box counted.
+    pub hota: HotaMetrics,
     /// Tracked boxes per frame.
     pub boxes_per_frame: f64,
     /// Labelled cars per frame.
@@ -187,11 +193,12 @@ pub fn tracked(
     params: TrackerParams,
 ) -> Result<TrackedRow, FilesError> {
     let read = read_inputs(cars, MissingStd::Error)?;
+    let opts = OfflineOptions::default();
     let tracks = track_sequences(
         method,
         &read.agents,
-        &read.tracking_options(&OfflineOptions::default()),
-        params,
+        &read.tracking_options(&opts),
+        read.tracker_params(&opts, params),
     )?;
     let rows = |token: &str| match (tracks.results.samples.get(token), tracks.ids.get(token)) {
         (Some(dets), Some(ids)) => dets
@@ -294,19 +301,44 @@ pub fn ceiling(d: &V2v4real) -> TrackedRow {
     row("both cars' boxes, labels' ids (ceiling)".into(), d, &seqs)
 }
 
+/// The sequences as HOTA takes them: 3D IoU between each label and tracked box.
+fn hota_sequences(seqs: &[Sequence]) -> Vec<Vec<HotaFrame>> {
+    seqs.par_iter()
+        .map(|s| {
+            s.gt.iter()
+                .zip(&s.tracks)
+                .map(|(g, t)| HotaFrame {
+                    gt: g.iter().map(|d| d.id).collect(),
+                    tracks: t.iter().map(|d| d.id).collect(),
+                    similarity: g
+                        .iter()
+                        .map(|a| t.iter().map(|b| iou_3d(a, b).clamp(0.0, 1.0)).collect())
+                        .collect(),
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// A tracked row of these sequences.
 fn row(method: String, d: &V2v4real, seqs: &[Sequence]) -> TrackedRow {
     let per_frame = |n: usize| n as f64 / d.frames.len().max(1) as f64;
     let boxes: usize = seqs.iter().flat_map(|s| &s.tracks).map(Vec::len).sum();
     let labels: usize = seqs.iter().flat_map(|s| &s.gt).map(Vec::len).sum();
-    let (metrics, counted) = rayon::join(
-        || evaluate_with(seqs, FalsePositives::AsScript).unwrap_or_default(),
-        || evaluate_with(seqs, FalsePositives::Counted).unwrap_or_default(),
+    let ((metrics, counted), hota) = rayon::join(
+        || {
+            rayon::join(
+                || evaluate_with(seqs, FalsePositives::AsScript).unwrap_or_default(),
+                || evaluate_with(seqs, FalsePositives::Counted).unwrap_or_default(),
+            )
+        },
+        || hota(&hota_sequences(seqs)),
     );
     TrackedRow {
         method,
         metrics,
         counted,
+        hota,
         boxes_per_frame: per_frame(boxes),
         labels_per_frame: per_frame(labels),
     }
@@ -371,11 +403,16 @@ impl Rows for [TrackedRow] {
                 ("FP", Right),
                 ("precision", Right),
                 ("recall", Right),
+                ("HOTA", Right),
+                ("DetA", Right),
+                ("AssA", Right),
+                ("LocA", Right),
                 ("boxes/frame", Right),
                 ("labels/frame", Right),
             ],
             rows.iter().map(|r| {
                 let m = &r.counted;
+                let h = &r.hota;
                 vec![
                     r.method.clone(),
                     pct(m.samota),
@@ -386,6 +423,10 @@ impl Rows for [TrackedRow] {
                     m.fp.to_string(),
                     pct(m.tp as f64 / (m.tp + m.fp).max(1) as f64),
                     pct(m.recall),
+                    pct(h.hota),
+                    pct(h.deta),
+                    pct(h.assa),
+                    pct(h.loca),
                     format!("{:.1}", r.boxes_per_frame),
                     format!("{:.1}", r.labels_per_frame),
                 ]
@@ -394,7 +435,7 @@ impl Rows for [TrackedRow] {
         format!(
             "AB3DMOT's evaluation as its script scores these rows (no false positive counted):\n\n\
              {stock}\nThe same, every unmatched tracked box a false positive (precision and recall \
-             at the threshold of best MOTA):\n\n{counted}"
+             at the threshold of best MOTA), and HOTA over 3D IoU (every tracked box):\n\n{counted}"
         )
     }
 }
@@ -422,6 +463,36 @@ impl Slots {
         self.bytes[1] += other.bytes[1];
         self
     }
+}
+
+/// The BEV precision-recall curves of a row at 0.5 and 0.7, frame order solid, global sort
+/// dashed, each thinned to 400 points.
+fn curves(eval: &V2v4realEval) -> Vec<crate::pr_plot::Line> {
+    let mut out = Vec::new();
+    for o in Ordering::ALL {
+        for (t, colour) in [(0.5, "#1f77b4"), (0.7, "#d62728")] {
+            out.push(crate::pr_plot::Line {
+                label: format!("BEV @{t}, {}", o.name()),
+                colour,
+                dashed: o == Ordering::Global,
+                points: crate::pr_plot::thin(&eval.curve(View::Bev, t, o), 400),
+            });
+        }
+    }
+    out
+}
+
+/// Writes each row's precision-recall curves as `dir/SLUG.svg` ([`slug`] of its name); returns
+/// the files written.
+pub fn write_plots(rows: &[V2v4realRow], dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)?;
+    rows.iter()
+        .map(|r| {
+            let path = dir.join(format!("{}.svg", slug(&r.method)));
+            std::fs::write(&path, crate::pr_plot::svg(&r.method, &r.curves))?;
+            Ok(path)
+        })
+        .collect()
 }
 
 /// Scores every source over every frame, in frame order.
@@ -461,6 +532,7 @@ pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
                 ap: eval.summary(),
                 bytes_per_frame: per_frame(sent.frame),
                 cpm_bytes_per_frame: per_frame(sent.cpm),
+                curves: curves(&eval),
             }
         })
         .collect()

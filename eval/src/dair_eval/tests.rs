@@ -137,3 +137,14 @@ fn range_keeps_a_box_with_a_corner_inside() {
         None
     );
 }
+
+#[test]
+fn frame_order_reads_the_predictions_as_gathered() {
+    // Frame 1 finds its car at 0.5; frame 2 holds a false box at 0.9. Ranked by score: a false
+    // box first, the car second (precision 1/2 at recall 1). As gathered: the car first, then
+    // the false box; the official steps skip the first one, so nothing is counted.
+    let preds: Vec<Scored> = vec![(0.5, true), (0.9, false)];
+    assert_eq!(compute_ap(&preds, 1), Some(0.5));
+    assert_eq!(ap_in_order(&preds, 1), Some(0.0));
+    assert_eq!(ap_in_order(&preds, 0), None);
+}

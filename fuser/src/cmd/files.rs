@@ -33,8 +33,9 @@ pub(crate) struct FilesArgs {
     /// your detector (a JSON file), or (`noisy-or`) by the noisy-OR of the members' scores.
     #[arg(long, default_value = "default", value_name = "default|noisy-or|FILE")]
     pub(crate) existence_model: String,
-    /// A detector's fused boxes scoring below this are left out of `fuse`'s output (`track`
-    /// keeps every box: its tracks' scores rank them).
+    /// The operating point on a detector's scores, each a chance of being a real object: `fuse`
+    /// leaves out fused boxes scoring below it; `track` gives the tracker every box and leaves
+    /// out tracked boxes scoring below it. 0 keeps everything.
     #[arg(long, default_value_t = v2x_fuser::uncertainty::detector::DetectorParams::default().min_score)]
     pub(crate) min_score: f64,
     #[command(flatten)]
@@ -157,11 +158,10 @@ pub(crate) struct FuseArgs {
 pub(crate) struct TrackArgs {
     #[command(flatten)]
     pub(crate) files: FilesArgs,
-    /// Hits in a row that confirm a track: by default 2 (a box seen once never becomes one),
-    /// and 1 for a detector's boxes (--detector, or KITTI rows with no stated std: each box
-    /// shown at once, its track's mean score ranking it).
-    #[arg(long)]
-    pub(crate) confirm_hits: Option<u32>,
+    /// Hits in a row that confirm a track: by default 2, for any boxes (a box seen once never
+    /// becomes a track); 1 shows every box at once.
+    #[arg(long, default_value_t = v2x_fuser::tracker::TrackerParams::default().confirm_hits)]
+    pub(crate) confirm_hits: u32,
     /// Windows in a row without a box a confirmed track survives.
     #[arg(long, default_value_t = 3)]
     pub(crate) max_misses: u32,
@@ -269,12 +269,11 @@ pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
         output,
         inputs,
     } = args;
-    if confirm_hits == Some(0) {
+    if confirm_hits == 0 {
         anyhow::bail!("--confirm-hits must be at least 1");
     }
     let method = files.method;
     let (missing, opts) = files.options(inputs.len())?;
-    let confirm_hits = v2x_fuser::offline::confirm_hits(confirm_hits, &inputs, missing, &opts);
     let params = v2x_fuser::tracker::TrackerParams {
         confirm_hits,
         max_misses,

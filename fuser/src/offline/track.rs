@@ -101,6 +101,7 @@ pub fn track_files(
     format: OutputFormat,
 ) -> Result<Tracks, FilesError> {
     let read = read_inputs(inputs, missing)?;
+    let params = read.tracker_params(opts, params);
     let opts = &read.tracking_options(opts);
     let tracks = if read.sequences.is_empty() {
         track_results(method, &read.agents, opts, params)?

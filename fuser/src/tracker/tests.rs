@@ -410,3 +410,39 @@ fn at_two_hertz_the_quiet_model_follows_a_steady_object_closer() {
         "mixture {mixed} m, agile alone {agile} m"
     );
 }
+
+#[test]
+fn boxes_below_the_operating_point_are_not_output_but_the_track_goes_on() {
+    // A car whose boxes score 0.3 while the output's operating point is 0.2: shown; coasting at
+    // half its score (0.15): not shown, yet the track lives and keeps its id when boxes return.
+    let params = TrackerParams {
+        min_score: 0.2,
+        ..TrackerParams::default()
+    };
+    let mut tr = Tracker::new(params);
+    let b = |x: f64| Detection {
+        score: 0.3,
+        ..car(x, 0.0, 0.0)
+    };
+    let mut id = None;
+    for k in 0..4u64 {
+        let out = tr.step(k * HZ10, &[b(k as f64)]);
+        if k >= 1 {
+            assert_eq!(out.len(), 1, "step {k}");
+            id = Some(out[0].tracking_id);
+        }
+    }
+    assert!(tr.step(4 * HZ10, &[]).is_empty());
+    assert_eq!(tr.stats().live, 1);
+    let back = tr.step(5 * HZ10, &[b(5.0)]);
+    assert_eq!(
+        back.iter().map(|t| t.tracking_id).collect::<Vec<_>>(),
+        [id.unwrap()]
+    );
+    // Without an operating point the coasting box is shown.
+    let mut all = Tracker::new(TrackerParams::default());
+    for k in 0..4u64 {
+        all.step(k * HZ10, &[b(k as f64)]);
+    }
+    assert_eq!(all.step(4 * HZ10, &[]).len(), 1);
+}

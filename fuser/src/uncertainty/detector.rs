@@ -80,10 +80,6 @@ impl DetectorParams {
     }
 }
 
-/// Hits that confirm a track of a detector's boxes when none is given: 2, as for any boxes (a
-/// box seen in one window only never becomes a track).
-pub const CONFIRM_HITS: u32 = 2;
-
 /// The stds a detector's box is given from its score; `receiver`: the box is in its own
 /// agent's frame (no pose error).
 pub fn stds(p: &DetectorParams, d: &Detection, receiver: bool) -> Uncertainty {

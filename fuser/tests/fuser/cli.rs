@@ -206,8 +206,9 @@ fn a_detectors_rows_fuse_with_its_scores_and_without_its_tail() {
 #[test]
 fn a_detectors_rows_are_tracked_with_their_tail_from_their_second_box() {
     // Two boxes in a row confirm a detector's track: nothing is shown in frame 0, and frame 1
-    // shows the car both agents see and car 1's car; no tail is dropped, so with one hit the
-    // ego car's 0.25 box (its chance 0.10) starts a track of its own in frame 0.
+    // shows the car both agents see and car 1's car. The tracker gets every box, and the
+    // operating point (0.2) applies to what it shows: with one hit the ego car's 0.25 box (its
+    // chance 0.10) starts a track in frame 0, shown only with --min-score 0.
     let rows = run_on_fixture_cars("track", &[]);
     let frame = |rows: &[String], k: &str| -> Vec<f64> {
         rows.iter()
@@ -219,6 +220,8 @@ fn a_detectors_rows_are_tracked_with_their_tail_from_their_second_box() {
     assert!(frame(&rows, "0").is_empty(), "{rows:?}");
     assert_eq!(frame(&rows, "1").len(), 2, "{rows:?}");
     let rows = run_on_fixture_cars("track", &["--confirm-hits", "1"]);
+    assert_eq!(frame(&rows, "0").len(), 2, "{rows:?}");
+    let rows = run_on_fixture_cars("track", &["--confirm-hits", "1", "--min-score", "0"]);
     let frame0 = frame(&rows, "0");
     assert_eq!(frame0.len(), 3, "{rows:?}");
     assert!(frame0.iter().any(|&s| s > 0.1 && s < 0.11), "{frame0:?}");

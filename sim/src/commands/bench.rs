@@ -1,7 +1,7 @@
 //! `v2x-sim bench`.
 
 use super::*;
-use anyhow::bail;
+use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -112,6 +112,10 @@ pub struct BenchArgs {
     /// one `-`: `csba-wls-plus`).
     #[arg(long, value_name = "DIR")]
     pub write_rows: Option<PathBuf>,
+    /// With --dataset v2v4real: write each detection row's precision-recall curves (BEV at 0.5
+    /// and 0.7, frame order and global sort) as DIR/ROW.svg.
+    #[arg(long, value_name = "DIR")]
+    pub plots: Option<PathBuf>,
 }
 
 /// What one `v2x-sim bench` run measures, told from its flags once.
@@ -265,6 +269,11 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     let sources = v2x_sim::v2v4real_bench::sources(&d, &methods);
     let rows = v2x_sim::v2v4real_bench::run(&d, &sources);
     let detection_s = start.elapsed().as_secs_f64();
+    if let Some(dir) = &args.plots {
+        let written = v2x_sim::v2v4real_bench::write_plots(&rows, dir)
+            .with_context(|| format!("--plots: cannot write into {}", dir.display()))?;
+        eprintln!("{}: {} plots", dir.display(), written.len());
+    }
     if let Some(dir) = &args.write_rows {
         for (dir, n) in v2x_sim::v2v4real_bench::write_rows(&d, &sources, dir)? {
             eprintln!("{}: {n} rows", dir.display());
@@ -285,11 +294,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     let mut tracked = Vec::new();
     for m in &track_methods {
         for guided in [false, true] {
-            let params = v2x_fuser::tracker::TrackerParams {
-                confirm_hits: v2x_fuser::uncertainty::detector::CONFIRM_HITS,
-                ..tracker_params(args)
-            }
-            .with_guided(guided);
+            let params = tracker_params(args).with_guided(guided);
             tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
         }
     }
