@@ -86,7 +86,7 @@ fn bench_step(c: &mut Criterion) {
     let agents: Vec<Vec<Vec<Detection>>> = (0..40)
         .map(|k| vec![w[k].clone(), windows(200, 40, 2)[k].clone()])
         .collect();
-    let method: v2x_fuser::Method = "csba-wls+".parse().expect("a method");
+    let method = v2x_fuser::Method::default();
     let mut guided = Tracker::new(TrackerParams::default());
     for (k, a) in agents.iter().take(20).enumerate() {
         guided.step_agents(k as u64 * 100_000, a, &method);

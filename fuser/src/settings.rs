@@ -94,7 +94,7 @@ pub struct FuserSettings {
 impl Default for FuserSettings {
     fn default() -> Self {
         FuserSettings {
-            method: Method::Csba(crate::maths::association::CsbaParams::PLUS),
+            method: Method::default(),
             window_ms: 100.0,
             max_wait_ms: 150.0,
             detector: false,

@@ -30,6 +30,8 @@ pub struct Options {
     learn_std: bool,
     std_flag_ratio: f64,
     std_models: BTreeMap<String, PathBuf>,
+    existence_model: String,
+    min_score: f64,
     confirm_hits: Option<u32>,
     max_misses: u32,
     all_classes: bool,
@@ -107,11 +109,14 @@ impl Options {
             align,
             learn,
             models,
-            detector: self
-                .detector
-                .then(v2x_fuser::uncertainty::detector::DetectorParams::default),
-            ..Default::default()
+            detector: None,
+            detector_params: v2x_fuser::offline::detector_params(
+                &self.existence_model,
+                self.min_score,
+            )
+            .map_err(|e| PyValueError::new_err(e.to_string()))?,
         };
+        opts.detector = self.detector.then_some(opts.detector_params);
         opts.set_time_scale(self.time_scale);
         Ok((method(&self.method)?, missing, opts))
     }

@@ -244,6 +244,8 @@ def _options(
     learn_std: bool = False,
     std_flag_ratio: float = 2.0,
     std_models: Optional[Mapping[str, PathLike]] = None,
+    existence_model: PathLike = "default",
+    min_score: float = 0.2,
     confirm_hits: Optional[int] = None,
     max_misses: int = 3,
     all_classes: bool = False,
@@ -263,6 +265,8 @@ def _options(
         "learn_std": learn_std,
         "std_flag_ratio": float(std_flag_ratio),
         "std_models": {k: os.fspath(v) for k, v in (std_models or {}).items()},
+        "existence_model": os.fspath(existence_model),
+        "min_score": float(min_score),
         "confirm_hits": confirm_hits,
         "max_misses": max_misses,
         "all_classes": all_classes,
@@ -297,7 +301,9 @@ def fuse_files(
     Options (the CLI's flags): ``default_std``, ``compensate`` (False: ``--no-compensation``),
     ``speed_bound_mps``, ``accel_std``, ``time_scale``, ``window_ms``, ``align_to`` (the reference
     agent's index, 0-based; ``--align --align-to N+1``), ``detector`` (a detector's boxes:
-    ``--detector``), ``learn_std``, ``std_flag_ratio`` and ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
+    ``--detector``), ``existence_model`` ("default", "noisy-or" or a model file:
+    ``--existence-model``), ``min_score`` (``--min-score``), ``learn_std``, ``std_flag_ratio``
+    and ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
     frames were grouped by capture time, registration and learned stds."""
     opts = _fuse_options(dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, False))

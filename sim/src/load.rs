@@ -38,7 +38,7 @@ pub struct LoadArgs {
     #[arg(long, default_value_t = 30.0)]
     pub seconds: f64,
     /// Fusion method.
-    #[arg(long, default_value = "csba-wls+")]
+    #[arg(long, default_value_t = v2x_fuser::Method::default())]
     pub method: Method,
     /// Print JSON instead of a table.
     #[arg(long)]

@@ -11,7 +11,7 @@ use super::settings::*;
 #[derive(clap::Args)]
 pub(crate) struct FilesArgs {
     /// Fusion method of each window (see the list below).
-    #[arg(long, short, default_value = "csba-wls+")]
+    #[arg(long, short, default_value_t = Method::default())]
     pub(crate) method: Method,
     /// Stds for boxes that carry no translation_std/size_std/yaw_std: mild, moderate, large,
     /// or POS,SIZE,YAW_DEG (metres, metres, degrees). Without it (or --learn-std, or a
@@ -90,7 +90,10 @@ impl FilesArgs {
             learn: self.stds.learn().map_err(flag_error)?,
             models: models_by_input(&self.stds, inputs)?,
             detector: None,
-            detector_params: self.detector_params()?,
+            detector_params: v2x_fuser::offline::detector_params(
+                &self.existence_model,
+                self.min_score,
+            )?,
         };
         opts.detector = self.detector.then_some(opts.detector_params);
         opts.set_time_scale(self.motion.time_scale);
@@ -100,35 +103,6 @@ impl FilesArgs {
             false => missing(&self.stds, self.default_std, inputs),
         };
         Ok((missing, opts))
-    }
-}
-
-impl FilesArgs {
-    /// The detector's parameters these flags give.
-    fn detector_params(&self) -> anyhow::Result<v2x_fuser::uncertainty::detector::DetectorParams> {
-        use v2x_fuser::uncertainty::existence::{self, ExistenceFile, ExistenceModel};
-        if !(0.0..=1.0).contains(&self.min_score) {
-            anyhow::bail!("--min-score must be in [0, 1], not {}", self.min_score);
-        }
-        let existence = match self.existence_model.as_str() {
-            "default" => Some(existence::DETECTOR_DEFAULT),
-            "noisy-or" => None,
-            path => {
-                let text = std::fs::read_to_string(path)
-                    .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?;
-                let file: ExistenceFile = serde_json::from_str(&text)
-                    .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?;
-                Some(
-                    ExistenceModel::try_from(file)
-                        .map_err(|e| anyhow::anyhow!("--existence-model {path}: {e}"))?,
-                )
-            }
-        };
-        Ok(v2x_fuser::uncertainty::detector::DetectorParams {
-            min_score: self.min_score,
-            existence,
-            ..Default::default()
-        })
     }
 }
 

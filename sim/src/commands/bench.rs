@@ -287,7 +287,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         .expect("checked by load_v2v4real");
     let cars = v2x_truth::v2v4real::Paths::new(root, d.split).cars;
     let track_methods: Vec<Method> = if args.methods == "all" {
-        vec!["csba-wls+".parse().expect("a method")]
+        vec![Method::default()]
     } else {
         methods.clone()
     };
@@ -330,7 +330,8 @@ fn tiling(size: f64, halo: f64) -> anyhow::Result<v2x_fuser::intake::region::Til
 fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
     let (noise, methods) = (args.noise.as_str(), args.methods.as_str());
     let tiling = tiling(size, args.halo)?;
-    let cfg = paper_settings(methods, "csba-wls+", noise, args.seed, args.range)?;
+    let default = Method::default().name();
+    let cfg = paper_settings(methods, &default, noise, args.seed, args.range)?;
     let start = Instant::now();
     let rows = v2x_sim::region_bench::run_region_tracking(
         gt,
@@ -549,7 +550,7 @@ fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let heading = format!("{} ; noise seed {seed}; {:.1} s", data.describe(gt), secs);
     print!("{}", render(&rows[..], format, &heading)?);
     if let (Some(frame), Some(out)) = (args.plot, &args.out) {
-        let best: Method = "csba-wls+".parse().map_err(anyhow::Error::msg)?;
+        let best = Method::default();
         for s in &cfg.settings {
             eprintln!("drew {}", plot(gt, frame, s, &best, seed, out)?.display());
         }

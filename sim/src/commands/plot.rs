@@ -18,7 +18,7 @@ pub struct PlotArgs {
     #[arg(long, default_value = "mild+large")]
     pub noise: String,
     /// Method for the fused boxes.
-    #[arg(long, default_value = "csba-wls+")]
+    #[arg(long, default_value_t = v2x_fuser::Method::default())]
     pub method: Method,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
