@@ -65,8 +65,9 @@ pub struct FuserSettings {
     #[cfg_attr(feature = "node", arg(long, default_value_t = FuserSettings::default().max_wait_ms))]
     pub max_wait_ms: f64,
     /// The agents send a detector's boxes with the stds it is given (as `v2x-agent` replays
-    /// `v2x-sim gen --dataset v2v4real`'s files): CSBA-3D groups are scored by the noisy-OR of
-    /// their members and fused boxes below 0.4 dropped, as `v2x-fuser fuse --detector` does.
+    /// `v2x-sim gen --dataset v2v4real`'s files): each CSBA-3D group scored by its chance of
+    /// being a real object (the default existence model) and fused boxes below 0.2 dropped, as
+    /// `v2x-fuser fuse --detector` does with its defaults.
     #[cfg_attr(feature = "node", arg(long))]
     pub detector: bool,
     /// Admission limits.

@@ -122,14 +122,15 @@ def test_through_the_tracks_equals_the_cli(generated, tmp_path):
 
 def test_kitti_folders_track_as_the_cli_tracks_them(tmp_path):
     """A detector's KITTI folders (the V2V4Real-layout fixture's two cars): the same rows as
-    `v2x-fuser track --output-format kitti`, a track shown from its first box."""
+    `v2x-fuser track --output-format kitti`, a track shown from its second box."""
     cars = REPO / "truth/fixtures/v2v4real/AB3DMOT/data/v2v4real/detection/multi_sensor_differentiable_kalman_filter_Car_train"
     run("v2x-fuser", "track", "--output-format", "kitti", "--output", tmp_path / "cli", cars / "ego", cars / "1")
     v.track_files([cars / "ego", cars / "1"], tmp_path / "py")
     for seq in ("0000.txt", "0001.txt"):
         assert (tmp_path / "py" / seq).read_text() == (tmp_path / "cli" / seq).read_text()
-    frame0 = [r for r in (tmp_path / "py" / "0000.txt").read_text().splitlines() if r.startswith("0 ")]
-    assert len(frame0) == 3
+    rows = (tmp_path / "py" / "0000.txt").read_text().splitlines()
+    assert not [r for r in rows if r.startswith("0 ")]
+    assert len([r for r in rows if r.startswith("1 ")]) == 2
 
 
 def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
@@ -145,7 +146,15 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
     assert load(tmp_path / "py_tracks.json") == load(tmp_path / "cli_tracks.json")
     scores = sorted(b["detection_score"] for boxes in load(tmp_path / "py.json")["results"].values() for b in boxes)
-    assert min(scores) >= 0.4 and len(scores) == 7
+    assert min(scores) >= 0.2 and len(scores) == 8
+    # The members' noisy-OR and a cut at 0.4, as the CLI's flags give them.
+    v.fuse_files(paths, tmp_path / "noisy.json", detector=True, existence_model="noisy-or", min_score=0.4)
+    run("v2x-fuser", "fuse", "--detector", "--existence-model", "noisy-or", "--min-score", "0.4", "-o", tmp_path / "noisy_cli.json", *paths)
+    assert load(tmp_path / "noisy.json") == load(tmp_path / "noisy_cli.json")
+    noisy = sorted(b["detection_score"] for boxes in load(tmp_path / "noisy.json")["results"].values() for b in boxes)
+    assert len(noisy) == 7 and abs(noisy[-1] - 0.96) < 1e-9
+    with pytest.raises(ValueError, match="min score"):
+        v.fuse_files(paths, tmp_path / "x.json", detector=True, min_score=1.5)
     v.fuse_files(paths, tmp_path / "kept.json")
     kept = [b for boxes in load(tmp_path / "kept.json")["results"].values() for b in boxes]
     assert len(kept) > len(scores)

@@ -19,13 +19,12 @@ pub(crate) struct FilesArgs {
     /// which state none, take mild.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     pub(crate) default_std: Option<v2x_protocol::Uncertainty>,
-    /// The inputs are a detector's boxes (docs/method.md §11): each box's stds from its score,
-    /// replacing any it states (the first input is the receiver, the others add a pose std),
-    /// or from the input's --std-model when it has one (`v2x-sim calibrate` fits it);
-    /// CSBA-3D groups scored by the noisy-OR of their members; `fuse` drops fused boxes below
-    /// 0.4, `track` keeps them and shows a track from its first box. The default for KITTI
-    /// folders given without --default-std; give it for results files, such as
-    /// `v2x-sim gen --dataset v2v4real` writes.
+    /// The inputs are a detector's boxes (docs/method.md §11): each box's stds from its score, replacing
+    /// any it states (the first input is the receiver, the others add a pose std), or from the
+    /// input's --std-model when it has one (`v2x-sim calibrate` fits it); each fused box scored
+    /// by its chance of being a real object (--existence-model), and --min-score the operating
+    /// point. The default for KITTI folders given without --default-std; give it for results
+    /// files, such as `v2x-sim gen --dataset v2v4real` writes.
     #[arg(long, conflicts_with_all = ["default_std", "learn_std"])]
     pub(crate) detector: bool,
     /// A detector's fused boxes are scored by the chance each is a real object: by the model

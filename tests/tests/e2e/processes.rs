@@ -515,19 +515,18 @@ fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
     let stats = fuser_stats(fuser);
     assert_eq!(stats["windows"], 5, "{stats}");
 
-    // Frame 0 of sequence 0000: the pair (0.9, 0.6: noisy-OR 0.96) and car 1's lone 0.7; the
-    // ego car's 0.25 falls below 0.4 in both.
+    // Frame 0 of sequence 0000: the pair (0.9, 0.6) and car 1's lone 0.7, each scored by its
+    // chance of being real; the ego car's 0.25 box falls below 0.2 in both. The node does not
+    // know which agent receives the others' boxes, so its scores lack the existence model's
+    // receiver term (weight -0.17 on the log-odds: at most 0.05 on a chance).
     let (live, off) = (scores_by_window(&record), scores_by_window(&offline));
     assert_eq!(live.len(), off.len(), "{live:?} against {off:?}");
-    assert!(
-        (off[0][0] - 0.96).abs() < 1e-9 && off[0].len() == 2,
-        "{off:?}"
-    );
+    assert!(off[0][0] > 0.99 && off[0].len() == 2, "{off:?}");
     for (l, o) in live.iter().zip(&off) {
         assert_eq!(l.len(), o.len(), "{live:?} against {off:?}");
         for (a, b) in l.iter().zip(o) {
-            // Scores cross the wire in 1/255 steps.
-            assert!((a - b).abs() < 0.005, "{live:?} against {off:?}");
+            // Scores also cross the wire in 1/255 steps.
+            assert!((a - b).abs() < 0.05, "{live:?} against {off:?}");
         }
     }
 }
