@@ -9,15 +9,11 @@
 //! score:  s_G = p(real | G)                              (the existence model, `existence.rs`)
 //!         s_G = 1 - prod_{n in G} (1 - s_n)                (without one: noisy-OR of the members)
 //! keep:   s_G >= s_min
-//! split:  max_n z_n - min_n z_n > g_z  =>  each member of G stands as its own box
 //! ```
 //!
 //! The existence model ranks every fused box by its chance of being a real object, from its
 //! members' scores, who saw it, how well they agree, its range and its shape; the threshold is
-//! an operating point on that chance. The split is the
-//! tracker's: two agents' boxes of one object whose heights lie metres apart (another car's
-//! pitch, or its labels') are two hypotheses of it, and their mean is a height neither
-//! supports, so the tracker is given both. The defaults are calibrated on V2V4Real's training
+//! an operating point on that chance. The defaults are calibrated on V2V4Real's training
 //! split (`docs/results.md`). Sans-IO.
 
 use crate::maths::association::CsbaParams;
@@ -48,10 +44,6 @@ pub struct DetectorParams {
     pub min_score: f64,
     /// The chance each fused box is a real object, its score (`None`: the members' noisy-OR).
     pub existence: Option<ExistenceModel>,
-    /// A group whose members' centre heights span more than this (m) is not fused, each member
-    /// kept as its own box: g_z. Infinite (never split): the second box is a false positive
-    /// wherever false positives are counted.
-    pub height_gap: f64,
 }
 
 impl Default for DetectorParams {
@@ -64,7 +56,6 @@ impl Default for DetectorParams {
             yaw_std: 0.15,
             min_score: 0.2,
             existence: Some(existence::DETECTOR_DEFAULT),
-            height_gap: f64::INFINITY,
         }
     }
 }
@@ -112,7 +103,7 @@ pub fn group_score(scores: impl IntoIterator<Item = f64>) -> f64 {
 }
 
 /// CSBA-3D and WLS-3D over boxes [`ready`] for it, each group scored by the existence model
-/// (or [`group_score`] without one; split when its heights span more than `p.height_gap`) and
+/// (or [`group_score`] without one) and
 /// the tail below `p.min_score` dropped; in group order. `receiver`: the agent whose frame the
 /// others' boxes arrive in.
 pub fn fuse_scored(
@@ -159,44 +150,16 @@ pub fn fuse_described(
         };
         (Detection { score, ..d }, x)
     };
-    let mut out = Vec::with_capacity(fused.len());
-    for (d, g) in fused.into_iter().zip(&groups) {
-        let members: Vec<(&Detection, bool)> = g.iter().map(member).collect();
-        if height_span(members.iter().map(|m| m.0)) > p.height_gap {
-            for (m, &(k, _)) in members.iter().zip(g) {
-                let (det, x) = scored(&[*m], m.0.clone());
-                out.push((
-                    Sourced {
-                        det,
-                        sources: v2x_protocol::AgentSet::single(k),
-                    },
-                    x,
-                ));
-            }
-        } else {
+    fused
+        .into_iter()
+        .zip(&groups)
+        .map(|(d, g)| {
+            let members: Vec<(&Detection, bool)> = g.iter().map(member).collect();
             let (det, x) = scored(&members, d);
-            out.push((
-                Sourced {
-                    det,
-                    sources: g.iter().map(|&(k, _)| k).collect(),
-                },
-                x,
-            ));
-        }
-    }
-    out
-}
-
-/// How far apart the boxes' centre heights lie (m): 0 for one box.
-fn height_span<'a>(boxes: impl Iterator<Item = &'a Detection>) -> f64 {
-    let (lo, hi) = boxes.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
-        (lo.min(b.center[2]), hi.max(b.center[2]))
-    });
-    if lo <= hi {
-        hi - lo
-    } else {
-        0.0
-    }
+            let sources = g.iter().map(|&(k, _)| k).collect();
+            (Sourced { det, sources }, x)
+        })
+        .collect()
 }
 
 #[cfg(test)]

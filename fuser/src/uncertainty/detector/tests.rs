@@ -72,13 +72,12 @@ fn a_tracker_gets_the_tail_too() {
     let p = DetectorParams::default().for_tracking();
     assert_eq!(p.min_score, 0.0);
     assert_eq!(p.pose_std, DetectorParams::default().pose_std);
-    assert_eq!(p.height_gap, f64::INFINITY);
 }
 
 #[test]
-fn a_height_gap_keeps_both_boxes_of_a_group_whose_heights_disagree() {
-    // One car seen by both agents, the other agent's box 1.5 m higher: fused by default (one
-    // box at the weighted height), both kept with a gap of 1 m (each with its own score).
+fn a_group_whose_heights_disagree_is_one_box_at_the_receivers_height() {
+    // One car seen by both agents, the other agent's box 1.5 m higher: one box, its height
+    // nearer the receiver's (the other agent's height std is sqrt(sigma^2 + 1)).
     let mut ego = vec![car(10.0, 0.6)];
     let mut other = vec![Detection {
         center: [10.2, 0.0, 1.5],
@@ -87,30 +86,11 @@ fn a_height_gap_keeps_both_boxes_of_a_group_whose_heights_disagree() {
     let p = noisy_or();
     ready(&p, &mut ego, true);
     ready(&p, &mut other, false);
-    let lists = [ego, other];
-    let fused = fuse_scored_sourced(&p, &CsbaParams::PLUS, &lists, Some(0));
+    let fused = fuse_scored_sourced(&p, &CsbaParams::PLUS, &[ego, other], Some(0));
     assert_eq!(fused.len(), 1);
-    assert!(fused[0].det.center[2] > 0.0 && fused[0].det.center[2] < 1.5);
+    assert!(fused[0].det.center[2] > 0.0 && fused[0].det.center[2] < 0.75);
     assert_eq!(fused[0].sources.len(), 2);
-    let gap = DetectorParams {
-        height_gap: 1.0,
-        ..p.for_tracking()
-    };
-    let split = fuse_scored_sourced(&gap, &CsbaParams::PLUS, &lists, Some(0));
-    let mut got: Vec<(f64, f64, usize)> = split
-        .iter()
-        .map(|s| {
-            (
-                s.det.center[2],
-                s.det.score,
-                s.sources.iter().next().unwrap(),
-            )
-        })
-        .collect();
-    got.sort_by(|a, b| a.0.total_cmp(&b.0));
-    assert_eq!(got, vec![(0.0, 0.6, 0), (1.5, 0.5, 1)]);
-    // 0.9 m apart: still one box.
-    lists_fused_once(&gap, 0.9);
+    lists_fused_once(&p.for_tracking(), 0.9);
 }
 
 /// Two agents' boxes of one car `dz` apart in height fuse to one box.
