@@ -67,15 +67,17 @@ struct Tally {
 }
 
 impl Tally {
-    fn ap(&self, ordering: Ordering) -> Option<f64> {
-        match ordering {
-            Ordering::Frame => voc_ap(self.tp.iter().map(|t| t.1), self.gt),
-            Ordering::Global => {
-                let mut sorted = self.tp.clone();
-                sorted.sort_by(|a, b| b.0.total_cmp(&a.0));
-                voc_ap(sorted.iter().map(|t| t.1), self.gt)
-            }
+    /// Whether each prediction was a true positive, in `ordering`.
+    fn hits(&self, ordering: Ordering) -> Vec<bool> {
+        let mut tp = self.tp.clone();
+        if ordering == Ordering::Global {
+            tp.sort_by(|a, b| b.0.total_cmp(&a.0));
         }
+        tp.into_iter().map(|t| t.1).collect()
+    }
+
+    fn ap(&self, ordering: Ordering) -> Option<f64> {
+        voc_ap(self.hits(ordering), self.gt)
     }
 }
 
@@ -265,15 +267,12 @@ impl V2v4realEval {
             return Vec::new();
         };
         let t = &self.tallies[0][slot(view)][k];
-        let mut tp = t.tp.clone();
-        if ordering == Ordering::Global {
-            tp.sort_by(|a, b| b.0.total_cmp(&a.0));
-        }
         let gt = t.gt.max(1) as f64;
         let mut hits = 0usize;
-        tp.iter()
+        t.hits(ordering)
+            .into_iter()
             .enumerate()
-            .map(|(i, &(_, hit))| {
+            .map(|(i, hit)| {
                 hits += hit as usize;
                 (hits as f64 / gt, hits as f64 / (i + 1) as f64)
             })

@@ -133,6 +133,10 @@ pub enum ExistenceError {
         /// Samples labelled false.
         ghost: usize,
     },
+    /// The samples do not determine the weights (a feature that is a combination of others,
+    /// with no ridge to settle it).
+    #[error("the samples do not determine the weights: give a ridge (l2 > 0)")]
+    Singular,
     /// Newton's method did not settle.
     #[error("the fit did not converge in {0} iterations")]
     NoConvergence(usize),
@@ -210,7 +214,7 @@ impl ExistenceModel {
             }
             let step = hess
                 .cholesky()
-                .ok_or(ExistenceError::NoConvergence(0))?
+                .ok_or(ExistenceError::Singular)?
                 .solve(&grad);
             beta += step;
             if step.amax() < 1e-9 {
