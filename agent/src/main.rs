@@ -53,18 +53,12 @@ struct Cli {
     /// Stds for boxes without std fields: mild, moderate, large or POS,SIZE,YAW_DEG.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<Uncertainty>,
-    /// Simulated one-way latency (ms).
-    #[arg(long, default_value_t = 0.0)]
-    latency_ms: f64,
-    /// Simulated jitter, uniform in [0, J] ms.
-    #[arg(long, default_value_t = 0.0)]
-    jitter_ms: f64,
-    /// Simulated frame loss probability.
-    #[arg(long, default_value_t = 0.0)]
-    drop_rate: f64,
-    /// Simulated sensor clock offset (ms).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    clock_offset_ms: f64,
+    /// The simulated link and sensor clock, KEY=VALUE,... as a scenario's `link` table has
+    /// them: latency_ms (one-way latency), jitter_ms (uniform in [0, J] ms), drop_rate (the
+    /// chance a frame is lost), clock_offset_ms (added to every capture time, may be negative);
+    /// each left out is 0. E.g. latency_ms=20,jitter_ms=10,drop_rate=0.05.
+    #[arg(long, value_name = "KEY=VALUE,...", default_value = "", hide_default_value = true, value_parser = parse_link, allow_hyphen_values = true)]
+    link: Link,
     /// Wait at most this long for a fuser to subscribe before sending (s).
     #[arg(long, default_value_t = 30.0)]
     wait_s: f64,
@@ -222,7 +216,7 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     .await?;
     // Let delayed publications leave before closing.
     tokio::time::sleep(Duration::from_millis(
-        (cli.latency_ms.max(0.0) + cli.jitter_ms.max(0.0)) as u64 + 200,
+        (cli.link.latency_ms + cli.link.jitter_ms) as u64 + 200,
     ))
     .await;
     let t = agent.counters().totals();
@@ -231,6 +225,13 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
         cli.name, report.sent, report.skipped, t.dropped, t.payload_bytes
     );
     close(session, agent).await
+}
+
+/// `--link`: the link's table, checked.
+fn parse_link(s: &str) -> Result<Link, String> {
+    let link: Link = v2x_protocol::pairs::from_pairs(s)?;
+    link.validate().map_err(|e| e.to_string())?;
+    Ok(link)
 }
 
 /// Withdraws the agent, then closes its session.
@@ -244,12 +245,7 @@ async fn close(session: zenoh::Session, agent: Agent) -> anyhow::Result<()> {
 
 /// The agent's session and the agent on it, with its simulated link and its wire.
 async fn start(cli: &Cli) -> anyhow::Result<(zenoh::Session, Agent)> {
-    let link = Link {
-        latency_ms: cli.latency_ms,
-        jitter_ms: cli.jitter_ms,
-        drop_rate: cli.drop_rate,
-        clock_offset_ms: cli.clock_offset_ms,
-    };
+    let link = cli.link.clone();
     let session = open_session(&cli.zenoh).await?;
     let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
     if cli.wire == Wire::Cpm {

@@ -10,9 +10,7 @@ fn help_and_clear_errors() {
     assert!(out.status.success());
     let help = String::from_utf8(out.stdout).unwrap();
     for flag in [
-        "--latency-ms",
-        "--drop-rate",
-        "--clock-offset-ms",
+        "--link",
         "--connect",
         "--no-multicast-scouting",
         "--wire",
@@ -45,6 +43,13 @@ fn help_and_clear_errors() {
         "--no-multicast-scouting",
     ]);
     assert!(err.contains("'/a//b' is not a ROS 2 topic name"), "{err}");
+    let err = run(&["a.json", "--name", "veh", "--link", "latency_ms=-5"]);
+    assert!(err.contains("latency_ms"), "{err}");
+    let err = run(&["a.json", "--name", "veh", "--link", "latency=5"]);
+    assert!(
+        err.contains("unknown field `latency`, expected one of `latency_ms`"),
+        "{err}"
+    );
     let err = run(&["--ros-topic", "/a", "--tf", "1,2,3", "--name", "veh"]);
     assert!(err.contains("X,Y,Z,YAW_DEG"), "{err}");
     let err = run(&["a.json", "--ros-topic", "/a", "--name", "veh"]);

@@ -1,6 +1,6 @@
 //! Time per tracker step: 200 confirmed tracks of cars moving at constant velocity, one fused
 //! box each per window (0.5 m noise, with velocities), in steady state, by the best assignment
-//! and by soft association (`--soft`); and through the tracks
+//! and by soft association (`--association soft`); and through the tracks
 //! (`step_agents`), two agents' boxes of the same cars.
 //!
 //! Run: `cargo bench -p v2x-fuser --bench tracker`.
@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::hint::black_box;
 use std::time::Duration;
-use v2x_fuser::tracker::{Tracker, TrackerParams};
+use v2x_fuser::tracker::{Association, Tracker, TrackerParams};
 use v2x_protocol::{Class, Detection, Uncertainty, Velocity, NO_ID};
 
 /// Windows of `n` cars on a 400 m square at 10 Hz, each moving at its own velocity, seen with
@@ -67,10 +67,11 @@ fn bench_step(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(3))
         .sample_size(30);
     for (name, soft) in [("step/200-tracks", false), ("step-soft/200-tracks", true)] {
-        let mut tracker = Tracker::new(TrackerParams {
-            soft,
-            ..Default::default()
-        });
+        let mut tracker = Tracker::new(TrackerParams::with_mode(if soft {
+            Association::Soft
+        } else {
+            Association::Assignment
+        }));
         for (k, boxes) in w.iter().take(20).enumerate() {
             tracker.step(k as u64 * 100_000, boxes);
         }

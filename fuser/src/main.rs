@@ -66,3 +66,55 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Stats(args) => stats(args),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+    use v2x_fuser::settings::{keys_of, AdmissionSettings, FusionSettings, TrackSettings};
+
+    /// The long flags of a subcommand.
+    fn flags(sub: &str) -> Vec<String> {
+        Cli::command()
+            .find_subcommand(sub)
+            .unwrap()
+            .get_arguments()
+            .filter_map(|a| a.get_long().map(String::from))
+            .collect()
+    }
+
+    /// A setting's flag: its key's, but where the key reads better otherwise.
+    fn flag(key: &str) -> String {
+        match key {
+            "compensation" => "no-compensation".into(),
+            "std_models" => "std-model".into(),
+            k => k.replace('_', "-"),
+        }
+    }
+
+    #[test]
+    fn every_setting_is_declared_once_and_reaches_each_command_that_takes_it() {
+        let (fuse, track, node) = (flags("fuse"), flags("track"), flags("node"));
+        for key in keys_of::<FusionSettings>() {
+            for (name, flags) in [("fuse", &fuse), ("track", &track), ("node", &node)] {
+                assert!(flags.contains(&flag(&key)), "{name} lacks {key}");
+            }
+        }
+        for key in keys_of::<TrackSettings>() {
+            assert!(track.contains(&flag(&key)), "track lacks {key}");
+            assert!(node.contains(&flag(&key)), "node lacks {key}");
+            assert!(!fuse.contains(&flag(&key)), "fuse takes {key}");
+        }
+        for key in keys_of::<AdmissionSettings>() {
+            assert!(node.contains(&flag(&key)), "node lacks {key}");
+        }
+        // No command declares a flag twice.
+        for flags in [&fuse, &track, &node] {
+            let mut sorted = flags.clone();
+            sorted.sort();
+            sorted.dedup();
+            assert_eq!(sorted.len(), flags.len());
+        }
+        Cli::command().debug_assert();
+    }
+}

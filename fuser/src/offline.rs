@@ -59,10 +59,11 @@ impl Inputs {
     /// operating point on ([`DetectorParams::min_score`]).
     pub fn tracker_params(&self, opts: &OfflineOptions, params: TrackerParams) -> TrackerParams {
         match self.options(opts).detector {
-            Some(d) => TrackerParams {
-                min_score: d.min_score,
-                ..params
-            },
+            Some(d) => {
+                let mut p = params;
+                p.management.min_score = d.min_score;
+                p
+            }
             None => params,
         }
     }
@@ -97,17 +98,6 @@ pub enum FilesError {
          (meta.v2x_timestamps with one entry per sample, as `v2x-sim gen` writes it)"
     )]
     NoCaptureTimes,
-    /// An existence model choice or file that cannot be used.
-    #[error("existence model {choice}: {why}")]
-    Existence {
-        /// What was given: `default`, `noisy-or` or a path.
-        choice: String,
-        /// Why it cannot be used.
-        why: String,
-    },
-    /// An operating point outside [0, 1].
-    #[error("min score must be in [0, 1], not {0}")]
-    MinScore(f64),
     /// The output cannot be written.
     #[error("cannot write {}: {error}", path.display())]
     Write {
@@ -116,35 +106,6 @@ pub enum FilesError {
         /// Why.
         error: std::io::Error,
     },
-}
-
-/// The detector's parameters for an existence model choice (`default`: the model fitted on
-/// V2V4Real's train split; `noisy-or`: none, the members' noisy-OR; else a model file
-/// `v2x-sim fit-score` wrote) and an operating point in [0, 1].
-pub fn detector_params(existence: &str, min_score: f64) -> Result<DetectorParams, FilesError> {
-    use crate::uncertainty::existence::{ExistenceFile, ExistenceModel, DETECTOR_DEFAULT};
-    if !(0.0..=1.0).contains(&min_score) {
-        return Err(FilesError::MinScore(min_score));
-    }
-    let bad = |why: String| FilesError::Existence {
-        choice: existence.to_string(),
-        why,
-    };
-    let existence = match existence {
-        "default" => Some(DETECTOR_DEFAULT),
-        "noisy-or" => None,
-        path => {
-            let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-            let file: ExistenceFile =
-                serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
-            Some(ExistenceModel::try_from(file).map_err(|e| bad(e.to_string()))?)
-        }
-    };
-    Ok(DetectorParams {
-        min_score,
-        existence,
-        ..DetectorParams::default()
-    })
 }
 
 /// The layout the fused or tracked output is written in.
@@ -320,8 +281,7 @@ pub fn fuse_step(
     .pipeline(method);
     let names: Vec<String> = (0..per_agent.len()).map(name).collect();
     let kinds = vec![AgentKind::Vehicle; per_agent.len()];
-    let (lists, _) = p.register(None, &names, &kinds, per_agent.to_vec());
-    p.steps().fuse_boxes(&lists, p.receiver_in(&names))
+    p.fuse_frame(None, &names, &kinds, per_agent)
 }
 
 /// Fuses the agents' files: by capture-time windows when every file has capture times, else by

@@ -58,10 +58,10 @@ pub fn set_time_scale(
         m.time_scale = s;
     }
     if let Some(l) = learn {
-        l.tracker.time_scale = s;
+        l.tracker.motion.time_scale = s;
     }
     if let Some(t) = track {
-        t.time_scale = s;
+        t.motion.time_scale = s;
     }
 }
 
@@ -178,6 +178,25 @@ impl Pipeline {
         }
     }
 
+    /// Steps 4-6 for one time step of every agent's boxes, each as captured at `t_us` (a
+    /// bench's frame, a file's sample; `None`: boxes without a time): the fused boxes. The
+    /// boxes are copied only when a step changes them.
+    pub fn fuse_frame(
+        &mut self,
+        t_us: Option<u64>,
+        agents: &[String],
+        kinds: &[AgentKind],
+        lists: &[Vec<Detection>],
+    ) -> Vec<Detection> {
+        let receiver = self.receiver_in(agents);
+        let detector_stds = self.steps.detector.is_some() && self.receiver.is_some();
+        if !detector_stds && self.aligner.is_none() {
+            return self.steps.fuse_boxes(lists, receiver);
+        }
+        let (lists, _) = self.register(t_us, agents, kinds, lists.to_vec());
+        self.steps.fuse_boxes(&lists, receiver)
+    }
+
     /// The receiver's position among `agents`, if it is there.
     pub fn receiver_in(&self, agents: &[String]) -> Option<usize> {
         let r = self.receiver.as_ref()?;
@@ -240,7 +259,11 @@ mod tests {
         );
         set_time_scale(4.0, Some(&mut m), Some(&mut l), Some(&mut t));
         assert_eq!(
-            (m.time_scale, l.tracker.time_scale, t.time_scale),
+            (
+                m.time_scale,
+                l.tracker.motion.time_scale,
+                t.motion.time_scale
+            ),
             (4.0, 4.0, 4.0)
         );
         let mut o = crate::offline::OfflineOptions {
@@ -250,7 +273,7 @@ mod tests {
         };
         o.set_time_scale(0.5);
         assert_eq!(o.motion.unwrap().time_scale, 0.5);
-        assert_eq!(o.learn.unwrap().tracker.time_scale, 0.5);
+        assert_eq!(o.learn.unwrap().tracker.motion.time_scale, 0.5);
     }
 
     #[test]

@@ -10,9 +10,10 @@
 //!    S = H P H^T + R (R the box's own covariance; H measures the centre, and the velocity too
 //!    when the box has one) gives d^2 = y^T S^-1 y and the cost d^2 + ln det S, twice the
 //!    negative log-likelihood; pairs beyond the chi-square gate are not eligible (with
-//!    `by_id`, a simulation's perfect association, a box's only pair is the track its
+//!    [`Association::ById`], a simulation's perfect association, a box's only pair is the track its
 //!    ground-truth id had);
-//! 3. **assign** with the association's exact solver (`association::assign`), or with `soft`
+//! 3. **assign** with the association's exact solver (`association::assign`), or with
+//!    [`Association::Soft`]
 //!    weigh each track's boxes by the chance each is its own (`soft.rs`, `docs/method.md` §8.2);
 //! 4. **update** matched tracks: each model with the Kalman gain (Joseph form) and its
 //!    probability by its likelihood; size by WLS against the box,
@@ -30,114 +31,7 @@ use crate::maths::fusion::FLIP_SIGMAS;
 use nalgebra::{Const, DimMin, Matrix2, Matrix2x4, Matrix4, SMatrix, SVector, Vector2, Vector4};
 use v2x_protocol::{wrap_angle, Class, Detection, Uncertainty, Velocity, NO_ID};
 
-/// Parameters of the tracker.
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct TrackerParams {
-    /// Std of the unmodelled acceleration (m/s^2) of the agile motion model, as in motion
-    /// compensation.
-    pub accel_std: f64,
-    /// Std of the unmodelled acceleration (m/s^2) of the quiet motion model: an object keeping
-    /// its course. Each track weighs the two models by how well each predicted its boxes
-    /// (`docs/method.md` §8); equal to `accel_std`, one model.
-    pub quiet_accel_std: f64,
-    /// Mean time (s) an object keeps to one motion model before it may change to the other.
-    pub mode_hold_s: f64,
-    /// Gate on d^2 of a (track, box) pair: the 99.9% chi-square quantile for 4 degrees of
-    /// freedom (centre and velocity measured); with the centre alone the same bound is looser.
-    pub gate: f64,
-    /// Hits in a row (the first box included) that confirm a track. 2: a box seen in one
-    /// window only (a false positive, an object glimpsed once) never becomes a track.
-    pub confirm_hits: u32,
-    /// Misses in a row a confirmed track survives. 3: at 10 Hz a track coasts through 300 ms
-    /// without boxes (an occlusion, lost windows); at 2 Hz, 1.5 s.
-    pub max_misses: u32,
-    /// Misses in a row during which a confirmed track is still output, at its prediction with
-    /// its score halved per miss. 3, as `max_misses`: a window without a box (two tracks'
-    /// boxes merged, a lost window) neither drops the object nor hands it to a neighbouring
-    /// track, and the halved score lets the benchmark's thresholds drop long coasts.
-    pub coast_output: u32,
-    /// A confirmed track's box scoring below this is not output (the track goes on): the
-    /// operating point of a detector's tracks ([`crate::uncertainty::detector::DetectorParams::min_score`]),
-    /// 0 for boxes whose scores are not chances.
-    pub min_score: f64,
-    /// Longest gap between windows (s) tracks are carried over; beyond, they all end.
-    pub max_gap_s: f64,
-    /// Std (m/s) of the velocity of a new track from a box without one.
-    pub init_velocity_std: f64,
-    /// Std (rad/s) of the yaw's change per second.
-    pub yaw_rate_std: f64,
-    /// Variance (m^2) the centre's height gains per second between boxes: 1, so that the
-    /// height follows its boxes (a detector's heights scatter by tenths of a metre, and another
-    /// car's pitch moves them more) instead of keeping the first box's.
-    pub height_var_per_s: f64,
-    /// Seconds of motion per second of window time: the replay speed when agents replay
-    /// recorded data faster than real time on the wall clock (1 live).
-    pub time_scale: f64,
-    /// Simulation only: a box goes to the track of its ground-truth id (`Detection::id`;
-    /// `NO_ID` never matching) instead of the likeliest track, ungated: what a perfect
-    /// association gives with this filter (`bench --tracking`, row `gt-wls tracked by id`).
-    pub by_id: bool,
-    /// Also follow the classes the nuScenes tracking benchmark does not score (barrier, traffic
-    /// cone, construction vehicle); by default their boxes are passed over.
-    pub all_classes: bool,
-    /// How the tracker's callers feed it: each agent's boxes through the tracks first
-    /// ([`Tracker::step_agents`], `docs/method.md` §8.1), or (false) the fused boxes
-    /// ([`Tracker::step`]).
-    pub guided: bool,
-    /// Update each track with its boxes weighed by the chance each is its own (`docs/method.md`
-    /// §8.2) instead of with the one box of the best assignment; fused boxes only
-    /// ([`Tracker::step`]).
-    pub soft: bool,
-    /// With `soft`: the chance a tracked object yields a box in a window, in (0, 1).
-    pub detect_prob: f64,
-    /// With `soft`: the density of boxes no track explains (new objects, false positives) per
-    /// unit of the measurement's space (m^2 for a centre; m^2 (m/s)^2 with a velocity), > 0.
-    pub new_density: f64,
-}
-
-impl Default for TrackerParams {
-    fn default() -> Self {
-        TrackerParams {
-            accel_std: 2.0,
-            quiet_accel_std: 0.5,
-            mode_hold_s: 2.0,
-            gate: 18.47,
-            confirm_hits: 2,
-            max_misses: 3,
-            coast_output: 3,
-            min_score: 0.0,
-            max_gap_s: 2.0,
-            init_velocity_std: 10.0,
-            yaw_rate_std: 0.5,
-            height_var_per_s: 1.0,
-            time_scale: 1.0,
-            by_id: false,
-            all_classes: false,
-            guided: false,
-            soft: false,
-            detect_prob: 0.9,
-            new_density: 1e-5,
-        }
-    }
-}
-
-impl TrackerParams {
-    /// Why these parameters cannot track together (`soft` with `guided`: soft association is
-    /// for the fused boxes), if they cannot.
-    pub fn conflict(&self) -> Option<&'static str> {
-        (self.soft && self.guided).then_some("soft association is for the fused boxes")
-    }
-
-    /// These parameters for tracking through the tracks (`guided`) or the fused boxes: soft
-    /// association kept for the fused boxes only, so that the two never [`conflict`](Self::conflict).
-    pub fn with_guided(self, guided: bool) -> Self {
-        TrackerParams {
-            guided,
-            soft: self.soft && !guided,
-            ..self
-        }
-    }
-}
+pub use params::{Association, AssociationParams, Management, TrackMotion, TrackerParams};
 
 /// One track.
 #[derive(Clone, Debug)]
@@ -251,7 +145,7 @@ impl Tracker {
         // 1. predict
         let dt = self.advance(t_us);
         // 2. cost of every eligible pair, 3. assignment, 4. update
-        let (hit, taken) = if self.params.soft && !self.params.by_id {
+        let (hit, taken) = if self.params.association.mode == Association::Soft {
             self.associate_soft(boxes, dt)
         } else {
             self.associate_hard(boxes, dt)
@@ -275,7 +169,7 @@ impl Tracker {
     /// Steps 2 to 4 with one best assignment: which tracks took a box, and the track each box
     /// went to (`None`: it starts a track).
     fn associate_hard(&mut self, boxes: &[Detection], dt: f64) -> (Vec<bool>, Vec<Option<usize>>) {
-        let edges = if self.params.by_id {
+        let edges = if self.params.association.mode == Association::ById {
             by_id_edges(&self.tracks, boxes)
         } else {
             self.likelihood_edges(boxes)
@@ -285,7 +179,7 @@ impl Tracker {
         for (i, j) in assign(self.tracks.len(), boxes.len(), &edges) {
             hit[i] = true;
             taken[j] = Some(i);
-            update(&mut self.tracks[i], &boxes[j], dt, &self.params);
+            update(&mut self.tracks[i], &boxes[j], dt, &self.params.motion);
         }
         (hit, taken)
     }
@@ -297,7 +191,7 @@ impl Tracker {
         all: &'a [Detection],
     ) -> (Vec<usize>, std::borrow::Cow<'a, [Detection]>) {
         let index: Vec<usize> = (0..all.len())
-            .filter(|&j| self.params.all_classes || all[j].class.is_tracking())
+            .filter(|&j| self.params.management.all_classes || all[j].class.is_tracking())
             .collect();
         let boxes = if index.len() == all.len() {
             all.into()
@@ -314,10 +208,11 @@ impl Tracker {
     /// Step 1: the time since the last window (s of motion), every track predicted over it; a
     /// gap beyond `max_gap_s` or time going back ends every track first.
     fn advance(&mut self, t_us: u64) -> f64 {
-        let scale = self.params.time_scale;
+        let scale = self.params.motion.time_scale;
         let dt = match self.last_us {
             Some(last)
-                if t_us >= last && (t_us - last) as f64 * scale <= self.params.max_gap_s * 1e6 =>
+                if t_us >= last
+                    && (t_us - last) as f64 * scale <= self.params.management.max_gap_s * 1e6 =>
             {
                 (t_us - last) as f64 / 1e6 * scale
             }
@@ -329,7 +224,7 @@ impl Tracker {
         };
         self.last_us = Some(t_us);
         for t in &mut self.tracks {
-            predict(t, dt, &self.params);
+            predict(t, dt, &self.params.motion);
         }
         dt
     }
@@ -346,7 +241,7 @@ impl Tracker {
             if hit {
                 t.hits += 1;
                 t.misses = 0;
-                if !t.confirmed && t.hits >= self.params.confirm_hits {
+                if !t.confirmed && t.hits >= self.params.management.confirm_hits {
                     t.confirmed = true;
                     self.births += 1;
                 }
@@ -361,11 +256,11 @@ impl Tracker {
                 if !t.confirmed {
                     continue;
                 }
-                if t.misses > self.params.max_misses {
+                if t.misses > self.params.management.max_misses {
                     self.deaths += 1;
                     continue;
                 }
-                if t.misses <= self.params.coast_output {
+                if t.misses <= self.params.management.coast_output {
                     // Shown where the track predicts it, with its score halved per miss.
                     let mut det = estimate(&t);
                     det.score *= 0.5f64.powi(t.misses as i32);
@@ -378,20 +273,20 @@ impl Tracker {
             kept.push(t);
         }
         self.tracks = kept;
-        out.retain(|t| t.det.score >= self.params.min_score);
+        out.retain(|t| t.det.score >= self.params.management.min_score);
         out
     }
 
     /// Step 5 for a box no track took: a new track, output at once when one hit confirms it
     /// and it scores at least the operating point.
     fn birth(&mut self, b: &Detection) -> Option<Tracked> {
-        let mut t = birth(self.next_id, b, &self.params);
+        let mut t = birth(self.next_id, b, &self.params.motion);
         self.next_id = if self.next_id + 1 >= self.ids.1 {
             self.ids.0
         } else {
             self.next_id + 1
         };
-        let shown = (t.hits >= self.params.confirm_hits).then(|| {
+        let shown = (t.hits >= self.params.management.confirm_hits).then(|| {
             t.confirmed = true;
             self.births += 1;
             Tracked {
@@ -399,7 +294,7 @@ impl Tracker {
                 det: estimate(&t),
             }
         });
-        let shown = shown.filter(|s| s.det.score >= self.params.min_score);
+        let shown = shown.filter(|s| s.det.score >= self.params.management.min_score);
         self.tracks.push(t);
         shown
     }
@@ -416,11 +311,11 @@ impl Tracker {
             .collect();
         for (i, t) in self.tracks.iter().enumerate() {
             for (j, b) in boxes.iter().enumerate() {
-                if b.class != t.class || !may_pass(t, b, var[j], self.params.gate) {
+                if b.class != t.class || !may_pass(t, b, var[j], self.params.association.gate) {
                     continue;
                 }
                 if let Some((d2, ln_det)) = distance(t, b) {
-                    if d2 <= self.params.gate {
+                    if d2 <= self.params.association.gate {
                         edges.push(Edge::new(i, j, d2 + ln_det));
                     }
                 }
@@ -444,7 +339,7 @@ fn by_id_edges(tracks: &[Track], boxes: &[Detection]) -> Vec<Edge> {
 }
 
 /// A tentative track from a box.
-fn birth(id: u32, b: &Detection, p: &TrackerParams) -> Track {
+fn birth(id: u32, b: &Detection, p: &TrackMotion) -> Track {
     let c = b.position_covariance();
     let (v, vv) = match &b.velocity {
         Some(v) => (v.v, [v.std[0] * v.std[0], v.std[1] * v.std[1]]),
@@ -480,7 +375,7 @@ fn birth(id: u32, b: &Detection, p: &TrackerParams) -> Track {
 /// that the object changed model (each stays with probability 1 - s, s = (1 - e^(-dt/hold))/2),
 /// each predicted x <- F x, P <- F P F^T + Q with its own acceleration std, and the track's
 /// state their mixture; the yaw variance grows with the yaw rate std.
-fn predict(t: &mut Track, dt: f64, p: &TrackerParams) {
+fn predict(t: &mut Track, dt: f64, p: &TrackMotion) {
     if dt == 0.0 {
         return;
     }
@@ -661,7 +556,7 @@ where
 
 /// The Kalman update of each motion model, each model's probability times its likelihood
 /// N(y; 0, S), the track's state their mixture; then size, z and yaw.
-fn update(t: &mut Track, b: &Detection, dt: f64, p: &TrackerParams) {
+fn update(t: &mut Track, b: &Detection, dt: f64, p: &TrackMotion) {
     let m = measurement(b);
     let mut log_l = [f64::NEG_INFINITY; 2];
     for ((x, cov), l) in t.modes.iter_mut().zip(&mut log_l) {
@@ -737,6 +632,7 @@ fn estimate(t: &Track) -> Detection {
 
 mod guided;
 pub mod handover;
+mod params;
 mod soft;
 
 #[cfg(test)]

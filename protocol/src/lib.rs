@@ -19,6 +19,7 @@ pub mod kitti;
 pub mod limits;
 pub mod net;
 pub mod nuscenes_json;
+pub mod pairs;
 mod provenance;
 pub mod tiles;
 pub mod traffic;

@@ -49,6 +49,7 @@ pub fn fuse_documents(
     documents: Vec<String>,
     options: Options,
 ) -> PyResult<(String, String)> {
+    options.refuse_tracking()?;
     let (method, missing, opts) = options.offline(documents.len())?;
     py.detach(|| {
         let mut tokens = TokenTable::new();
@@ -80,6 +81,9 @@ pub fn run_files(
     options: Options,
     track: bool,
 ) -> PyResult<String> {
+    if !track {
+        options.refuse_tracking()?;
+    }
     let (method, missing, opts) = options.offline(inputs.len())?;
     let params = options.tracker()?;
     py.detach(|| {

@@ -2,8 +2,10 @@
 
 use crate::boxdict::{box_dict, class_name, read_agents, read_boxes, Extra};
 use crate::options::{missing_std, tracker_params};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
+use v2x_fuser::settings::TrackSettings;
 use v2x_fuser::tracker::Tracked;
 use v2x_protocol::nuscenes_json::TokenTable;
 use v2x_protocol::Detection;
@@ -18,21 +20,30 @@ pub struct Tracker {
 
 #[pymethods]
 impl Tracker {
-    /// A tracker with the parameters of `v2x-fuser track`.
+    /// A tracker with the parameters of `v2x-fuser track` (each left out: its default there).
     #[new]
-    #[pyo3(signature = (confirm_hits=2, max_misses=3, all_classes=false, time_scale=1.0, default_std=None, soft=false))]
+    #[pyo3(signature = (confirm_hits=None, max_misses=None, all_classes=false, time_scale=1.0, default_std=None, association=None))]
     fn new(
-        confirm_hits: u32,
-        max_misses: u32,
+        confirm_hits: Option<u32>,
+        max_misses: Option<u32>,
         all_classes: bool,
         time_scale: f64,
         default_std: Option<&str>,
-        soft: bool,
+        association: Option<&str>,
     ) -> PyResult<Self> {
-        let params = v2x_fuser::tracker::TrackerParams {
-            soft,
-            ..tracker_params(confirm_hits, max_misses, all_classes, time_scale)?
+        let d = TrackSettings::default();
+        let tracking = TrackSettings {
+            association: match association {
+                Some(a) => a
+                    .parse()
+                    .map_err(|e: v2x_protocol::UnknownName| PyValueError::new_err(e.to_string()))?,
+                None => d.association,
+            },
+            confirm_hits: confirm_hits.unwrap_or(d.confirm_hits),
+            max_misses: max_misses.unwrap_or(d.max_misses),
+            all_classes,
         };
+        let params = tracker_params(&tracking, time_scale)?;
         Ok(Tracker {
             inner: v2x_fuser::tracker::Tracker::new(params),
             tokens: TokenTable::new(),
@@ -60,7 +71,7 @@ impl Tracker {
 
     /// Steps the tracks with each agent's boxes (`agents[k]`, lists of results-file dicts)
     /// through the tracks, CSBA-3D with `method`'s parameters fusing the rest
-    /// (`v2x-fuser track --guided`); returns the tracked boxes as `step` does.
+    /// (`v2x-fuser track --association guided`); returns the tracked boxes as `step` does.
     fn step_agents<'py>(
         &mut self,
         py: Python<'py>,

@@ -59,7 +59,7 @@ def test_options_reach_the_fusion(generated, tmp_path):
     paths = [generated / a for a in AGENTS]
     flags = ("--no-compensation", "--window-ms", "50", "--learn-std", "--std-flag-ratio", "3")
     run("v2x-fuser", "fuse", *flags, "-o", tmp_path / "cli.json", *paths)
-    v.fuse_files(paths, tmp_path / "py.json", compensate=False, window_ms=50, learn_std=True, std_flag_ratio=3)
+    v.fuse_files(paths, tmp_path / "py.json", compensation=False, window_ms=50, learn_std=True, std_flag_ratio=3)
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
     v.fuse_files(paths, tmp_path / "default.json")
     assert load(tmp_path / "default.json") != load(tmp_path / "cli.json")
@@ -235,10 +235,14 @@ def test_bad_input_says_what_is_wrong(untimed):
         v.fuse_arrays([{k: x for k, x in good.items() if k != "yaw"}])
     with pytest.raises(ValueError, match=r"agents\[0\]\[.heading.\]: unknown key"):
         v.fuse_arrays([dict(good, heading=good["yaw"])])
-    with pytest.raises(ValueError, match="window_ms must be > 0"):
+    with pytest.raises(ValueError, match="window_ms: must be > 0"):
         v.fuse_results([load(untimed / "agent1.json")], window_ms=0)
-    with pytest.raises(TypeError, match="confirm_hits"):
+    with pytest.raises(ValueError, match=r"confirm_hits: a tracking option \(track_files takes it\)"):
         v.fuse_results([load(untimed / "agent1.json")], confirm_hits=3)
+    with pytest.raises(ValueError, match="unknown option 'compensate' .*compensation"):
+        v.fuse_results([load(untimed / "agent1.json")], compensate=False)
+    with pytest.raises(ValueError, match="min_score: 1.5 is not a chance"):
+        v.fuse_results([load(untimed / "agent1.json")], detector=True, min_score=1.5)
     with pytest.raises(ValueError, match=r"documents\[0\], field 'meta.v2x_timestamps'"):
         v.fuse_results([load(untimed / "agent1.json")], learn_std=True)
     with pytest.raises(ValueError, match="cannot read"):

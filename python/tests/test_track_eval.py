@@ -51,8 +51,10 @@ def test_the_tracker_stepped_over_the_fused_windows_equals_the_cli(cli):
 
 
 def test_the_tracker_checks_its_input():
-    with pytest.raises(ValueError, match="confirm_hits must be at least 1"):
+    with pytest.raises(ValueError, match="confirm_hits: must be at least 1"):
         v.Tracker(confirm_hits=0)
+    with pytest.raises(ValueError, match="unknown association 'hard'"):
+        v.Tracker(association="hard")
     with pytest.raises(ValueError, match="box 0, field 'size'"):
         v.Tracker(default_std="mild").step(0, [{"translation": [0, 0, 0], "size": [1, 1],
                                                 "rotation": [1, 0, 0, 0], "detection_name": "car",
@@ -100,8 +102,8 @@ def test_evaluate_says_what_is_wrong(cli, town):
 
 def test_through_the_tracks_equals_the_cli(generated, tmp_path):
     paths = [generated / a for a in AGENTS]
-    run("v2x-fuser", "track", "--guided", "-o", tmp_path / "cli.json", *paths)
-    report = v.track_files(paths, tmp_path / "py.json", guided=True)
+    run("v2x-fuser", "track", "--association", "guided", "-o", tmp_path / "cli.json", *paths)
+    report = v.track_files(paths, tmp_path / "py.json", association="guided")
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
     assert report["stats"]["births"] > 10
     # The tracker stepped with the agents' own boxes, window by window (the generated agents
@@ -116,8 +118,8 @@ def test_through_the_tracks_equals_the_cli(generated, tmp_path):
         assert [b["tracking_id"] for b in got] == [b["tracking_id"] for b in want], sample
         for g, w in zip(got, want):
             assert g["translation"] == pytest.approx(w["translation"], abs=1e-9)
-    with pytest.raises(TypeError, match="guided"):
-        v.fuse_files(paths, tmp_path / "x.json", guided=True)
+    with pytest.raises(ValueError, match="association: a tracking option"):
+        v.fuse_files(paths, tmp_path / "x.json", association="guided")
 
 
 def test_kitti_folders_track_as_the_cli_tracks_them(tmp_path):
@@ -153,7 +155,7 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
     assert load(tmp_path / "noisy.json") == load(tmp_path / "noisy_cli.json")
     noisy = sorted(b["detection_score"] for boxes in load(tmp_path / "noisy.json")["results"].values() for b in boxes)
     assert len(noisy) == 7 and abs(noisy[-1] - 0.96) < 1e-9
-    with pytest.raises(ValueError, match="min score"):
+    with pytest.raises(ValueError, match="min_score: 1.5 is not a chance"):
         v.fuse_files(paths, tmp_path / "x.json", detector=True, min_score=1.5)
     v.fuse_files(paths, tmp_path / "kept.json")
     kept = [b for boxes in load(tmp_path / "kept.json")["results"].values() for b in boxes]
@@ -163,24 +165,24 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
 
 
 def test_soft_association_equals_the_cli(cli, generated, tmp_path):
-    """``soft``: the same file as `v2x-fuser track --soft`, and the same ids window by window
-    from ``Tracker(soft=True)`` fed the fused boxes; not with ``guided``."""
+    """``association="soft"``: the same file as `v2x-fuser track --association soft`, and the
+    same ids window by window from ``Tracker(association="soft")`` fed the fused boxes."""
     paths = [generated / a for a in AGENTS]
-    run("v2x-fuser", "track", "--soft", "-o", tmp_path / "cli.json", *paths)
-    v.track_files(paths, tmp_path / "py.json", soft=True)
+    run("v2x-fuser", "track", "--association", "soft", "-o", tmp_path / "cli.json", *paths)
+    v.track_files(paths, tmp_path / "py.json", association="soft")
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
     assert load(cli / "tracks.json") != load(tmp_path / "cli.json")
     fused = load(cli / "fused.json")
     times = fused["meta"]["v2x_timestamps"]
     expected = load(tmp_path / "cli.json")["results"]
-    tracker = v.Tracker(soft=True)
+    tracker = v.Tracker(association="soft")
     for sample in sorted(fused["results"], key=lambda s: times[s]):
         got = tracker.step(times[sample], fused["results"][sample])
         want = expected[sample]
         assert [b["tracking_id"] for b in got] == [b["tracking_id"] for b in want], sample
         for g, w in zip(got, want):
             assert g["translation"] == pytest.approx(w["translation"], abs=1e-9), sample
-    with pytest.raises(ValueError, match="soft: not with guided"):
-        v.track_files(paths, tmp_path / "x.json", soft=True, guided=True)
-    with pytest.raises(TypeError, match="soft"):
-        v.fuse_files(paths, tmp_path / "x.json", soft=True)
+    with pytest.raises(ValueError, match="unknown variant `both`"):
+        v.track_files(paths, tmp_path / "x.json", association="both")
+    with pytest.raises(ValueError, match="unknown option 'soft'"):
+        v.track_files(paths, tmp_path / "x.json", soft=True)

@@ -231,65 +231,24 @@ def fuse_arrays(agents: Sequence[Mapping[str, Any]], method: str = "csba-wls+") 
     return _native.fuse_arrays([a if type(a) is dict else dict(a) for a in agents], method)
 
 
-def _options(
-    method: str = "csba-wls+",
-    default_std: Std = None,
-    compensate: bool = True,
-    speed_bound_mps: float = 15.0,
-    accel_std: float = 2.0,
-    time_scale: float = 1.0,
-    window_ms: float = 100.0,
-    align_to: Optional[int] = None,
-    detector: bool = False,
-    learn_std: bool = False,
-    std_flag_ratio: float = 2.0,
-    std_models: Optional[Mapping[str, PathLike]] = None,
-    existence_model: PathLike = "default",
-    min_score: float = 0.2,
-    confirm_hits: Optional[int] = None,
-    max_misses: int = 3,
-    all_classes: bool = False,
-    guided: bool = False,
-    soft: bool = False,
-) -> dict:
-    return {
-        "method": method,
-        "default_std": _std(default_std),
-        "compensate": compensate,
-        "speed_bound_mps": float(speed_bound_mps),
-        "accel_std": float(accel_std),
-        "time_scale": float(time_scale),
-        "window_ms": float(window_ms),
-        "align_to": align_to,
-        "detector": detector,
-        "learn_std": learn_std,
-        "std_flag_ratio": float(std_flag_ratio),
-        "std_models": {k: os.fspath(v) for k, v in (std_models or {}).items()},
-        "existence_model": os.fspath(existence_model),
-        "min_score": float(min_score),
-        "confirm_hits": confirm_hits,
-        "max_misses": max_misses,
-        "all_classes": all_classes,
-        "guided": guided,
-        "soft": soft,
-    }
-
-
-_TRACK_ONLY = ("confirm_hits", "max_misses", "all_classes", "guided", "soft")
-
-
-def _fuse_options(options: dict) -> dict:
-    for k in _TRACK_ONLY:
-        if k in options:
-            raise TypeError(f"unexpected keyword argument '{k}' (tracking takes it: track_files)")
-    return _options(**options)
+def _options(options: Mapping[str, Any]) -> dict:
+    """The keyword options as the native half reads them: the fuser's settings under their
+    scenario keys (docs/guide.md), paths as strings, ``default_std`` as its text."""
+    out = dict(options)
+    if "default_std" in out:
+        out["default_std"] = _std(out["default_std"])
+    if "existence_model" in out:
+        out["existence_model"] = os.fspath(out["existence_model"])
+    if out.get("std_models") is not None:
+        out["std_models"] = {k: os.fspath(v) for k, v in out["std_models"].items()}
+    return out
 
 
 def fuse_results(documents: Sequence[Mapping[str, Any]], method: str = "csba-wls+", **options: Any) -> tuple:
     """Fuses whole results documents in memory, one per agent, as ``fuse_files`` fuses files.
     Returns the fused document and the report (``fuse_files``)."""
     texts = [_dumps(d, f"documents[{k}]") for k, d in enumerate(documents)]
-    doc, report = _native.fuse_documents(texts, _fuse_options(dict(options, method=method)))
+    doc, report = _native.fuse_documents(texts, _options(dict(options, method=method)))
     return json.loads(doc), json.loads(report)
 
 
@@ -298,14 +257,14 @@ def fuse_files(
 ) -> dict:
     """Reads one results file per agent, fuses and writes ``output``: ``v2x-fuser fuse``.
 
-    Options (the CLI's flags): ``default_std``, ``compensate`` (False: ``--no-compensation``),
-    ``speed_bound_mps``, ``accel_std``, ``time_scale``, ``window_ms``, ``align_to`` (the reference
-    agent's index, 0-based; ``--align --align-to N+1``), ``detector`` (a detector's boxes:
-    ``--detector``), ``existence_model`` ("default", "noisy-or" or a model file:
-    ``--existence-model``), ``min_score`` (``--min-score``), ``learn_std``, ``std_flag_ratio``
-    and ``std_models`` ({"agentN": path}). Returns the report: samples, boxes in and out, whether
-    frames were grouped by capture time, registration and learned stds."""
-    opts = _fuse_options(dict(options, method=method))
+    Options: the fuser's settings under the names of a scenario's ``[fuser]`` table, each the
+    flag of its name (``window_ms``: ``--window-ms``; ``compensation=False``:
+    ``--no-compensation``; ``std_models`` {"agentN": path}; ``registration`` {key: value}),
+    with their defaults there (docs/guide.md), and ``default_std``, ``time_scale`` and
+    ``align_to`` (the reference agent's index, 0-based: ``--align --align-to N+1``). An unknown
+    key is an error that lists the known ones. Returns the report: samples, boxes in and out,
+    whether frames were grouped by capture time, registration and learned stds."""
+    opts = _options(dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, False))
 
 
@@ -313,32 +272,32 @@ def track_files(
     paths: Sequence[PathLike], output: PathLike, method: str = "csba-wls+", **options: Any
 ) -> dict:
     """Reads, fuses, tracks and writes a nuScenes tracking results file: ``v2x-fuser track``.
-    Takes ``fuse_files``' options and ``confirm_hits``, ``max_misses``, ``all_classes``,
-    ``guided`` (each agent's boxes through the tracks, ``--guided``) and ``soft`` (each track
-    updated with its boxes weighed by the chance each is its own, ``--soft``); returns the
-    windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
-    opts = _options(**dict(options, method=method))
+    Takes ``fuse_files``' options and the tracking ones: ``association`` ("assignment", "soft":
+    each track updated with its boxes weighed by the chance each is its own, or "guided": each
+    agent's boxes through the tracks), ``confirm_hits``, ``max_misses`` and ``all_classes``;
+    returns the windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
+    opts = _options(dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, True))
 
 
 class Tracker:
     """Follows fused boxes over time, window by window, as ``v2x-fuser track`` and the node's
-    ``--track`` do: a constant-velocity Kalman filter per track, gated likeliest-box association
-    (with ``soft``, each track updated with its boxes weighed by the chance each is its own,
-    ``--soft``), confirmation after ``confirm_hits`` and an end after ``max_misses`` missed
-    windows."""
+    ``--track`` do: an interacting-multiple-model Kalman filter per track, gated likeliest-box
+    association (with ``association="soft"``, each track updated with its boxes weighed by the
+    chance each is its own), confirmation after ``confirm_hits`` and an end after ``max_misses``
+    missed windows (each left out: ``v2x-fuser track``'s default)."""
 
     def __init__(
         self,
-        confirm_hits: int = 2,
-        max_misses: int = 3,
+        confirm_hits: Optional[int] = None,
+        max_misses: Optional[int] = None,
         all_classes: bool = False,
         time_scale: float = 1.0,
         default_std: Std = None,
-        soft: bool = False,
+        association: Optional[str] = None,
     ):
         self._inner = _native.Tracker(
-            confirm_hits, max_misses, all_classes, float(time_scale), _std(default_std), bool(soft)
+            confirm_hits, max_misses, all_classes, float(time_scale), _std(default_std), association
         )
 
     def step(self, t_us: int, boxes: Iterable[Mapping[str, Any]]) -> list:
@@ -350,7 +309,7 @@ class Tracker:
     def step_agents(self, t_us: int, agents: Sequence[Iterable[Mapping[str, Any]]], method: str = "csba-wls+") -> list:
         """Steps the tracks with each agent's boxes (``agents[k]``, brought to ``t_us``) through the
         tracks: CSBA-3D with ``method``'s parameters associates them with the tracks' predictions
-        and with each other (``v2x-fuser track --guided``, docs/method.md §8.1); returns the
+        and with each other (``v2x-fuser track --association guided``, docs/method.md §8.1); returns the
         tracked boxes as ``step`` does."""
         return self._inner.step_agents(int(t_us), [_list(a) for a in agents], method)
 

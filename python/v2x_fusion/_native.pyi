@@ -39,12 +39,12 @@ def evaluate_json(
 class Tracker:
     def __init__(
         self,
-        confirm_hits: int = 2,
-        max_misses: int = 3,
+        confirm_hits: Optional[int] = None,
+        max_misses: Optional[int] = None,
         all_classes: bool = False,
         time_scale: float = 1.0,
         default_std: Optional[str] = None,
-        soft: bool = False,
+        association: Optional[str] = None,
     ) -> None: ...
     def step(self, t_us: int, boxes: list[dict[str, Any]]) -> list[dict[str, Any]]: ...
     def step_agents(self, t_us: int, agents: list[list[dict[str, Any]]], method_name: str) -> list[dict[str, Any]]: ...

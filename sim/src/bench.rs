@@ -2,7 +2,7 @@
 //! lower bound, on one ground truth. Frames are independent, so they are scored in parallel;
 //! the noise of a frame depends only on (seed, agent, frame), so results do not depend on threads.
 
-use crate::dataset::{GroundTruth, GtObject};
+use crate::dataset::{GroundTruth, GtFrame};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
@@ -12,16 +12,23 @@ use crate::table::{
     Rows,
 };
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
+use fusers::Fusers;
 use rayon::prelude::*;
 use serde::Serialize;
 use v2x_fuser::intake::region::{self, Tiling};
-use v2x_fuser::time::align::{reference_agent, AlignParams, Aligner};
+use v2x_fuser::time::align::AlignParams;
 use v2x_fuser::tracker::{Tracked, Tracker, TrackerParams};
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
+pub mod asynchronous;
 mod by_state;
+pub mod dair;
+pub mod fusers;
+pub mod pr_plot;
+pub mod regions;
 mod tracking;
+pub mod v2v4real;
 pub(crate) use tracking::score_tracked;
 pub use tracking::{
     run_tracking, seed_summary, tracking_cells, LogSeeds, Scope, Scored, SeedSummary, SeedsReport,
@@ -88,12 +95,13 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
         let slots = n_agents + cfg.methods.len();
-        let accs = per_frame(gt, cfg, setting, slots, |accs, dets, objects| {
+        let accs = per_frame(gt, cfg, setting, slots, |accs, fusers, dets, frame| {
             for (a, d) in dets.iter().enumerate() {
-                accs[a].add_frame(objects, d);
+                accs[a].add_frame(&frame.objects, d);
             }
-            for (m, method) in cfg.methods.iter().enumerate() {
-                accs[n_agents + m].add_frame(objects, &method.fuse(dets));
+            for m in 0..cfg.methods.len() {
+                let fused = fusers.fuse(m, frame.timestamp_us, dets);
+                accs[n_agents + m].add_frame(&frame.objects, &fused);
             }
             tick();
         });
@@ -131,11 +139,12 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
     let mut rows = Vec::new();
     for setting in &cfg.settings {
         let slots = 2 * cfg.methods.len();
-        let accs = per_frame(gt, cfg, setting, slots, |accs, dets, objects| {
+        let accs = per_frame(gt, cfg, setting, slots, |accs, fusers, dets, frame| {
             for (m, method) in cfg.methods.iter().enumerate() {
-                accs[2 * m].add_frame(objects, &method.fuse(dets));
+                let one = fusers.fuse(m, frame.timestamp_us, dets);
+                accs[2 * m].add_frame(&frame.objects, &one);
                 let regional = region::fuse_regions(tiling, halo_m, method, dets);
-                accs[2 * m + 1].add_frame(objects, &regional);
+                accs[2 * m + 1].add_frame(&frame.objects, &regional);
             }
         });
         for (m, method) in cfg.methods.iter().enumerate() {
@@ -203,33 +212,31 @@ pub fn run_detection(
         let n_agents = setting.agents.len();
         let n_methods = cfg.methods.len();
         let slots = n_agents + n_methods * (1 + usize::from(align_with.is_some()));
-        // Scenes in parallel, each scene's frames in order: the aligner filters over windows.
-        let names: Vec<String> = (0..n_agents).map(|a| format!("agent{}", a + 1)).collect();
-        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        // Scenes in parallel, each scene's frames in order: registration filters over windows.
         let evals = in_order(
             scenes(gt).into_par_iter(),
             |frames| {
                 let mut evals = vec![DetectionEval::new(); slots];
-                let mut aligner = align_with.map(|p| Aligner::new(*p));
+                let mut plain = Fusers::new(&cfg.methods, n_agents, None);
+                let mut aligned = align_with.map(|p| Fusers::new(&cfg.methods, n_agents, Some(*p)));
                 for i in frames {
                     let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                    let objects = &gt.frames[i].objects;
+                    let (objects, t) = (&gt.frames[i].objects, gt.frames[i].timestamp_us);
                     for (a, d) in dets.iter().enumerate() {
                         evals[a].add_frame(objects, d);
                     }
-                    for (m, method) in cfg.methods.iter().enumerate() {
-                        evals[n_agents + m].add_frame(objects, &method.fuse(&dets));
+                    for m in 0..n_methods {
+                        evals[n_agents + m].add_frame(objects, &plain.fuse(m, t, &dets));
                     }
-                    if let Some(aligner) = &mut aligner {
-                        let kinds: Vec<_> = place_agents(&gt.frames[i], n_agents, cfg.seed)
+                    if let Some(aligned) = &mut aligned {
+                        let kinds = place_agents(&gt.frames[i], n_agents, cfg.seed)
                             .iter()
                             .map(|p| p.kind)
                             .collect();
-                        let t = Some(gt.frames[i].timestamp_us);
-                        let (aligned, _) = aligner.align(t, &names, &dets, reference_agent(&kinds));
-                        for (m, method) in cfg.methods.iter().enumerate() {
+                        aligned.set_kinds(kinds);
+                        for m in 0..n_methods {
                             let slot = n_agents + n_methods + m;
-                            evals[slot].add_frame(objects, &method.fuse(&aligned));
+                            evals[slot].add_frame(objects, &aligned.fuse(m, t, &dets));
                         }
                     }
                     tick();
@@ -285,16 +292,18 @@ fn per_frame(
     cfg: &BenchConfig,
     setting: &NoiseSetting,
     slots: usize,
-    add: impl Fn(&mut [Accumulator], &[Vec<Detection>], &[GtObject]) + Sync,
+    add: impl Fn(&mut [Accumulator], &mut Fusers, &[Vec<Detection>], &GtFrame) + Sync,
 ) -> Vec<Accumulator> {
     let frames: Vec<usize> = (0..gt.frames.len()).collect();
     in_order(
         frames.par_chunks(FRAMES_PER_TASK),
         |chunk| {
             let mut accs = vec![Accumulator::new(); slots];
+            // Frame by frame, without history: no step of these tables carries any.
+            let mut fusers = Fusers::new(&cfg.methods, setting.agents.len(), None);
             for &i in chunk {
                 let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                add(&mut accs, &dets, &gt.frames[i].objects);
+                add(&mut accs, &mut fusers, &dets, &gt.frames[i]);
             }
             accs
         },

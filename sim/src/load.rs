@@ -176,11 +176,11 @@ pub struct FrameBytes {
 /// many (the load is the point).
 fn fuser_config(args: &LoadArgs, ns: &str) -> anyhow::Result<NodeConfig> {
     let mut s = v2x_fuser::settings::FuserSettings {
-        method: args.method,
-        window_ms: 1000.0 / args.hz,
         max_wait_ms: 100.0,
         ..Default::default()
     };
+    s.fusion.method = args.method;
+    s.fusion.window_ms = 1000.0 / args.hz;
     s.admission.max_objects_per_agent = s.admission.max_objects_per_agent.max(args.objects);
     s.node_config(ns)
         .map_err(|e| anyhow::anyhow!(e.on_command_line()))

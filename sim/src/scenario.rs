@@ -140,8 +140,8 @@ impl FuserSpec {
     /// predictions scaled by it.
     pub fn node_config(&self, ns: &str, speed: f64) -> anyhow::Result<v2x_fuser::node::NodeConfig> {
         let mut s = self.settings.clone();
-        s.motion.time_scale = speed;
-        s.window_ms /= speed;
+        s.fusion.motion.time_scale = speed;
+        s.fusion.window_ms /= speed;
         s.node_config(ns).map_err(|e| anyhow::anyhow!("fuser.{e}"))
     }
 }
@@ -435,7 +435,7 @@ impl Scenario {
             }
         }
         if let Some(base) = base {
-            for (_, path) in &mut s.fuser.settings.stds.std_models {
+            for (_, path) in &mut s.fuser.settings.fusion.stds.std_models {
                 if path.is_relative() {
                     *path = base.join(&*path);
                 }
@@ -526,6 +526,7 @@ impl Scenario {
         let settings = &self.fuser.settings;
         settings.check().map_err(|e| anyhow!("fuser.{e}"))?;
         if let Some((a, _)) = settings
+            .fusion
             .stds
             .std_models
             .iter()
@@ -533,7 +534,11 @@ impl Scenario {
         {
             bail!("fuser.std_models: '{a}' is not an agent of this scenario");
         }
-        settings.stds.models().map_err(|e| anyhow!("fuser.{e}"))?;
+        settings
+            .fusion
+            .stds
+            .models()
+            .map_err(|e| anyhow!("fuser.{e}"))?;
         Ok(())
     }
 
@@ -591,7 +596,7 @@ impl Scenario {
             return Ok(());
         };
         r.check(self.security.mode)?;
-        if self.fuser.settings.align.align {
+        if self.fuser.settings.fusion.align.align {
             bail!("regions: fuser.align needs one fuser");
         }
         if !fuser_restarts(&self.events).is_empty() {
@@ -637,13 +642,14 @@ impl Scenario {
 
     /// The fusion method.
     pub fn method(&self) -> Method {
-        self.fuser.settings.method
+        self.fuser.settings.fusion.method
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use v2x_fuser::tracker::Association;
 
     #[test]
     fn default_and_examples_parse() {
@@ -712,7 +718,7 @@ mod tests {
             None,
         )
         .unwrap();
-        let p = s.fuser.settings.align.registration.params().unwrap();
+        let p = s.fuser.settings.fusion.align.registration.params().unwrap();
         assert_eq!((p.chi2, p.min_matches), (30.0, 5));
         assert_eq!(
             p.tau_s,
@@ -739,26 +745,22 @@ mod tests {
             .contains("fuser.area: the area's radius must be finite and > 0"));
         assert!(bad(&format!("[fuser]\nmax_objects_per_agent = 0\n{agent}"))
             .contains("fuser.max_objects_per_agent"));
-        assert!(bad(&format!("[fuser]\ntrack_guided = true\n{agent}"))
-            .contains("fuser.track_guided: set track too"));
-        let guided = Scenario::parse(
-            &format!("[fuser]\ntrack = true\ntrack_guided = true\n{agent}"),
-            "x.toml",
-            None,
-        )
-        .unwrap();
-        assert!(guided.fuser.settings.track.track_guided);
+        assert!(bad(&format!("[fuser]\nassociation = \"guided\"\n{agent}"))
+            .contains("fuser.association: set track too"));
         assert!(bad(&format!(
-            "[fuser]\ntrack = true\ntrack_guided = true\ntrack_soft = true\n{agent}"
+            "[fuser]\ntrack = true\nassociation = \"by-id\"\n{agent}"
         ))
-        .contains("fuser.track_soft: not with track_guided"));
-        let soft = Scenario::parse(
-            &format!("[fuser]\ntrack = true\ntrack_soft = true\n{agent}"),
-            "x.toml",
-            None,
-        )
-        .unwrap();
-        assert!(soft.fuser.settings.track.params().unwrap().unwrap().soft);
+        .contains("unknown variant `by-id`, expected one of `assignment`, `soft`, `guided`"));
+        for mode in Association::CHOICES {
+            let s = Scenario::parse(
+                &format!("[fuser]\ntrack = true\nassociation = \"{mode}\"\n{agent}"),
+                "x.toml",
+                None,
+            )
+            .unwrap();
+            let p = s.fuser.settings.tracker().unwrap().unwrap();
+            assert_eq!(p.association.mode, mode);
+        }
         let s = Scenario::parse(
             &format!("[fuser]\narea = [5, 6, 70]\n{agent}"),
             "x.toml",
@@ -827,6 +829,6 @@ mod tests {
         );
         assert_eq!(n.agents[2].faults, Faults::NONE);
         assert_eq!(n.agents[2].std, AgentNoise::realistic().std);
-        assert!(!s.fuser.settings.align.align);
+        assert!(!s.fuser.settings.fusion.align.align);
     }
 }

@@ -1,55 +1,11 @@
-//! What the command line adds to the fuser's settings (`v2x_fuser::settings`): the region a
-//! node serves, and how `fuse` and `track` name their inputs' models and read missing stds.
+//! What the command line adds to the fuser's settings (`v2x_fuser::settings`): errors by flag,
+//! the learned stds' report and the region a node serves.
 
-use v2x_fuser::settings::{SettingsError, StdSettings};
-use v2x_protocol::nuscenes_json::MissingStd;
+use v2x_fuser::settings::SettingsError;
 
 /// A setting's error, by its flag.
 pub(crate) fn flag_error(e: SettingsError) -> anyhow::Error {
     anyhow::anyhow!(e.on_command_line())
-}
-
-/// The models by input position, for files: AGENT must be agentN with 1 <= N <= `inputs`.
-pub(crate) fn models_by_input(
-    stds: &StdSettings,
-    inputs: usize,
-) -> anyhow::Result<std::collections::BTreeMap<usize, v2x_fuser::uncertainty::stdmodel::ErrorModel>>
-{
-    stds.models()
-        .map_err(flag_error)?
-        .0
-        .into_iter()
-        .map(|(agent, m)| {
-            let n = agent
-                .strip_prefix("agent")
-                .and_then(|n| n.parse::<usize>().ok())
-                .filter(|n| (1..=inputs).contains(n))
-                .ok_or_else(|| {
-                    anyhow::anyhow!(
-                        "--std-model {agent}: name the input as agentN, N from 1 to {inputs} (its position)"
-                    )
-                })?;
-            Ok((n - 1, m))
-        })
-        .collect()
-}
-
-/// What to do with a box that states no std: the default given, else the learner's prior when
-/// learning or when every one of the `inputs` has a model (which replaces the stds), else an
-/// error.
-pub(crate) fn missing(
-    stds: &StdSettings,
-    default_std: Option<v2x_protocol::Uncertainty>,
-    inputs: usize,
-) -> MissingStd {
-    let replaced = stds.learn_std || (inputs > 0 && stds.std_models.len() >= inputs);
-    match (default_std, replaced) {
-        (Some(u), _) => MissingStd::Default(u),
-        (None, true) => {
-            MissingStd::Default(v2x_fuser::uncertainty::learn::LearnParams::default().prior)
-        }
-        (None, false) => MissingStd::Error,
-    }
 }
 
 /// Prints what was learned of each agent's stds.

@@ -25,7 +25,7 @@ pub fn track_results(
     if agents.is_empty() || !agents.iter().all(|r| capture_times(r).is_some()) {
         return Err(FilesError::NoCaptureTimes);
     }
-    if params.guided {
+    if params.guided() {
         return Ok(track_through(method, agents, opts, params));
     }
     let fused = fuse_results(method, agents, opts);

@@ -70,7 +70,9 @@ impl Tracker {
                 let b = &lists[k][j];
                 // CSBA-3D's gate is the looser, and its matching the largest: a box beyond the
                 // tracker's own gate is another object's, and waits for the second pass.
-                if distance(&self.tracks[i], b).is_none_or(|(d2, _)| d2 > self.params.gate) {
+                if distance(&self.tracks[i], b)
+                    .is_none_or(|(d2, _)| d2 > self.params.association.gate)
+                {
                     left[k - 1].push(j);
                     continue;
                 }
@@ -131,7 +133,9 @@ impl Tracker {
                     if took[i][a] || b.class != t.class {
                         continue;
                     }
-                    if let Some((d2, ln_det)) = distance(t, b).filter(|d| d.0 <= self.params.gate) {
+                    if let Some((d2, ln_det)) =
+                        distance(t, b).filter(|d| d.0 <= self.params.association.gate)
+                    {
                         edges.push(Edge::new(i, n, d2 + ln_det));
                     }
                 }
@@ -156,7 +160,7 @@ impl Tracker {
             &mut self.tracks[i],
             b,
             if hit[i] { 0.0 } else { dt },
-            &self.params,
+            &self.params.motion,
         );
         hit[i] = true;
         let v = b.total_variance();

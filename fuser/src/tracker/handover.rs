@@ -93,8 +93,8 @@ impl Handover {
         let Some(now) = tracker.last_us else {
             return 0;
         };
-        let scale = tracker.params.time_scale;
-        let max_gap = tracker.params.max_gap_s;
+        let scale = tracker.params.motion.time_scale;
+        let max_gap = tracker.params.management.max_gap_s;
         let mut taken = 0;
         for (tile, heard) in &self.heard {
             let dt = (now as f64 - heard.t_us as f64) / 1e6 * scale;
@@ -191,7 +191,7 @@ pub fn step_region(
     lists: &[Vec<Detection>],
     method: &Method,
 ) -> Vec<Tracked> {
-    let mut out = if tracker.params.guided {
+    let mut out = if tracker.params.guided() {
         tracker.step_agents(t_us, lists, method)
     } else {
         tracker.step(t_us, fused)
@@ -267,7 +267,7 @@ impl RegionalTrackers {
                 handover.adopt(tracker);
             }
             let input = region.input(agents);
-            let fused = if self.params.guided {
+            let fused = if self.params.guided() {
                 Vec::new()
             } else {
                 method.fuse(&input)

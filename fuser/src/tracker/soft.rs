@@ -103,7 +103,7 @@ impl Tracker {
                 continue;
             }
             let z = mixture(boxes, row, beta);
-            update(&mut self.tracks[i], &z, dt, &self.params);
+            update(&mut self.tracks[i], &z, dt, &self.params.motion);
             hit[i] = true;
         }
         let taken = best
@@ -116,7 +116,7 @@ impl Tracker {
 
     /// Step 1: psi_ij of every (track, box) pair of the same class inside the gate.
     fn ratios(&self, boxes: &[Detection]) -> Ratios {
-        let p = &self.params;
+        let p = &self.params.association;
         let odds = p.detect_prob / ((1.0 - p.detect_prob) * p.new_density);
         let ln_2pi = (2.0 * std::f64::consts::PI).ln();
         // An edge's cost is d^2 + ln det S.
@@ -188,7 +188,7 @@ fn mixture(boxes: &[Detection], row: &[(usize, f64)], beta: &[f64]) -> Detection
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Tracked, TrackerParams};
+    use super::super::{Association, Tracked, TrackerParams};
     use super::*;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
@@ -344,10 +344,11 @@ mod tests {
     /// Runs both trackers over `frames` of boxes at 10 Hz; their outputs per frame.
     fn both(frames: &[Vec<Detection>]) -> [Vec<Vec<Tracked>>; 2] {
         [false, true].map(|soft| {
-            let mut tr = Tracker::new(TrackerParams {
-                soft,
-                ..Default::default()
-            });
+            let mut tr = Tracker::new(TrackerParams::with_mode(if soft {
+                Association::Soft
+            } else {
+                Association::Assignment
+            }));
             frames
                 .iter()
                 .enumerate()

@@ -187,10 +187,8 @@ fn classes_do_not_mix() {
 #[test]
 fn a_faster_replay_is_tracked_in_data_time() {
     // The same motion, (5, 2) m/s, replayed 4x faster: windows 25 ms apart on the wall clock.
-    let params = TrackerParams {
-        time_scale: 4.0,
-        ..Default::default()
-    };
+    let mut params = TrackerParams::default();
+    params.motion.time_scale = 4.0;
     let mut tr = Tracker::new(params);
     let mut out = Vec::new();
     for k in 0..40u64 {
@@ -228,10 +226,11 @@ fn by_id_follows_the_true_ids_where_the_likelihood_follows_the_boxes() {
         [a, b]
     };
     let run = |by_id: bool| {
-        let mut tr = Tracker::new(TrackerParams {
-            by_id,
-            ..Default::default()
-        });
+        let mut tr = Tracker::new(TrackerParams::with_mode(if by_id {
+            Association::ById
+        } else {
+            Association::Assignment
+        }));
         (0..10u64)
             .map(|k| {
                 let mut out = tr.step(k * HZ10, &boxes(k));
@@ -261,10 +260,7 @@ fn by_id_follows_the_true_ids_where_the_likelihood_follows_the_boxes() {
 
 #[test]
 fn by_id_never_matches_a_box_without_an_id() {
-    let mut tr = Tracker::new(TrackerParams {
-        by_id: true,
-        ..Default::default()
-    });
+    let mut tr = Tracker::new(TrackerParams::with_mode(Association::ById));
     for k in 0..5u64 {
         assert!(tr.step(k * HZ10, &[car(0.0, 0.0, 0.0)]).is_empty());
     }
@@ -285,10 +281,9 @@ fn only_the_tracking_classes_are_followed_unless_asked() {
         (false, vec![Class::Car]),
         (true, vec![Class::Car, Class::TrafficCone, Class::Barrier]),
     ] {
-        let mut tr = Tracker::new(TrackerParams {
-            all_classes,
-            ..Default::default()
-        });
+        let mut params = TrackerParams::default();
+        params.management.all_classes = all_classes;
+        let mut tr = Tracker::new(params);
         let mut out = Vec::new();
         for k in 0..5 {
             out = tr.step(k * HZ10, &boxes(k));
@@ -330,11 +325,9 @@ fn with_one_acceleration_for_both_models_the_mixture_is_one_kalman_filter() {
     // A box at the origin (1 m std, no velocity) starts P = diag(1, 1, 100, 100); one second
     // of a car's 2 m/s^2 (q = 4) gives P_xx = 1 + 100 + q/4 = 102, P_xvx = 100 + q/2 = 102; a
     // box at (1, 0) then gains K_x = 102 / (102 + 1) and K_vx = 102 / 103.
-    let params = TrackerParams {
-        quiet_accel_std: 2.0,
-        confirm_hits: 1,
-        ..Default::default()
-    };
+    let mut params = TrackerParams::default();
+    params.motion.quiet_accel_std = 2.0;
+    params.management.confirm_hits = 1;
     let mut tr = Tracker::new(params);
     let one = |x: f64| Detection {
         center: [x, 0.0, 1.0],
@@ -401,10 +394,9 @@ fn at_two_hertz_the_quiet_model_follows_a_steady_object_closer() {
         sum / 400.0
     };
     let mixed = err(TrackerParams::default());
-    let agile = err(TrackerParams {
-        quiet_accel_std: 2.0,
-        ..Default::default()
-    });
+    let mut agile = TrackerParams::default();
+    agile.motion.quiet_accel_std = 2.0;
+    let agile = err(agile);
     assert!(
         mixed < 0.93 * agile,
         "mixture {mixed} m, agile alone {agile} m"
@@ -415,10 +407,8 @@ fn at_two_hertz_the_quiet_model_follows_a_steady_object_closer() {
 fn boxes_below_the_operating_point_are_not_output_but_the_track_goes_on() {
     // A car whose boxes score 0.3 while the output's operating point is 0.2: shown; coasting at
     // half its score (0.15): not shown, yet the track lives and keeps its id when boxes return.
-    let params = TrackerParams {
-        min_score: 0.2,
-        ..TrackerParams::default()
-    };
+    let mut params = TrackerParams::default();
+    params.management.min_score = 0.2;
     let mut tr = Tracker::new(params);
     let b = |x: f64| Detection {
         score: 0.3,

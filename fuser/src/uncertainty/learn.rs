@@ -69,9 +69,10 @@ impl Default for LearnParams {
             prior_velocity: NoiseProfile::Large.velocity_std(),
             max_span_s: 1.0,
             flag_ratio: 2.0,
-            tracker: TrackerParams {
-                all_classes: true,
-                ..TrackerParams::default()
+            tracker: {
+                let mut p = TrackerParams::default();
+                p.management.all_classes = true;
+                p
             },
         }
     }

@@ -4,6 +4,7 @@
 
 use super::*;
 use std::fmt;
+use v2x_fuser::tracker::Association;
 
 /// What a row of the tracking tables scores; written as its label (`csba-wls+ guided regions`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,10 +114,8 @@ pub fn run_tracking(
         let slots = Slots::new(n_agents, &cfg.methods).total;
         // Every class is tracked, so that the tracked rows' detection columns compare with the
         // single-frame rows'; the tracking columns score the tracking classes alone.
-        let params = TrackerParams {
-            all_classes: true,
-            ..params
-        };
+        let mut params = params;
+        params.management.all_classes = true;
         let (accs, evals) = in_order(
             scenes(gt).into_par_iter(),
             |frames| track_scene(gt, &frames, setting, cfg, params, gt_wls),
@@ -210,12 +209,11 @@ fn track_scene(
     let mut evals = vec![TrackingEval::new(); slots];
     let mut trackers = vec![Tracker::new(params); slots];
     if gt_wls.is_some() {
-        let by_id = TrackerParams {
-            by_id: true,
-            ..params
-        };
+        let mut by_id = params;
+        by_id.association.mode = Association::ById;
         trackers[slots - 2] = Tracker::new(by_id);
     }
+    let mut fusers = super::Fusers::new(&cfg.methods, setting.agents.len(), None);
     let scene = gt.frames[frames[0]].scene;
     for &i in frames {
         let f = &gt.frames[i];
@@ -228,7 +226,9 @@ fn track_scene(
             let out = trackers[a].step(t, d);
             tracked(a, out);
         }
-        let fused: Vec<Vec<Detection>> = cfg.methods.iter().map(|m| m.fuse(&dets)).collect();
+        let fused: Vec<Vec<Detection>> = (0..cfg.methods.len())
+            .map(|m| fusers.fuse(m, t, &dets))
+            .collect();
         for (m, fused) in fused.iter().enumerate() {
             let slot = layout.method[m];
             let out = trackers[slot + 1].step(t, fused);

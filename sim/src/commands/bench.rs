@@ -6,6 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
+use v2x_fuser::tracker::Association;
 use v2x_fuser::Method;
 use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::cli::DataArgs;
@@ -79,12 +80,11 @@ pub struct BenchArgs {
     /// the boxes allow a frame at a time.
     #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
     pub tracking: bool,
-    /// With --tracking (also with --tile-size, and --dataset v2v4real): the tracked rows update
-    /// each track with its boxes weighed by the chance each is its own (`v2x-fuser track
-    /// --soft`, docs/method.md §8.2) instead of the one box of the best assignment; guided rows
-    /// are unchanged.
-    #[arg(long)]
-    pub soft: bool,
+    /// With --tracking (also with --tile-size, and --dataset v2v4real): how the tracked rows'
+    /// boxes reach their tracks, as `v2x-fuser track --association` (assignment or soft;
+    /// docs/method.md §8.2); the guided rows are printed beside them either way.
+    #[arg(long, value_name = "assignment|soft", default_value_t = Association::default(), value_parser = fused_association)]
+    pub association: Association,
     /// Instead of Table 2: each method as one fuser and as regional fusers, one per tile of
     /// this side (m) that some box lies in, each fusing its tile and a --halo around it and
     /// keeping the boxes centred in its tile; the two rows should agree. With --tracking:
@@ -228,7 +228,7 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     };
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
     let start = Instant::now();
-    let rows = v2x_sim::dair_bench::run(&d, &methods, &setting, args.seed, args.range);
+    let rows = v2x_sim::bench::dair::run(&d, &methods, &setting, args.seed, args.range);
     let what = format!(
         "noise {setting} over each side's own labels, seed {}",
         args.seed
@@ -266,16 +266,16 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     }
     let methods = real_data_methods(&args.methods)?;
     let start = Instant::now();
-    let sources = v2x_sim::v2v4real_bench::sources(&d, &methods);
-    let rows = v2x_sim::v2v4real_bench::run(&d, &sources);
+    let sources = v2x_sim::bench::v2v4real::sources(&d, &methods);
+    let rows = v2x_sim::bench::v2v4real::run(&d, &sources);
     let detection_s = start.elapsed().as_secs_f64();
     if let Some(dir) = &args.plots {
-        let written = v2x_sim::v2v4real_bench::write_plots(&rows, dir)
+        let written = v2x_sim::bench::v2v4real::write_plots(&rows, dir)
             .with_context(|| format!("--plots: cannot write into {}", dir.display()))?;
         eprintln!("{}: {} plots", dir.display(), written.len());
     }
     if let Some(dir) = &args.write_rows {
-        for (dir, n) in v2x_sim::v2v4real_bench::write_rows(&d, &sources, dir)? {
+        for (dir, n) in v2x_sim::bench::v2v4real::write_rows(&d, &sources, dir)? {
             eprintln!("{}: {n} rows", dir.display());
         }
     }
@@ -295,11 +295,11 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
     for m in &track_methods {
         for guided in [false, true] {
             let params = tracker_params(args).with_guided(guided);
-            tracked.push(v2x_sim::v2v4real_bench::tracked(&d, &cars, m, params)?);
+            tracked.push(v2x_sim::bench::v2v4real::tracked(&d, &cars, m, params)?);
         }
     }
-    tracked.push(v2x_sim::v2v4real_bench::ceiling(&d));
-    let report = v2x_sim::v2v4real_bench::Report {
+    tracked.push(v2x_sim::bench::v2v4real::ceiling(&d));
+    let report = v2x_sim::bench::v2v4real::Report {
         detection: rows,
         tracking: tracked,
         tracking_heading: format!(
@@ -333,7 +333,7 @@ fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Res
     let default = Method::default().name();
     let cfg = paper_settings(methods, &default, noise, args.seed, args.range)?;
     let start = Instant::now();
-    let rows = v2x_sim::region_bench::run_region_tracking(
+    let rows = v2x_sim::bench::regions::run_region_tracking(
         gt,
         &cfg,
         tiling,
@@ -442,11 +442,18 @@ fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The tracker of the tracking tables (`--soft`).
+/// The tracker of the tracking tables (`--association`).
 fn tracker_params(args: &BenchArgs) -> v2x_fuser::tracker::TrackerParams {
-    v2x_fuser::tracker::TrackerParams {
-        soft: args.soft,
-        ..Default::default()
+    v2x_fuser::tracker::TrackerParams::with_mode(args.association)
+}
+
+/// A mode of the fused boxes' tracks: the bench prints the guided rows beside them.
+fn fused_association(s: &str) -> Result<Association, String> {
+    match s.parse::<Association>().map_err(|e| e.to_string())? {
+        Association::Guided => Err(
+            "the guided rows are printed beside the tracked ones: give assignment or soft".into(),
+        ),
+        mode => Ok(mode),
     }
 }
 
@@ -506,7 +513,7 @@ fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
         range,
     };
     let start = Instant::now();
-    let rows = v2x_sim::asyncbench::run(gt, &cfg, &setting);
+    let rows = v2x_sim::bench::asynchronous::run(gt, &cfg, &setting);
     let heading = format!(
         "{} ; noise {setting}, seed {seed}; {:.1} s",
         data.describe(gt),

@@ -166,14 +166,14 @@ fn dair_eval(
             1.0, 1.0, 1.0,
         )),
     )?;
-    let (dair, scored) = v2x_sim::dair_bench::score_results(d, &results, all_frames);
+    let (dair, scored) = v2x_sim::bench::dair::score_results(d, &results, all_frames);
     eprintln!(
         "DAIR-V2X protocol over {scored} pairs, in the vehicle's frame within its evaluation range"
     );
     let Evaluation::Distance(detection) = evaluation else {
         bail!("{}: DAIR-V2X boxes carry no ground-truth ids: score them with --match distance (or auto)", pred.display());
     };
-    let rows = [v2x_sim::dair_bench::DairRow {
+    let rows = [v2x_sim::bench::dair::DairRow {
         method: pred.display().to_string(),
         detection,
         dair,
@@ -233,13 +233,13 @@ fn v2v4real(
         );
     }
     if tracking {
-        let row = v2x_sim::v2v4real_bench::score_track_dir(&d, dir)?;
+        let row = v2x_sim::bench::v2v4real::score_track_dir(&d, dir)?;
         match format {
             Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
             _ => print!("{}", [row][..].table()),
         }
     } else {
-        let m = v2x_sim::v2v4real_bench::score_detection_dir(&d, dir)?;
+        let m = v2x_sim::bench::v2v4real::score_detection_dir(&d, dir)?;
         match format {
             Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
             _ => println!(

@@ -273,7 +273,6 @@ pub fn summarize(
         .fuser
         .settings
         .track
-        .track
         .then(|| tracking_metrics(gt, schedule, outcome, &covered));
     let border_switches = scenario.regions.as_ref().and_then(|r| {
         let tiling = r.tiling();
@@ -824,7 +823,7 @@ mod tests {
     /// [`tracked_with`] in the scenario `toml`.
     fn tracked_in(toml: &str, id: impl Fn(u32, usize) -> u32) -> Summary {
         let mut scenario = Scenario::parse(toml, "scenario", None).unwrap();
-        scenario.fuser.settings.track.track = true;
+        scenario.fuser.settings.track = true;
         let (gt, schedule) = town();
         let mut outcome = FuserOutcome::default();
         for (k, &gi) in schedule.frames.iter().enumerate() {

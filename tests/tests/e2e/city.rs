@@ -17,7 +17,7 @@ fn city(seconds: f64) -> v2x_sim::scenario::Scenario {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_city_of_four_regions_scores_as_one_fuser() {
     let mut scenario = city(4.0);
-    scenario.fuser.settings.track.track = true;
+    scenario.fuser.settings.track = true;
     let gt = scenario.dataset.data_args().load().unwrap();
     let (_keep, stop) = tokio::sync::watch::channel(false);
     let (city, outcome, regions) = within(

@@ -330,7 +330,7 @@ fn track_then_score_tracks_and_boxes() {
     assert!(tracked < 0.9 * fused, "tracked {tracked} fused {fused}");
     // Through the tracks: as good a tracker here, and as close to the truth.
     let (ok, _, err) = run(Command::new(bin("v2x-fuser"))
-        .args(["track", "--guided", "--output"])
+        .args(["track", "--association", "guided", "--output"])
         .arg(dir.join("guided.json"))
         .args(&agents));
     assert!(ok && err.contains("tracks confirmed"), "{err}");

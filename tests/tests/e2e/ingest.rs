@@ -509,10 +509,7 @@ async fn tracks_through_the_tracks_on_their_key() {
 /// agent's boxes through the tracks): tracks frames on their key, two tracks with stable ids.
 async fn tracks_on_their_key(ns: &'static str, guided: bool) {
     let mut c = cfg(ns, 300.0);
-    c.track = Some(v2x_fuser::tracker::TrackerParams {
-        guided,
-        ..Default::default()
-    });
+    c.track = Some(v2x_fuser::tracker::TrackerParams::default().with_guided(guided));
     let mut s = setup(ns, c).await;
     let sub = s.sa.declare_subscriber(keys::tracks(ns)).await.unwrap();
     let mut last = 0;

@@ -152,10 +152,7 @@ fn crossing(handover: bool, guided: bool, seed: u64) -> (Vec<BTreeSet<u32>>, boo
     use rand_distr::{Distribution, StandardNormal};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let cars = 6;
-    let params = TrackerParams {
-        guided,
-        ..TrackerParams::default()
-    };
+    let params = TrackerParams::default().with_guided(guided);
     let mut regions = RegionalTrackers::new(tiling(), 30.0, params, handover);
     let mut ids = vec![BTreeSet::new(); cars];
     let mut twice = false;

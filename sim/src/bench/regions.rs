@@ -105,11 +105,8 @@ fn scene(
     let mut ways: Vec<Way> = (0..slots)
         .map(|slot| {
             let (guided, scope) = WAYS[slot % WAYS.len()];
-            let params = TrackerParams {
-                all_classes: true,
-                ..base
-            }
-            .with_guided(guided);
+            let mut params = base.with_guided(guided);
+            params.management.all_classes = true;
             let regions = |handover| RegionalTrackers::new(tiling, halo_m, params, handover);
             match scope {
                 Scope::One => Way::One(Tracker::new(params)),
@@ -151,10 +148,11 @@ mod tests {
         let (gt, cfg) = crate::bench::tracking_case(&["csba-wls+", "gt-wls"], "moderate");
         let tiling = Tiling::new(50.0).unwrap();
         for soft in [false, true] {
-            let params = TrackerParams {
-                soft,
-                ..Default::default()
-            };
+            let params = TrackerParams::with_mode(if soft {
+                v2x_fuser::tracker::Association::Soft
+            } else {
+                v2x_fuser::tracker::Association::Assignment
+            });
             let rows = run_region_tracking(&gt, &cfg, tiling, 30.0, params);
             let names: Vec<String> = rows.iter().map(|r| r.method.to_string()).collect();
             assert_eq!(

@@ -20,7 +20,7 @@ use v2x_eval::v2v4real_eval::{Ordering, V2v4realEval, V2v4realMetrics, RANGES, T
 use v2x_fuser::maths::baselines::nms;
 use v2x_fuser::maths::geometry::{bev_iou, iou_3d};
 use v2x_fuser::offline::{fuse_step, read_inputs, track_sequences, FilesError, OfflineOptions};
-use v2x_fuser::tracker::TrackerParams;
+use v2x_fuser::tracker::{Association, TrackerParams};
 use v2x_fuser::uncertainty::detector::DetectorParams;
 use v2x_fuser::Method;
 use v2x_protocol::kitti::{self, KittiError};
@@ -43,7 +43,7 @@ pub struct V2v4realRow {
     pub cpm_bytes_per_frame: Option<f64>,
     /// Precision-recall curves, BEV at 0.5 and 0.7 in both orderings (thinned).
     #[serde(skip)]
-    pub curves: Vec<crate::pr_plot::Line>,
+    pub curves: Vec<crate::bench::pr_plot::Line>,
 }
 
 /// The score the late-fusion rule's cut row drops boxes below.
@@ -212,10 +212,10 @@ pub fn tracked(
     let name = format!(
         "{} {}",
         method.name(),
-        match (params.guided, params.soft) {
-            (true, _) => "guided",
-            (false, true) => "tracked soft",
-            (false, false) => "tracked",
+        match params.association.mode {
+            Association::Guided => "guided",
+            Association::Soft => "tracked soft",
+            _ => "tracked",
         }
     );
     Ok(row(name, d, &seqs))
@@ -467,15 +467,15 @@ impl Slots {
 
 /// The BEV precision-recall curves of a row at 0.5 and 0.7, frame order solid, global sort
 /// dashed, each thinned to 400 points.
-fn curves(eval: &V2v4realEval) -> Vec<crate::pr_plot::Line> {
+fn curves(eval: &V2v4realEval) -> Vec<crate::bench::pr_plot::Line> {
     let mut out = Vec::new();
     for o in Ordering::ALL {
         for (t, colour) in [(0.5, "#1f77b4"), (0.7, "#d62728")] {
-            out.push(crate::pr_plot::Line {
+            out.push(crate::bench::pr_plot::Line {
                 label: format!("BEV @{t}, {}", o.name()),
                 colour,
                 dashed: o == Ordering::Global,
-                points: crate::pr_plot::thin(&eval.curve(View::Bev, t, o), 400),
+                points: crate::bench::pr_plot::thin(&eval.curve(View::Bev, t, o), 400),
             });
         }
     }
@@ -489,7 +489,7 @@ pub fn write_plots(rows: &[V2v4realRow], dir: &Path) -> std::io::Result<Vec<Path
     rows.iter()
         .map(|r| {
             let path = dir.join(format!("{}.svg", slug(&r.method)));
-            std::fs::write(&path, crate::pr_plot::svg(&r.method, &r.curves))?;
+            std::fs::write(&path, crate::bench::pr_plot::svg(&r.method, &r.curves))?;
             Ok(path)
         })
         .collect()

@@ -97,6 +97,7 @@ pub fn run(
         frames.par_chunks(FRAMES_PER_TASK),
         |chunk| {
             let mut s = Slots::new(n);
+            let mut fusers = crate::bench::fusers::Fusers::new(methods, 2, None);
             for &i in chunk {
                 let agents: Vec<Vec<Detection>> = (0..2)
                     .map(|a| d.detections(a, i, &setting.agents[a], seed, range))
@@ -113,8 +114,8 @@ pub fn run(
                 for (a, dets) in agents.iter().enumerate() {
                     score(a, dets);
                 }
-                for (m, method) in methods.iter().enumerate() {
-                    score(2 + m, &method.fuse(&agents));
+                for m in 0..methods.len() {
+                    score(2 + m, &fusers.fuse(m, d.capture_us(0, i), &agents));
                 }
                 for (a, dets) in agents.iter().enumerate() {
                     s.bytes[a] += wire_bytes(a, d.capture_us(a, i), dets);
