@@ -63,7 +63,7 @@ fn bench_methods(c: &mut Criterion) {
         .sample_size(30);
     for noise in [NoiseProfile::Mild, NoiseProfile::Large] {
         let s = scene(80, 2, noise, 3);
-        for m in Method::all() {
+        for m in Method::all_with_ablations() {
             group.bench_with_input(BenchmarkId::new(m.name(), noise.name()), &s, |b, s| {
                 b.iter(|| black_box(m.fuse(black_box(s))))
             });

@@ -12,7 +12,7 @@ use v2x_fuser::METHODS;
 
 fn methods_help() -> String {
     let mut s = String::from("Methods:\n");
-    for m in METHODS {
+    for m in METHODS.iter().filter(|m| !m.ablation) {
         s.push_str(&format!("  {:<16} {}\n", m.name, m.about));
     }
     s

@@ -44,6 +44,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "METHODS",
         v2x_fuser::METHODS
             .iter()
+            .filter(|m| !m.ablation)
             .map(|m| (m.name.to_string(), m.about.to_string()))
             .collect::<Vec<_>>(),
     )?;

@@ -54,6 +54,9 @@ pub struct Named {
     pub about: &'static str,
     /// The method.
     pub method: Method,
+    /// An ablation: a row of `v2x-sim bench` (`--methods NAME`), not a choice of the fuser's
+    /// commands, scenarios or Python, since it wins nowhere.
+    pub ablation: bool,
 }
 
 const fn named(name: &'static str, about: &'static str, method: Method) -> Named {
@@ -61,6 +64,17 @@ const fn named(name: &'static str, about: &'static str, method: Method) -> Named
         name,
         about,
         method,
+        ablation: false,
+    }
+}
+
+/// A bench-only ablation.
+const fn ablation(name: &'static str, about: &'static str, method: Method) -> Named {
+    Named {
+        name,
+        about,
+        method,
+        ablation: true,
     }
 }
 
@@ -76,7 +90,8 @@ impl Default for Method {
     }
 }
 
-/// Every method, registered once: names, parsing, `--help` and [`Method::all`] come from here.
+/// Every method, registered once: names, parsing, `--help` and [`Method::all`] come from here
+/// (the ablations only for `v2x-sim bench`, [`Method::parse_any`]).
 pub const METHODS: &[Named] = &[
     named(
         "csba-wls",
@@ -104,7 +119,7 @@ pub const METHODS: &[Named] = &[
             ..PLUS
         }),
     ),
-    named(
+    ablation(
         "csba-wls+gate",
         "ablation: csba-wls with only the Mahalanobis gate of csba-wls+",
         Method::Csba(CsbaParams {
@@ -112,7 +127,7 @@ pub const METHODS: &[Named] = &[
             ..PAPER
         }),
     ),
-    named(
+    ablation(
         "csba-wls+orient",
         "ablation: csba-wls with only the wrapped orientation score of csba-wls+",
         Method::Csba(CsbaParams {
@@ -120,7 +135,7 @@ pub const METHODS: &[Named] = &[
             ..PAPER
         }),
     ),
-    named(
+    ablation(
         "csba-wls+dim",
         "ablation: csba-wls with only the symmetric dimension score of csba-wls+",
         Method::Csba(CsbaParams {
@@ -128,7 +143,7 @@ pub const METHODS: &[Named] = &[
             ..PAPER
         }),
     ),
-    named(
+    ablation(
         "csba-wls+loglik",
         "ablation: csba-wls with only the Gaussian centre score and log-likelihood cost",
         Method::Csba(CsbaParams {
@@ -192,9 +207,27 @@ impl Method {
         }
     }
 
-    /// Every named method, in the order of [`METHODS`].
+    /// Every method a user may choose, in the order of [`METHODS`].
     pub fn all() -> Vec<Method> {
+        METHODS
+            .iter()
+            .filter(|n| !n.ablation)
+            .map(|n| n.method)
+            .collect()
+    }
+
+    /// Every registered method, the ablations too (`v2x-sim bench --methods all`).
+    pub fn all_with_ablations() -> Vec<Method> {
         METHODS.iter().map(|n| n.method).collect()
+    }
+
+    /// A method by name, an ablation too (`v2x-sim bench --methods`).
+    pub fn parse_any(s: &str) -> Result<Method, UnknownName> {
+        METHODS
+            .iter()
+            .find(|n| n.name == s)
+            .map(|n| n.method)
+            .ok_or_else(|| UnknownName::new("method", s, METHODS.iter().map(|n| n.name)))
     }
 
     /// Fuses one time step: `agents[k]` is agent k's detections, agents in a fixed order.
@@ -229,14 +262,15 @@ impl fmt::Display for Method {
     }
 }
 
+/// A method a user may choose, by name (an ablation is the bench's: [`Method::parse_any`]).
 impl FromStr for Method {
     type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        METHODS
-            .iter()
+        let users = || METHODS.iter().filter(|n| !n.ablation);
+        users()
             .find(|n| n.name == s)
             .map(|n| n.method)
-            .ok_or_else(|| UnknownName::new("method", s, METHODS.iter().map(|n| n.name)))
+            .ok_or_else(|| UnknownName::new("method", s, users().map(|n| n.name)))
     }
 }
 
@@ -389,17 +423,24 @@ mod tests {
     #[test]
     fn names_round_trip() {
         for n in METHODS {
-            let m: Method = n.name.parse().unwrap();
+            let m = Method::parse_any(n.name).unwrap();
             assert_eq!((m, m.name()), (n.method, n.name.to_string()));
         }
         // Every registered method is a different one.
-        let all = Method::all();
+        let all = Method::all_with_ablations();
         for (i, m) in all.iter().enumerate() {
             assert!(!all[..i].contains(m), "{m} registered twice");
         }
         let e = "kalman".parse::<Method>().unwrap_err();
         assert_eq!(e.given, "kalman");
         assert!(e.expected.contains(&"csba-wls+"));
+        // An ablation is a bench row: only parse_any takes it, and `all` leaves it out.
+        let e = "csba-wls+gate".parse::<Method>().unwrap_err();
+        assert!(!e.expected.contains(&"csba-wls+gate"));
+        let gate = Method::parse_any("csba-wls+gate").unwrap();
+        assert_eq!(gate.name(), "csba-wls+gate");
+        assert!(!Method::all().contains(&gate) && all.contains(&gate));
+        assert_eq!(Method::all().len(), all.len() - 4);
     }
 
     #[test]

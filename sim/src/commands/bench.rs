@@ -246,12 +246,12 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
 /// ids the data's own boxes do not carry.
 fn real_data_methods(list: &str) -> anyhow::Result<Vec<Method>> {
     Ok(if list == "all" {
-        Method::all()
+        Method::all_with_ablations()
             .into_iter()
             .filter(|m| *m != Method::GtWls)
             .collect()
     } else {
-        parse_list(list, vec![], |s| s.parse())?
+        parse_list(list, vec![], Method::parse_any)?
     })
 }
 
@@ -478,7 +478,7 @@ fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Resul
     let (data, methods) = (&args.data, args.methods.as_str());
     let (seed, range, format) = (args.seed, args.range, args.format);
     let cfg = BenchConfig {
-        methods: parse_list(methods, Method::all(), |s| s.parse())?,
+        methods: parse_list(methods, Method::all_with_ablations(), Method::parse_any)?,
         settings: parse_list(profile, vec![], |s| NoiseSetting::parse(s, 2))?,
         seed,
         range,
@@ -507,7 +507,7 @@ fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
         methods
     };
     let cfg = BenchConfig {
-        methods: parse_list(methods, vec![], |s| s.parse())?,
+        methods: parse_list(methods, vec![], Method::parse_any)?,
         settings: vec![],
         seed,
         range,
@@ -531,7 +531,7 @@ fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let settings = parse_list(noise, NoiseSetting::paper_with(agents), |s| {
         NoiseSetting::parse(s, agents)
     })?;
-    let methods = parse_list(methods, Method::all(), |s| s.parse())?;
+    let methods = parse_list(methods, Method::all_with_ablations(), Method::parse_any)?;
     let cfg = BenchConfig {
         methods,
         settings,

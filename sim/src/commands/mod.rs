@@ -49,7 +49,7 @@ pub(crate) fn paper_settings(
         methods
     };
     Ok(BenchConfig {
-        methods: parse_list(methods, vec![], |s| s.parse())?,
+        methods: parse_list(methods, vec![], Method::parse_any)?,
         settings: parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?,
         seed,
         range,
