@@ -5,7 +5,7 @@
 use crate::bench::{in_order, FRAMES_PER_TASK};
 use crate::table::{
     markdown,
-    Align::{Left, Right},
+    Align::{self, Left, Right},
     Rows,
 };
 use crate::wire_bytes::{frame_bytes, Bytes};
@@ -357,87 +357,89 @@ impl Rows for [TrackedRow] {
     /// The tracked rows as two Markdown tables (percent, as AB3DMOT's script prints them):
     /// scored as the script scores this layout, then with false positives counted.
     fn table(&self) -> String {
-        let rows = self;
-        let pct = |v: f64| format!("{:.2}", 100.0 * v);
-        let stock = markdown(
-            &[
-                ("tracks", Left),
-                ("sAMOTA", Right),
-                ("AMOTA", Right),
-                ("AMOTP", Right),
-                ("MOTA", Right),
-                ("MOTP", Right),
-                ("MT", Right),
-                ("ML", Right),
-                ("IDS", Right),
-                ("FRAG", Right),
-                ("recall", Right),
-                ("boxes/frame", Right),
-            ],
-            rows.iter().map(|r| {
-                let m = &r.metrics;
-                vec![
-                    r.method.clone(),
-                    pct(m.samota),
-                    pct(m.amota),
-                    pct(m.amotp),
-                    pct(m.mota),
-                    pct(m.motp),
-                    pct(m.mt),
-                    pct(m.ml),
-                    m.ids.to_string(),
-                    m.frag.to_string(),
-                    pct(m.recall),
-                    format!("{:.1}", r.boxes_per_frame),
-                ]
-            }),
-        );
-        let counted = markdown(
-            &[
-                ("tracks", Left),
-                ("sAMOTA", Right),
-                ("AMOTA", Right),
-                ("AMOTP", Right),
-                ("MOTA", Right),
-                ("IDS", Right),
-                ("FP", Right),
-                ("precision", Right),
-                ("recall", Right),
-                ("HOTA", Right),
-                ("DetA", Right),
-                ("AssA", Right),
-                ("LocA", Right),
-                ("boxes/frame", Right),
-                ("labels/frame", Right),
-            ],
-            rows.iter().map(|r| {
-                let m = &r.counted;
-                let h = &r.hota;
-                vec![
-                    r.method.clone(),
-                    pct(m.samota),
-                    pct(m.amota),
-                    pct(m.amotp),
-                    pct(m.mota),
-                    m.ids.to_string(),
-                    m.fp.to_string(),
-                    pct(m.tp as f64 / (m.tp + m.fp).max(1) as f64),
-                    pct(m.recall),
-                    pct(h.hota),
-                    pct(h.deta),
-                    pct(h.assa),
-                    pct(h.loca),
-                    format!("{:.1}", r.boxes_per_frame),
-                    format!("{:.1}", r.labels_per_frame),
-                ]
-            }),
-        );
         format!(
             "AB3DMOT's evaluation as its script scores these rows (no false positive counted):\n\n\
-             {stock}\nThe same, every unmatched tracked box a false positive (precision and recall \
-             at the threshold of best MOTA), and HOTA over 3D IoU (every tracked box):\n\n{counted}"
+             {}\nThe same, every unmatched tracked box a false positive (precision and recall \
+             at the threshold of best MOTA), and HOTA over 3D IoU (every tracked box):\n\n{}",
+            tracked_table(self, |r| &r.metrics, &STOCK),
+            tracked_table(self, |r| &r.counted, &COUNTED)
         )
     }
+}
+
+/// A column of the tracked tables: its heading, its alignment and its cell from a row and the
+/// row's metrics under the table's scoring.
+type Column = (
+    &'static str,
+    Align,
+    fn(&TrackedRow, &Ab3dmotMetrics) -> String,
+);
+
+/// The columns both tracked tables begin with.
+const LEAD: [Column; 5] = [
+    ("tracks", Left, |r, _| r.method.clone()),
+    ("sAMOTA", Right, |_, m| pct(m.samota)),
+    ("AMOTA", Right, |_, m| pct(m.amota)),
+    ("AMOTP", Right, |_, m| pct(m.amotp)),
+    ("MOTA", Right, |_, m| pct(m.mota)),
+];
+
+/// The rest of the table as AB3DMOT's script scores this layout.
+const STOCK: [Column; 7] = [
+    ("MOTP", Right, |_, m| pct(m.motp)),
+    ("MT", Right, |_, m| pct(m.mt)),
+    ("ML", Right, |_, m| pct(m.ml)),
+    ("IDS", Right, |_, m| m.ids.to_string()),
+    ("FRAG", Right, |_, m| m.frag.to_string()),
+    ("recall", Right, |_, m| pct(m.recall)),
+    ("boxes/frame", Right, |r, _| {
+        format!("{:.1}", r.boxes_per_frame)
+    }),
+];
+
+/// The rest of the table with every unmatched box a false positive, and HOTA.
+const COUNTED: [Column; 10] = [
+    ("IDS", Right, |_, m| m.ids.to_string()),
+    ("FP", Right, |_, m| m.fp.to_string()),
+    ("precision", Right, |_, m| {
+        pct(m.tp as f64 / (m.tp + m.fp).max(1) as f64)
+    }),
+    ("recall", Right, |_, m| pct(m.recall)),
+    ("HOTA", Right, |r, _| pct(r.hota.hota)),
+    ("DetA", Right, |r, _| pct(r.hota.deta)),
+    ("AssA", Right, |r, _| pct(r.hota.assa)),
+    ("LocA", Right, |r, _| pct(r.hota.loca)),
+    ("boxes/frame", Right, |r, _| {
+        format!("{:.1}", r.boxes_per_frame)
+    }),
+    ("labels/frame", Right, |r, _| {
+        format!("{:.1}", r.labels_per_frame)
+    }),
+];
+
+/// A percentage as AB3DMOT's script prints it.
+fn pct(v: f64) -> String {
+    format!("{:.2}", 100.0 * v)
+}
+
+/// The tracked rows as one Markdown table: the lead columns then `rest`, each row's metrics
+/// those `metrics` picks.
+fn tracked_table(
+    rows: &[TrackedRow],
+    metrics: fn(&TrackedRow) -> &Ab3dmotMetrics,
+    rest: &[Column],
+) -> String {
+    let columns: Vec<&Column> = LEAD.iter().chain(rest).collect();
+    let heads: Vec<(&str, Align)> = columns.iter().map(|c| (c.0, c.1)).collect();
+    markdown(
+        &heads,
+        rows.iter().map(|r| {
+            columns
+                .iter()
+                .map(|c| (c.2)(r, metrics(r)))
+                .collect::<Vec<String>>()
+        }),
+    )
 }
 
 /// Per-row accumulators, with each car's bytes.
