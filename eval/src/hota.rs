@@ -72,8 +72,11 @@ struct Counts {
     loca: [f64; ALPHAS],
 }
 
+/// Each id's dense index.
+type IdIndex = HashMap<u32, usize>;
+
 /// Dense indices of the ids a sequence holds, and how many frames each appears in.
-fn index(ids: impl Iterator<Item = u32>) -> (HashMap<u32, usize>, Vec<f64>) {
+fn index(ids: impl Iterator<Item = u32>) -> (IdIndex, Vec<f64>) {
     let mut map = HashMap::new();
     let mut count = Vec::new();
     for id in ids {
@@ -100,25 +103,7 @@ fn sequence(frames: &[Frame]) -> Counts {
     let (gmap, gcount) = index(frames.iter().flat_map(|f| f.gt.iter().copied()));
     let (tmap, tcount) = index(frames.iter().flat_map(|f| f.tracks.iter().copied()));
     let (ng, nt) = (gcount.len(), tcount.len());
-    let mut potential = vec![0.0; ng * nt];
-    for f in frames {
-        let rows: Vec<f64> = f.similarity.iter().map(|r| r.iter().sum()).collect();
-        let cols: Vec<f64> = (0..f.tracks.len())
-            .map(|j| f.similarity.iter().map(|r| r[j]).sum())
-            .collect();
-        for (i, g) in f.gt.iter().enumerate() {
-            for (j, t) in f.tracks.iter().enumerate() {
-                let s = f.similarity[i][j];
-                let denom = rows[i] + cols[j] - s;
-                if denom > f64::EPSILON {
-                    potential[gmap[g] * nt + tmap[t]] += s / denom;
-                }
-            }
-        }
-    }
-    let align: Vec<f64> = (0..ng * nt)
-        .map(|k| potential[k] / (gcount[k / nt] + tcount[k % nt] - potential[k]))
-        .collect();
+    let align = global_alignment(frames, (&gmap, &gcount), (&tmap, &tcount));
     let mut matches = vec![vec![0.0; ng * nt]; ALPHAS];
     for f in frames {
         let (n, m) = (f.gt.len(), f.tracks.len());
@@ -151,6 +136,44 @@ fn sequence(frames: &[Frame]) -> Counts {
             c.fp[a] += (m - hits) as f64;
         }
     }
+    association(&mut c, &matches, &gcount, &tcount);
+    c
+}
+
+/// Each (ground-truth id, track id) pair's global alignment score over the sequence, indexed
+/// g * tracks + t: how often they are similar, over how often either is there (TrackEval's
+/// `global_alignment_score`).
+fn global_alignment(
+    frames: &[Frame],
+    (gmap, gcount): (&IdIndex, &[f64]),
+    (tmap, tcount): (&IdIndex, &[f64]),
+) -> Vec<f64> {
+    let (ng, nt) = (gcount.len(), tcount.len());
+    let mut potential = vec![0.0; ng * nt];
+    for f in frames {
+        let rows: Vec<f64> = f.similarity.iter().map(|r| r.iter().sum()).collect();
+        let cols: Vec<f64> = (0..f.tracks.len())
+            .map(|j| f.similarity.iter().map(|r| r[j]).sum())
+            .collect();
+        for (i, g) in f.gt.iter().enumerate() {
+            for (j, t) in f.tracks.iter().enumerate() {
+                let s = f.similarity[i][j];
+                let denom = rows[i] + cols[j] - s;
+                if denom > f64::EPSILON {
+                    potential[gmap[g] * nt + tmap[t]] += s / denom;
+                }
+            }
+        }
+    }
+    (0..ng * nt)
+        .map(|k| potential[k] / (gcount[k / nt] + tcount[k % nt] - potential[k]))
+        .collect()
+}
+
+/// Each alpha's AssA, AssRe, AssPr and LocA from its matched pairs' counts (`matches[a]`,
+/// indexed as [`global_alignment`]'s).
+fn association(c: &mut Counts, matches: &[Vec<f64>], gcount: &[f64], tcount: &[f64]) {
+    let nt = tcount.len();
     for a in 0..ALPHAS {
         let (mut assa, mut assre, mut asspr) = (0.0, 0.0, 0.0);
         for (k, &mc) in matches[a].iter().enumerate() {
@@ -168,7 +191,6 @@ fn sequence(frames: &[Frame]) -> Counts {
         c.asspr[a] = asspr / tp;
         c.loca[a] = c.loca[a].max(1e-10) / c.tp[a].max(1e-10);
     }
-    c
 }
 
 /// HOTA over the sequences, as TrackEval combines them.

@@ -422,6 +422,37 @@ fn thresholds(mut scores: Vec<f64>, gt_count: usize) -> Vec<Option<f64>> {
     out
 }
 
+/// Centre distance of an object and a hypothesis in the ground plane (m).
+fn dist(o: &Obj, h: &Hyp) -> f64 {
+    (o.xy[0] - h.xy[0]).hypot(o.xy[1] - h.xy[1])
+}
+
+/// Step 1 of a frame: each object keeps the track it last matched where that track's box is
+/// still within the matching distance; the kept matches' scores.
+fn keep_last(
+    objs: &[&Obj],
+    hyps: &[&Hyp],
+    last: &HashMap<u32, usize>,
+    obj_to: &mut [Option<usize>],
+    hyp_taken: &mut [bool],
+) -> Vec<f64> {
+    let mut scores = Vec::new();
+    for (i, o) in objs.iter().enumerate() {
+        let Some(&track) = last.get(&o.id) else {
+            continue;
+        };
+        let Some(j) = (0..hyps.len()).find(|j| !hyp_taken[*j] && hyps[*j].track == track) else {
+            continue;
+        };
+        if dist(o, hyps[j]) < MATCH_DISTANCE {
+            obj_to[i] = Some(j);
+            hyp_taken[j] = true;
+            scores.push(hyps[j].score);
+        }
+    }
+    scores
+}
+
 /// The devkit's `accumulate_threshold` for one class: the event counts with the boxes scoring
 /// at least `threshold` (all of them with `None`), and the scores of the matches; where each
 /// switch's object stood, into `switches_at` when given.
@@ -447,25 +478,12 @@ fn accumulate(
             if objs.is_empty() && hyps.is_empty() {
                 continue;
             }
-            let dist = |o: &Obj, h: &Hyp| (o.xy[0] - h.xy[0]).hypot(o.xy[1] - h.xy[1]);
             let mut obj_to: Vec<Option<usize>> = vec![None; objs.len()];
             let mut hyp_taken = vec![false; hyps.len()];
             // 1. keep last correspondences still under the distance
-            for (i, o) in objs.iter().enumerate() {
-                let Some(&track) = last.get(&o.id) else {
-                    continue;
-                };
-                let Some(j) = (0..hyps.len()).find(|j| !hyp_taken[*j] && hyps[*j].track == track)
-                else {
-                    continue;
-                };
-                if dist(o, hyps[j]) < MATCH_DISTANCE {
-                    obj_to[i] = Some(j);
-                    hyp_taken[j] = true;
-                    c.matches += 1;
-                    scores.push(hyps[j].score);
-                }
-            }
+            let kept = keep_last(&objs, &hyps, &last, &mut obj_to, &mut hyp_taken);
+            c.matches += kept.len();
+            scores.extend(kept);
             // 2. the rest by minimum total distance, most pairs first
             let free_o: Vec<usize> = (0..objs.len()).filter(|i| obj_to[*i].is_none()).collect();
             let free_h: Vec<usize> = (0..hyps.len()).filter(|j| !hyp_taken[*j]).collect();
