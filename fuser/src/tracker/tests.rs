@@ -2,6 +2,7 @@ use super::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use v2x_protocol::{wrap_angle, Velocity};
 
 const HZ10: u64 = 100_000;
 
