@@ -23,14 +23,16 @@ pub mod secure;
 pub mod series;
 pub mod series_plot;
 pub mod summary;
+pub mod tables;
 
 pub use relay::{counting_relay, free_port};
 pub use roles::{agent_captures, agent_role, agent_view, fuser_role, FuserOutcome};
 pub use schedule::Schedule;
 pub use summary::{
-    agent_bandwidth, print_agent_table, print_table, recorded, summarize, AgentReport, AgentSide,
-    Bandwidth, Counts, SecurityReport, Summary,
+    agent_bandwidth, recorded, summarize, AgentSide, Bandwidth, Counts, RegionReport,
+    SecurityReport, Summary,
 };
+pub use tables::{print_agent_table, print_table, AgentReport};
 
 use crate::dataset::GroundTruth;
 use crate::scenario::{Scenario, SecurityMode};
@@ -465,7 +467,7 @@ async fn city_roles_here(
                 "regions": reports,
             }))?
         ),
-        RunFormat::Table => summary::print_regions(&reports),
+        RunFormat::Table => tables::print_regions(&reports),
     }
     Ok((None, Some(outcome)))
 }
