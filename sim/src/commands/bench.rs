@@ -56,16 +56,10 @@ pub struct BenchArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "table")]
     pub format: Format,
-    /// Also draw frame N (index over all frames) as an SVG into --out, for each noise setting.
-    #[arg(long, requires = "out")]
-    pub plot: Option<usize>,
-    /// Directory for --plot.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
     /// Instead of Table 2: the nuScenes detection benchmark (distance matching: precision,
     /// recall, mAP, NDS, mATE...) for every method and single agent under these noise
     /// settings, comma-separated, e.g. `realistic` (detector faults and pose errors).
-    #[arg(long, conflicts_with_all = ["asynchronous", "plot"])]
+    #[arg(long, conflicts_with = "asynchronous")]
     pub profile: Option<String>,
     /// With --profile: every method again after registering each agent to the roadside
     /// unit by its boxes (`v2x-fuser fuse --align`), rows `METHOD --align`.
@@ -78,7 +72,7 @@ pub struct BenchArgs {
     /// association of boxes to tracks gives; and a row `gt-state-wls tracked` groups each
     /// agent's boxes with the likeliest true object by centre and velocity: the best grouping
     /// the boxes allow a frame at a time.
-    #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
+    #[arg(long, conflicts_with_all = ["asynchronous", "profile"])]
     pub tracking: bool,
     /// With --tracking (also with --tile-size, and --dataset v2v4real): how the tracked rows'
     /// boxes reach their tracks, as `v2x-fuser track --association` (assignment or soft;
@@ -91,7 +85,7 @@ pub struct BenchArgs {
     /// each method's tracks by one fuser, by regional fusers that never hear each other and by
     /// regional fusers handing tracks over at the borders (rows `METHOD tracked regions`,
     /// `... hand-over`, and the same guided); --methods defaults to csba-wls+.
-    #[arg(long, conflicts_with_all = ["asynchronous", "plot", "profile"])]
+    #[arg(long, conflicts_with_all = ["asynchronous", "profile"])]
     pub tile_size: Option<f64>,
     /// With --tile-size: how far beyond its tile a regional fuser takes boxes (m).
     #[arg(long, requires = "tile_size", default_value_t = v2x_fuser::intake::region::DEFAULT_HALO_M)]
@@ -159,9 +153,8 @@ impl Mode {
                 || args.tracking
                 || args.profile.is_some()
                 || args.asynchronous
-                || args.plot.is_some()
             {
-                bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile, --async and --plot");
+                bail!("--dataset dair-v2x runs its own table: leave out --tile-size, --tracking, --profile and --async");
             }
             return Ok(Mode::Dair);
         }
@@ -169,12 +162,11 @@ impl Mode {
             if args.tile_size.is_some()
                 || args.profile.is_some()
                 || args.asynchronous
-                || args.plot.is_some()
                 || !args.seeds.is_empty()
                 || args.parts != 1
                 || !args.more_dataroot.is_empty()
             {
-                bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async, --plot, --seeds, --parts and --more-dataroot");
+                bail!("--dataset v2v4real runs its own tables: leave out --tile-size, --profile, --async, --seeds, --parts and --more-dataroot");
             }
             return Ok(Mode::V2v4real);
         }
@@ -556,12 +548,6 @@ fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let secs = start.elapsed().as_secs_f64();
     let heading = format!("{} ; noise seed {seed}; {:.1} s", data.describe(gt), secs);
     print!("{}", render(&rows[..], format, &heading)?);
-    if let (Some(frame), Some(out)) = (args.plot, &args.out) {
-        let best = Method::default();
-        for s in &cfg.settings {
-            eprintln!("drew {}", plot(gt, frame, s, &best, seed, out)?.display());
-        }
-    }
     Ok(())
 }
 
