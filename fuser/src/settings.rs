@@ -160,12 +160,9 @@ impl FuserSettings {
         cfg.align = f.align.params()?;
         cfg.learn = f.stds.learn()?;
         cfg.models = f.stds.models()?;
-        cfg.track = self.tracker()?.map(|mut p| {
-            if let Some(d) = &cfg.detector {
-                p.management.min_score = d.min_score;
-            }
-            p
-        });
+        cfg.track = self
+            .tracker()?
+            .map(|p| cfg.detector.map_or(p, |d| d.tracker(p)));
         cfg.set_time_scale(f.motion.time_scale);
         Ok(cfg)
     }

@@ -38,11 +38,7 @@ impl Inputs {
     /// operating point on ([`DetectorParams::min_score`]).
     pub fn tracker_params(&self, opts: &OfflineOptions, params: TrackerParams) -> TrackerParams {
         match self.options(opts).detector {
-            Some(d) => {
-                let mut p = params;
-                p.management.min_score = d.min_score;
-                p
-            }
+            Some(d) => d.tracker(params),
             None => params,
         }
     }

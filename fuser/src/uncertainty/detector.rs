@@ -69,6 +69,14 @@ impl DetectorParams {
             ..self
         }
     }
+
+    /// A tracker's parameters for this detector's boxes: its tracks shown from the operating
+    /// point on.
+    pub fn tracker(&self, params: crate::tracker::TrackerParams) -> crate::tracker::TrackerParams {
+        let mut p = params;
+        p.management.min_score = self.min_score;
+        p
+    }
 }
 
 /// The stds a detector's box is given from its score; `receiver`: the box is in its own
