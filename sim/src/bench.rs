@@ -140,10 +140,14 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
     for setting in &cfg.settings {
         let slots = 2 * cfg.methods.len();
         let accs = per_frame(gt, cfg, setting, slots, |accs, fusers, dets, frame| {
-            for (m, method) in cfg.methods.iter().enumerate() {
-                let one = fusers.fuse(m, frame.timestamp_us, dets);
+            let t = frame.timestamp_us;
+            for m in 0..cfg.methods.len() {
+                let one = fusers.fuse(m, t, dets);
                 accs[2 * m].add_frame(&frame.objects, &one);
-                let regional = region::fuse_regions(tiling, halo_m, method, dets);
+                // Each region's input through the method's pipeline (no step carries history
+                // here, so one pipeline serves every region).
+                let fuse = |input: &[Vec<Detection>]| fusers.fuse(m, t, input);
+                let regional = region::fuse_regions(tiling, halo_m, fuse, dets);
                 accs[2 * m + 1].add_frame(&frame.objects, &regional);
             }
         });

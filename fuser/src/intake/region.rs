@@ -10,7 +10,6 @@
 //! lie within the halo of the owner's tile is fused there exactly as one fuser would fuse it; a
 //! halo at least as wide as the association's reach (the gate's radius) makes that every group.
 
-use crate::Method;
 use std::collections::BTreeMap;
 pub use v2x_protocol::tiles::{Tile, Tiling};
 use v2x_protocol::Detection;
@@ -62,9 +61,14 @@ impl Region {
         self.tiling.tile_of(d.center) == self.tile
     }
 
-    /// Fuses the region's input and keeps the boxes it owns.
-    pub fn fuse(&self, method: &Method, agents: &[Vec<Detection>]) -> Vec<Detection> {
-        let mut out = method.fuse(&self.input(agents));
+    /// Fuses the region's input with `fuse` (its fuser's pipeline, or a method) and keeps the
+    /// boxes it owns.
+    pub fn fuse(
+        &self,
+        fuse: impl FnOnce(&[Vec<Detection>]) -> Vec<Detection>,
+        agents: &[Vec<Detection>],
+    ) -> Vec<Detection> {
+        let mut out = fuse(&self.input(agents));
         out.retain(|d| self.owns(d));
         out
     }
@@ -131,11 +135,12 @@ pub fn tiles_of(tiling: &Tiling, agents: &[Vec<Detection>]) -> Vec<Tile> {
     tiles
 }
 
-/// What the regional fusers of every tile [`tiles_of`] names publish together for one window.
+/// What the regional fusers of every tile [`tiles_of`] names publish together for one window,
+/// each region fusing its input with `fuse`.
 pub fn fuse_regions(
     tiling: Tiling,
     halo_m: f64,
-    method: &Method,
+    mut fuse: impl FnMut(&[Vec<Detection>]) -> Vec<Detection>,
     agents: &[Vec<Detection>],
 ) -> Vec<Detection> {
     tiles_of(&tiling, agents)
@@ -146,7 +151,7 @@ pub fn fuse_regions(
                 tile,
                 halo_m,
             }
-            .fuse(method, agents)
+            .fuse(&mut fuse, agents)
         })
         .collect()
 }

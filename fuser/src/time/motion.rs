@@ -126,21 +126,6 @@ fn seconds_to(t_ref_us: u64, t_us: u64, p: &MotionParams) -> f64 {
     (t_ref_us as f64 - t_us as f64) / 1e6 * p.time_scale
 }
 
-/// Each agent's detections predicted from its capture time to `t_ref_us`.
-pub fn compensate(
-    frames: &[(&[Detection], u64)],
-    t_ref_us: u64,
-    p: &MotionParams,
-) -> Vec<Vec<Detection>> {
-    frames
-        .iter()
-        .map(|(dets, t)| {
-            let dt = seconds_to(t_ref_us, *t, p);
-            dets.iter().map(|d| predict(d, dt, p)).collect()
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -198,18 +183,33 @@ mod tests {
     }
 
     #[test]
-    fn compensate_uses_each_frames_own_capture_time() {
-        let a = [moving()];
-        let b = [moving()];
-        let out = compensate(
-            &[(&a, 1_000_000), (&b, 1_100_000)],
-            1_100_000,
-            &Default::default(),
-        );
+    fn a_window_is_compensated_from_each_frames_own_capture_time_to_its_latest() {
+        let frame = |agent: &str, capture_us: u64| v2x_protocol::Frame {
+            agent: agent.into(),
+            kind: v2x_protocol::AgentKind::Vehicle,
+            seq: 0,
+            capture_us,
+            origin: [0.0; 3],
+            detections: vec![moving()],
+        };
+        let closed = crate::time::window::Closed {
+            anchor_us: 1_000_000,
+            frames: [frame("a", 1_000_000), frame("b", 1_100_000)]
+                .into_iter()
+                .map(|f| (f.agent.clone(), f))
+                .collect(),
+            complete: true,
+            first_arrival_us: 0,
+        };
+        let (t_ref, out) = align_window(closed.clone(), Some(&Default::default()));
+        assert_eq!(t_ref, 1_100_000);
         assert!(
             (out[0][0].center[0] - 11.5).abs() < 1e-9,
             "100 ms at 15 m/s"
         );
         assert_eq!(out[1][0].center[0], 10.0, "already at t_ref");
+        // Without motion, as captured.
+        let (_, raw) = align_window(closed, None);
+        assert_eq!(raw[0][0].center[0], 10.0);
     }
 }

@@ -239,9 +239,16 @@ impl RegionalTrackers {
         }
     }
 
-    /// Every region's window at `t_us` with the agents' boxes, `method` fusing them; returns
-    /// what the regions publish together.
-    pub fn step(&mut self, t_us: u64, agents: &[Vec<Detection>], method: &Method) -> Vec<Tracked> {
+    /// Every region's window at `t_us` with the agents' boxes, `fuse` fusing each region's
+    /// input (its fuser's pipeline) and `method` guiding a guided tracker; returns what the
+    /// regions publish together.
+    pub fn step(
+        &mut self,
+        t_us: u64,
+        agents: &[Vec<Detection>],
+        method: &Method,
+        mut fuse: impl FnMut(&[Vec<Detection>]) -> Vec<Detection>,
+    ) -> Vec<Tracked> {
         let tiles: BTreeSet<Tile> = tiles_of(&self.tiling, agents)
             .into_iter()
             .chain(self.regions.keys().copied())
@@ -270,7 +277,7 @@ impl RegionalTrackers {
             let fused = if self.params.guided() {
                 Vec::new()
             } else {
-                method.fuse(&input)
+                fuse(&input)
             };
             let out = step_region(tracker, Some(&region), t_us, &fused, &input, method);
             published_now.push((tile, t_us, published(&out)));

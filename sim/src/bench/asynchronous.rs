@@ -13,6 +13,7 @@
 //! noise and differs only in timing; frames within the largest offset of a scene's start are
 //! left out of every row, so that every row scores the same instants.
 
+use crate::bench::fusers::Fusers;
 use crate::bench::BenchConfig;
 use crate::bench::{in_order, merge_slots};
 use crate::dataset::GroundTruth;
@@ -25,7 +26,8 @@ use crate::table::{
 };
 use rayon::prelude::*;
 use serde::Serialize;
-use v2x_fuser::time::motion::{compensate, MotionParams};
+use v2x_fuser::pipeline::Steps;
+use v2x_fuser::time::motion::MotionParams;
 use v2x_fuser::Method;
 use v2x_protocol::Detection;
 
@@ -93,8 +95,13 @@ pub fn run_timing(
     timing: Timing,
     skip_us: u64,
 ) -> Vec<(bool, Method, Metrics)> {
-    let params = MotionParams::default();
     let n = cfg.methods.len();
+    // The same pipelines without and with motion compensation; no step carries history.
+    let raw = Fusers::new(&cfg.methods, 2, None);
+    let compensated = Fusers::with_steps(&cfg.methods, 2, |method| Steps {
+        motion: Some(MotionParams::default()),
+        ..Steps::method(method)
+    });
     let accs = in_order(
         pairs(gt, timing, skip_us).into_par_iter(),
         |(k, t_ref, caps)| {
@@ -128,15 +135,11 @@ pub fn run_timing(
                     )
                 })
                 .collect();
-            let moved = compensate(
-                &[(&lists[0][..], caps[0]), (&lists[1][..], caps[1])],
-                t_ref,
-                &params,
-            );
+            let (mut raw, mut compensated) = (raw.clone(), compensated.clone());
             let truth = gt.objects_at(frame.scene, t_ref);
-            for (m, method) in cfg.methods.iter().enumerate() {
-                accs[m].add_frame(&truth, &method.fuse(&lists));
-                accs[n + m].add_frame(&truth, &method.fuse(&moved));
+            for m in 0..n {
+                accs[m].add_frame(&truth, &raw.fuse_window(m, &caps, &lists));
+                accs[n + m].add_frame(&truth, &compensated.fuse_window(m, &caps, &lists));
             }
             accs
         },

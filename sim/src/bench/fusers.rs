@@ -1,10 +1,12 @@
 //! The methods of a bench, each run as the fuser runs a window: through its pipeline
 //! (`v2x_fuser::pipeline`), so that a per-window step added there reaches every bench.
 
+use std::collections::BTreeMap;
 use v2x_fuser::pipeline::{Pipeline, Reference, Steps};
 use v2x_fuser::time::align::AlignParams;
+use v2x_fuser::time::window::Closed;
 use v2x_fuser::Method;
-use v2x_protocol::{AgentKind, Detection};
+use v2x_protocol::{AgentKind, Detection, Frame};
 
 /// One pipeline per method over the same agents, each with its own history.
 #[derive(Clone, Debug)]
@@ -19,15 +21,21 @@ impl Fusers {
     /// [`Fusers::set_kinds`]; with `align`, each registers the agents to the first
     /// infrastructure agent (else the first) before fusing.
     pub fn new(methods: &[Method], agents: usize, align: Option<AlignParams>) -> Fusers {
+        Fusers::with_steps(methods, agents, |method| Steps {
+            align,
+            ..Steps::method(method)
+        })
+    }
+
+    /// The `methods` over `agents` agents, each method's pipeline running `steps(method)`.
+    pub fn with_steps(
+        methods: &[Method],
+        agents: usize,
+        steps: impl Fn(Method) -> Steps,
+    ) -> Fusers {
         let pipelines = methods
             .iter()
-            .map(|&method| {
-                let steps = Steps {
-                    align,
-                    ..Steps::method(method)
-                };
-                Pipeline::new(steps, Reference::Infrastructure, None)
-            })
+            .map(|&method| Pipeline::new(steps(method), Reference::Infrastructure, None))
             .collect();
         Fusers {
             pipelines,
@@ -44,6 +52,42 @@ impl Fusers {
     /// Method `m`'s fused boxes of one frame of the agents' boxes, captured at `t_us`.
     pub fn fuse(&mut self, m: usize, t_us: u64, lists: &[Vec<Detection>]) -> Vec<Detection> {
         self.pipelines[m].fuse_frame(Some(t_us), &self.names, &self.kinds, lists)
+    }
+
+    /// Method `m`'s fused boxes of one window whose agents captured their boxes at different
+    /// instants (`captures`, in agent order): the whole pipeline, motion compensation to the
+    /// latest capture included when its steps have it. The window orders its agents by name,
+    /// which is agent order up to nine agents.
+    pub fn fuse_window(
+        &mut self,
+        m: usize,
+        captures: &[u64],
+        lists: &[Vec<Detection>],
+    ) -> Vec<Detection> {
+        let frames: BTreeMap<String, Frame> = (0..lists.len())
+            .map(|a| {
+                let frame = Frame {
+                    agent: self.names[a].clone(),
+                    kind: self.kinds[a],
+                    seq: 0,
+                    capture_us: captures[a],
+                    origin: [0.0; 3],
+                    detections: lists[a].clone(),
+                };
+                (self.names[a].clone(), frame)
+            })
+            .collect();
+        let closed = Closed {
+            anchor_us: captures.iter().copied().min().unwrap_or(0),
+            frames,
+            complete: true,
+            first_arrival_us: 0,
+        };
+        let pipeline = &mut self.pipelines[m];
+        let prepared = pipeline.prepare(closed);
+        pipeline
+            .steps()
+            .fuse_boxes(&prepared.lists, prepared.receiver)
     }
 }
 

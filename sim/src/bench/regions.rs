@@ -4,6 +4,7 @@
 //! agent's boxes through the tracks. The identity switches the borders add are the regional rows'
 //! less the one fuser's.
 
+use crate::bench::fusers::Fusers;
 use crate::bench::{
     agent_detections, in_order, merge_pairs, scenes, score_tracked, BenchConfig, Scope, Scored,
     TrackingRow,
@@ -115,12 +116,15 @@ fn scene(
             }
         })
         .collect();
+    // Each method's pipeline, without history, fuses for one fuser and for every region.
+    let mut fusers = Fusers::new(&cfg.methods, setting.agents.len(), None);
     let scene = gt.frames[frames[0]].scene;
     for &i in frames {
         let f = &gt.frames[i];
         let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
         for (slot, way) in ways.iter_mut().enumerate() {
-            let method = &cfg.methods[slot / WAYS.len()];
+            let m = slot / WAYS.len();
+            let method = &cfg.methods[m];
             let (guided, _) = WAYS[slot % WAYS.len()];
             if guided && *method == Method::GtWls {
                 continue;
@@ -128,8 +132,8 @@ fn scene(
             let t = f.timestamp_us;
             let out = match way {
                 Way::One(tr) if guided => tr.step_agents(t, &dets, method),
-                Way::One(tr) => tr.step(t, &method.fuse(&dets)),
-                Way::Regions(r) => r.step(t, &dets, method),
+                Way::One(tr) => tr.step(t, &fusers.fuse(m, t, &dets)),
+                Way::Regions(r) => r.step(t, &dets, method, |input| fusers.fuse(m, t, input)),
             };
             score_tracked(&mut accs[slot], &mut evals[slot], scene, f, out);
         }

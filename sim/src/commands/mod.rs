@@ -92,12 +92,16 @@ pub(crate) fn plot(
 ) -> anyhow::Result<PathBuf> {
     let Some(f) = data.frames.get(frame) else {
         bail!(
-            "--plot/--frame {frame} is out of range: the data has {} frames",
+            "--frame {frame} is out of range: the data has {} frames",
             data.frames.len()
         );
     };
     let agents = v2x_sim::bench::agent_detections(data, frame, setting, seed, None);
-    let fused = method.fuse(&agents);
+    let fused = v2x_sim::bench::fusers::Fusers::new(&[*method], agents.len(), None).fuse(
+        0,
+        f.timestamp_us,
+        &agents,
+    );
     let places = place_agents(f, agents.len(), seed);
     let title = format!(
         "frame {frame} ({}), noise {setting}, {method}",

@@ -1,4 +1,5 @@
 use super::*;
+use crate::Method;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use v2x_protocol::Uncertainty;
@@ -38,7 +39,7 @@ fn regional(
     tiling: Tiling,
     halo_m: f64,
 ) -> Vec<Detection> {
-    fuse_regions(tiling, halo_m, method, agents)
+    fuse_regions(tiling, halo_m, |l| method.fuse(l), agents)
 }
 
 fn sorted_centres(dets: &[Detection]) -> Vec<[u64; 3]> {

@@ -172,7 +172,7 @@ fn crossing(handover: bool, guided: bool, seed: u64) -> (Vec<BTreeSet<u32>>, boo
                     .collect()
             })
             .collect();
-        let out = regions.step(k * 100_000, &agents, &method());
+        let out = regions.step(k * 100_000, &agents, &method(), |l| method().fuse(l));
         let mut seen = vec![0; cars];
         for tr in out {
             ids[tr.det.id as usize].insert(tr.tracking_id);
