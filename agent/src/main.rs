@@ -28,9 +28,8 @@ struct Cli {
     /// vehicle or infrastructure.
     #[arg(long, default_value = "vehicle")]
     kind: AgentKind,
-    /// Scenario namespace.
-    #[arg(long, default_value = "default")]
-    ns: String,
+    #[command(flatten)]
+    ns: v2x_protocol::net::Namespace,
     /// nuScenes sample table (sample.json) giving each sample's timestamp; without it, samples
     /// are sent in token order at --hz (or at the `v2x_timestamps` map in the file's meta).
     #[arg(long)]
@@ -74,10 +73,8 @@ struct Cli {
     /// (UPER, docs/cpm.md), which the fuser reads as frames.
     #[arg(long, value_enum, default_value = "frame")]
     wire: Wire,
-    /// With --wire cpm: WGS84 latitude and longitude (degrees) of the map frame's origin (x East,
-    /// y North); the fuser must give the same (`v2x-fuser node --map-origin`).
-    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
-    map_origin: v2x_cpm::Geo,
+    #[command(flatten)]
+    map_origin: v2x_cpm::MapOrigin,
     /// Instead of a results file, send what a ROS 2 detector publishes on this topic (heard
     /// over Zenoh), until Ctrl-C or SIGTERM.
     #[arg(long, value_name = "TOPIC")]
@@ -85,31 +82,19 @@ struct Cli {
     /// The topic's message type.
     #[arg(long, value_enum, default_value = "vision", requires = "ros_topic")]
     ros_type: v2x_agent::ros_in::RosType,
-    /// How the topic maps onto Zenoh: rmw-zenoh (ROS 2 on Zenoh) or bridge
-    /// (zenoh-bridge-ros2dds).
-    #[arg(long, value_enum, default_value = "rmw-zenoh", requires = "ros_topic")]
-    ros_layout: v2x_ros::keys::Layout,
-    /// The ROS domain id (rmw-zenoh).
-    #[arg(long, default_value_t = 0, requires = "ros_topic")]
-    ros_domain: u32,
+    #[command(flatten)]
+    ros: v2x_ros::keys::RosNet,
     /// The pose of the messages' frame in the map, as a static transform: X,Y,Z in metres and
-    /// the yaw in degrees.
+    /// the yaw in degrees, or a JSON file as a static transform states it: {"translation": [x,
+    /// y, z], "rotation": [x, y, z, w]} (only the rotation about z is used).
     #[arg(
         long,
-        value_name = "X,Y,Z,YAW_DEG",
+        value_name = "X,Y,Z,YAW_DEG|FILE",
         default_value = "0,0,0,0",
+        value_parser = parse_tf,
         requires = "ros_topic"
     )]
     tf: v2x_ros::convert::Transform,
-    /// The same transform from a JSON file, as a static transform states it:
-    /// {"translation": [x, y, z], "rotation": [x, y, z, w]} (only the rotation about z is used).
-    #[arg(
-        long,
-        value_name = "FILE",
-        requires = "ros_topic",
-        conflicts_with = "tf"
-    )]
-    tf_file: Option<PathBuf>,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -247,9 +232,9 @@ async fn close(session: zenoh::Session, agent: Agent) -> anyhow::Result<()> {
 async fn start(cli: &Cli) -> anyhow::Result<(zenoh::Session, Agent)> {
     let link = cli.link.clone();
     let session = open_session(&cli.zenoh).await?;
-    let mut agent = Agent::start(&session, &cli.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    let mut agent = Agent::start(&session, &cli.ns.ns, &cli.name, cli.kind, link, cli.seed).await?;
     if cli.wire == Wire::Cpm {
-        agent = agent.sending_cpm(cli.map_origin);
+        agent = agent.sending_cpm(cli.map_origin.geo);
     }
     Ok((session, agent))
 }
@@ -259,12 +244,9 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
     let input = v2x_agent::ros_in::RosInput {
         topic: topic.to_string(),
         kind: cli.ros_type,
-        layout: cli.ros_layout,
-        domain: cli.ros_domain,
-        transform: match &cli.tf_file {
-            Some(p) => transform_file(p)?,
-            None => cli.tf,
-        },
+        layout: cli.ros.layout,
+        domain: cli.ros.domain,
+        transform: cli.tf,
         // A detector's message without a covariance: its boxes take --default-std, else mild.
         default_std: cli
             .default_std
@@ -292,6 +274,14 @@ async fn run_ros(cli: &Cli, topic: &str) -> anyhow::Result<()> {
 }
 
 /// A static transform from a JSON file: `translation` [x, y, z] and `rotation` [x, y, z, w].
+/// `--tf`: four numbers, else the JSON file of that name.
+fn parse_tf(s: &str) -> anyhow::Result<v2x_ros::convert::Transform> {
+    if s.contains(',') {
+        return s.parse().map_err(|e| anyhow!("{e}"));
+    }
+    transform_file(std::path::Path::new(s))
+}
+
 fn transform_file(path: &std::path::Path) -> anyhow::Result<v2x_ros::convert::Transform> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;

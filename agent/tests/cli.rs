@@ -43,6 +43,8 @@ fn help_and_clear_errors() {
         "--no-multicast-scouting",
     ]);
     assert!(err.contains("'/a//b' is not a ROS 2 topic name"), "{err}");
+    let err = run(&["a.json", "--name", "veh", "--ns", "a/b"]);
+    assert!(err.contains("namespace 'a/b' contains '/'"), "{err}");
     let err = run(&["a.json", "--name", "veh", "--link", "latency_ms=-5"]);
     assert!(err.contains("latency_ms"), "{err}");
     let err = run(&["a.json", "--name", "veh", "--link", "latency=5"]);
@@ -61,7 +63,7 @@ fn help_and_clear_errors() {
     let err = run(&[
         "--ros-topic",
         "/a",
-        "--tf-file",
+        "--tf",
         tf.to_str().unwrap(),
         "--name",
         "veh",

@@ -32,6 +32,20 @@ pub mod asn {
 pub use decode::{decode, Cpm, DecodeError, Skipped};
 pub use encode::{encode, message_bytes, EncodeError};
 pub use units::{station_id, Geo};
+
+/// The map origin CPMs are written and read against, a command-line option (`--map-origin`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct MapOrigin {
+    /// WGS84 latitude and longitude (degrees) of the map frame's origin (x East, y North), for
+    /// ETSI CPMs (docs/cpm.md): their positions are geographic, so sender and receiver give
+    /// the same.
+    #[cfg_attr(
+        feature = "cli",
+        arg(long = "map-origin", value_name = "LAT,LON", default_value = "0,0")
+    )]
+    pub geo: Geo,
+}
 pub use v2x_protocol::Frame;
 
 /// The ItsPduHeader's protocol version of a Release 2 CPM.

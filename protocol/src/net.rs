@@ -27,6 +27,21 @@ pub struct ZenohArgs {
     pub zenoh_config: Option<PathBuf>,
 }
 
+/// The scenario namespace every key lives under (`v2x/NS/...`), one key chunk.
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct Namespace {
+    /// Scenario namespace: every key lives under v2x/NS/ (letters, digits, '-', '_' or '.').
+    #[cfg_attr(feature = "cli", arg(long = "ns", value_name = "NS", default_value = "default", value_parser = parse_namespace))]
+    pub ns: String,
+}
+
+/// A namespace, checked to be one key chunk without wildcards.
+pub fn parse_namespace(s: &str) -> Result<String, crate::keys::NameError> {
+    crate::keys::validate_chunk("namespace", s)?;
+    Ok(s.to_string())
+}
+
 impl ZenohArgs {
     /// The (key, JSON5 value) pairs to insert into a Zenoh config.
     pub fn json5_pairs(&self) -> Vec<(&'static str, String)> {

@@ -3,6 +3,22 @@
 
 use crate::hash::type_hash;
 
+/// Where a ROS 2 system's topics are on Zenoh (`--ros-layout`, `--ros-domain`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct RosNet {
+    /// How ROS 2 topics map onto Zenoh: rmw-zenoh (ROS 2 on Zenoh) or bridge
+    /// (zenoh-bridge-ros2dds).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long = "ros-layout", value_enum, default_value = "rmw-zenoh")
+    )]
+    pub layout: Layout,
+    /// The ROS domain id (rmw-zenoh).
+    #[cfg_attr(feature = "cli", arg(long = "ros-domain", default_value_t = 0))]
+    pub domain: u32,
+}
+
 /// How ROS 2 topics map onto Zenoh keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]

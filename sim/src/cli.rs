@@ -233,3 +233,51 @@ pub use v2x_eval::file_eval::{
 pub fn read_text(path: &Path) -> anyhow::Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
+
+/// The output format of a command that prints rows (`--format`).
+#[derive(Args, Clone, Copy, Debug)]
+pub struct FormatArg {
+    /// Output format.
+    #[arg(long, value_enum, default_value = "table")]
+    pub format: crate::table::Format,
+}
+
+/// How simulated agents draw their boxes (`--seed`, `--range`).
+#[derive(Args, Clone, Copy, Debug)]
+pub struct DrawArgs {
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Sensing range of each agent in metres (default: every agent sees every object).
+    #[arg(long, value_parser = parse_range)]
+    pub range: Option<f64>,
+}
+
+/// A sensing range: a distance above 0 m.
+fn parse_range(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(r) if r.is_finite() && r > 0.0 => Ok(r),
+        _ => Err(format!("expected a distance above 0 m, got '{s}'")),
+    }
+}
+
+/// The fusion method (`-m/--method`).
+#[derive(Args, Clone, Copy, Debug)]
+pub struct MethodArg {
+    /// Fusion method (`v2x-fuser fuse --help` lists them).
+    #[arg(long, short, default_value_t = v2x_fuser::Method::default())]
+    pub method: v2x_fuser::Method,
+}
+
+/// How boxes are matched to the ground truth (`--match`).
+#[derive(Args, Clone, Copy, Debug)]
+pub struct MatchArg {
+    /// How boxes are matched to the ground truth: `id` (by the ground-truth id each box
+    /// carries, its instance_token: the paper's protocol, precision, recall, mATE...),
+    /// `distance` (by centre distance: in `eval` the nuScenes detection benchmark, AP at
+    /// 0.5/1/2/4 m, TP errors at 2 m, NDS; in `calibrate` the nearest object of the box's class
+    /// within --max-distance-m), or `auto`: by id when the boxes carry ids, else by distance (a
+    /// detector's own output has none).
+    #[arg(long = "match", value_enum, default_value = "auto")]
+    pub matching: Match,
+}

@@ -17,7 +17,6 @@ use std::time::{Duration, Instant};
 use v2x_agent::{now_us, Agent, Link};
 use v2x_fuser::intake::region::Region;
 use v2x_fuser::node::{self, Latency, NodeConfig};
-use v2x_fuser::Method;
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::tiles::{Tile, Tiling};
 use v2x_protocol::{wrap_angle, AgentKind, Class, Detection, Frame, NoiseProfile};
@@ -37,12 +36,12 @@ pub struct LoadArgs {
     /// Length of the run (s).
     #[arg(long, default_value_t = 30.0)]
     pub seconds: f64,
-    /// Fusion method.
-    #[arg(long, default_value_t = v2x_fuser::Method::default())]
-    pub method: Method,
-    /// Print JSON instead of a table.
-    #[arg(long)]
-    pub json: bool,
+    /// The fusion method.
+    #[command(flatten)]
+    pub method: crate::cli::MethodArg,
+    /// The report's format (table or JSON).
+    #[command(flatten)]
+    pub format: crate::cli::FormatArg,
     /// Scale-out instead: the same total load (agents x objects x rate) on 1, 2 and 4 (up to K)
     /// regional fusers behind a Zenoh router, the agents spread over four sites along an
     /// 800 m x 200 m strip and publishing per tile; reports fusion p99 and boxes fused per second
@@ -179,7 +178,7 @@ fn fuser_config(args: &LoadArgs, ns: &str) -> anyhow::Result<NodeConfig> {
         max_wait_ms: 100.0,
         ..Default::default()
     };
-    s.fusion.method = args.method;
+    s.fusion.method = args.method.method;
     s.fusion.window_ms = 1000.0 / args.hz;
     s.admission.max_objects_per_agent = s.admission.max_objects_per_agent.max(args.objects);
     s.node_config(ns)

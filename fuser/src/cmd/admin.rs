@@ -13,9 +13,8 @@ pub(crate) struct RouterArgs {
 /// The options of `v2x-fuser stats`.
 #[derive(clap::Args)]
 pub(crate) struct StatsArgs {
-    /// Scenario namespace.
-    #[arg(long, default_value = "default")]
-    pub(crate) ns: String,
+    #[command(flatten)]
+    pub(crate) ns: v2x_protocol::net::Namespace,
     /// Ask the regional fuser of this tile (COLUMN_ROW) instead of the single fuser.
     #[arg(long)]
     pub(crate) tile: Option<v2x_protocol::tiles::Tile>,
@@ -70,7 +69,7 @@ pub(crate) fn stats(args: StatsArgs) -> anyhow::Result<()> {
     let rt = v2x_protocol::net::runtime()?;
     rt.block_on(async move {
         let session = v2x_protocol::net::open_session(&zenoh).await?;
-        let key = v2x_protocol::keys::FuserKeys::of(&ns, tile).stats;
+        let key = v2x_protocol::keys::FuserKeys::of(&ns.ns, tile).stats;
         let v = node::query_stats_at(
             &session,
             &key,

@@ -27,6 +27,15 @@ pub(crate) struct FilesArgs {
     /// `v2x-sim gen` writes the roadside unit as agent2.json.
     #[arg(long, default_value_t = 2, requires = "align")]
     pub(crate) align_to: usize,
+    /// Where to write the output, fused boxes (fuse) or tracks (track): a results file, or a
+    /// folder with --output-format kitti.
+    #[arg(long, short)]
+    pub(crate) output: PathBuf,
+    /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
+    /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
+    /// as V2V4Real's per-car detections come).
+    #[arg(required = true)]
+    pub(crate) inputs: Vec<PathBuf>,
 }
 
 /// The layout of `fuse` and `track` output.
@@ -51,11 +60,11 @@ impl From<Layout> for v2x_fuser::offline::OutputFormat {
 }
 
 impl FilesArgs {
-    /// How boxes without stds are read, and the offline options for `inputs` files.
+    /// How boxes without stds are read, and the offline options for the inputs.
     pub(crate) fn options(
         &self,
-        inputs: usize,
     ) -> anyhow::Result<(MissingStd, v2x_fuser::offline::OfflineOptions)> {
+        let inputs = self.inputs.len();
         let (missing, mut opts) = self
             .fusion
             .offline(inputs, self.default_std)
@@ -77,14 +86,6 @@ impl FilesArgs {
 pub(crate) struct FuseArgs {
     #[command(flatten)]
     pub(crate) files: FilesArgs,
-    /// Where to write the fused results file (a folder with --output-format kitti).
-    #[arg(long, short)]
-    pub(crate) output: PathBuf,
-    /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
-    /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
-    /// as V2V4Real's per-car detections come).
-    #[arg(required = true)]
-    pub(crate) inputs: Vec<PathBuf>,
 }
 
 /// The options of `v2x-fuser track`.
@@ -94,29 +95,17 @@ pub(crate) struct TrackArgs {
     pub(crate) files: FilesArgs,
     #[command(flatten)]
     pub(crate) tracking: v2x_fuser::settings::TrackSettings,
-    /// Where to write the tracking results file (a folder with --output-format kitti).
-    #[arg(long, short)]
-    pub(crate) output: PathBuf,
-    /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
-    /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
-    /// as V2V4Real's per-car detections come).
-    #[arg(required = true)]
-    pub(crate) inputs: Vec<PathBuf>,
 }
 
 /// `v2x-fuser fuse`.
 pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
-    let FuseArgs {
-        files,
-        output,
-        inputs,
-    } = args;
-    let method = files.fusion.method;
-    let (missing, opts) = files.options(inputs.len())?;
+    let FuseArgs { files } = args;
+    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output);
+    let (missing, opts) = files.options()?;
     let report = v2x_fuser::offline::fuse_files(
         &method,
-        &inputs,
-        &output,
+        inputs,
+        output,
         missing,
         &opts,
         files.output_format.into(),
@@ -162,19 +151,14 @@ pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
 
 /// `v2x-fuser track`.
 pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
-    let TrackArgs {
-        files,
-        tracking,
-        output,
-        inputs,
-    } = args;
-    let method = files.fusion.method;
-    let (missing, opts) = files.options(inputs.len())?;
+    let TrackArgs { files, tracking } = args;
+    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output);
+    let (missing, opts) = files.options()?;
     let params = tracking.params().map_err(flag_error)?;
     let tracks = v2x_fuser::offline::track_files(
         &method,
-        &inputs,
-        &output,
+        inputs,
+        output,
         missing,
         &opts,
         params,

@@ -11,9 +11,8 @@ use super::settings::*;
 /// The options of `v2x-fuser node`.
 #[derive(clap::Args)]
 pub(crate) struct NodeArgs {
-    /// Scenario namespace (keys v2x/NS/...).
-    #[arg(long, default_value = "default")]
-    pub(crate) ns: String,
+    #[command(flatten)]
+    pub(crate) ns: v2x_protocol::net::Namespace,
     #[command(flatten)]
     pub(crate) settings: Box<v2x_fuser::settings::FuserSettings>,
     #[command(flatten)]
@@ -23,10 +22,8 @@ pub(crate) struct NodeArgs {
     /// its neighbour gave it; docs/method.md §9.1).
     #[arg(long, requires_all = ["track", "tile"])]
     pub(crate) no_track_handover: bool,
-    /// WGS84 latitude and longitude (degrees) of the map frame's origin (x East, y North), to
-    /// read agents that send ETSI CPMs (`v2x-agent --wire cpm`, docs/cpm.md); give their value.
-    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
-    pub(crate) map_origin: v2x_cpm::Geo,
+    #[command(flatten)]
+    pub(crate) map_origin: v2x_cpm::MapOrigin,
     #[command(flatten)]
     pub(crate) ros: node::ros_out::RosOutArgs,
     /// Record the fused output as a nuScenes results file (keys t<capture us>), scorable by
@@ -65,10 +62,10 @@ pub(crate) fn run_node(args: NodeArgs) -> anyhow::Result<()> {
                 anyhow::bail!("--duration-s must be > 0");
             }
         }
-        let mut cfg = settings.node_config(&ns).map_err(flag_error)?;
+        let mut cfg = settings.node_config(&ns.ns).map_err(flag_error)?;
         cfg.region = region.region()?;
         cfg.handover = !no_track_handover;
-        cfg.map_origin = map_origin;
+        cfg.map_origin = map_origin.geo;
         cfg.viz = viz.open().await?;
         let shown = cfg.viz.clone();
         let session = v2x_protocol::net::open_session(&zenoh).await?;

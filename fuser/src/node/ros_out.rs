@@ -19,13 +19,9 @@ pub struct RosOutArgs {
     /// TrackedObjects, each track's id in its UUID.
     #[arg(long, value_name = "TOPIC", requires = "track")]
     pub ros_out_tracks: Option<String>,
-    /// How the topics map onto Zenoh: rmw-zenoh (ROS 2 on Zenoh) or bridge
-    /// (zenoh-bridge-ros2dds).
-    #[arg(long, value_enum, default_value = "rmw-zenoh")]
-    pub ros_out_layout: Layout,
-    /// The ROS domain id (rmw-zenoh).
-    #[arg(long, default_value_t = 0)]
-    pub ros_out_domain: u32,
+    /// Where the ROS 2 system's topics are on Zenoh.
+    #[command(flatten)]
+    pub ros: keys::RosNet,
     /// The frame id the messages name: the map frame the boxes are in.
     #[arg(long, default_value = "map")]
     pub ros_out_frame: String,
@@ -80,7 +76,7 @@ impl RosOutArgs {
         let topic = |name: &'static str, topic: &Option<String>, flag: &'static str| {
             let session = session.clone();
             let topic = topic.clone();
-            let (layout, domain) = (self.ros_out_layout, self.ros_out_domain);
+            let (layout, domain) = (self.ros.layout, self.ros.domain);
             async move {
                 let Some(topic) = topic else {
                     return anyhow::Ok(None);

@@ -30,9 +30,8 @@ pub struct BenchArgs {
     /// dense junction.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=64))]
     pub agents: u16,
-    /// Noise seed.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub draw: v2x_sim::cli::DrawArgs,
     /// With --tracking: several noise seeds, comma-separated (e.g. 1,2,3,4,5,6,7,8), in place
     /// of --seed; each tracked row's AMOTA and identity switches are summarised over them
     /// (mean, lowest, highest) and, seed by seed, against `gt-wls tracked`: the worst ratio.
@@ -50,12 +49,8 @@ pub struct BenchArgs {
     /// log of its own.
     #[arg(long, requires = "seeds", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=16))]
     pub parts: u16,
-    /// Sensing range of each agent in metres (default: every agent sees every object).
-    #[arg(long)]
-    pub range: Option<f64>,
-    /// Output format.
-    #[arg(long, value_enum, default_value = "table")]
-    pub format: Format,
+    #[command(flatten)]
+    pub format: v2x_sim::cli::FormatArg,
     /// Instead of Table 2: the nuScenes detection benchmark (distance matching: precision,
     /// recall, mAP, NDS, mATE...) for every method and single agent under these noise
     /// settings, comma-separated, e.g. `realistic` (detector faults and pose errors).
@@ -220,17 +215,17 @@ fn dair(args: &BenchArgs) -> anyhow::Result<()> {
     };
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
     let start = Instant::now();
-    let rows = v2x_sim::bench::dair::run(&d, &methods, &setting, args.seed, args.range);
+    let rows = v2x_sim::bench::dair::run(&d, &methods, &setting, args.draw.seed, args.draw.range);
     let what = format!(
         "noise {setting} over each side's own labels, seed {}",
-        args.seed
+        args.draw.seed
     );
     let heading = format!(
         "{} ; {what}; devkit-style over the ground truth's classes, AP in % (DAIR-V2X protocol, vehicle frame); {:.1} s",
         args.data.describe(&d.gt),
         start.elapsed().as_secs_f64()
     );
-    print!("{}", render(&rows[..], args.format, &heading)?);
+    print!("{}", render(&rows[..], args.format.format, &heading)?);
     Ok(())
 }
 
@@ -305,7 +300,7 @@ fn v2v4real(args: &BenchArgs) -> anyhow::Result<()> {
         d.frames.len(),
         d.boxes(),
     );
-    print!("{}", render(&report, args.format, &heading)?);
+    print!("{}", render(&report, args.format.format, &heading)?);
     Ok(())
 }
 
@@ -322,8 +317,13 @@ fn tiling(size: f64, halo: f64) -> anyhow::Result<v2x_fuser::intake::region::Til
 fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
     let (noise, methods) = (args.noise.as_str(), args.methods.as_str());
     let tiling = tiling(size, args.halo)?;
-    let default = Method::default().name();
-    let cfg = paper_settings(methods, &default, noise, args.seed, args.range)?;
+    let cfg = paper_settings(
+        methods,
+        &[Method::default()],
+        noise,
+        args.draw.seed,
+        args.draw.range,
+    )?;
     let start = Instant::now();
     let rows = v2x_sim::bench::regions::run_region_tracking(
         gt,
@@ -335,21 +335,21 @@ fn region_tracking(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Res
     let heading = format!(
         "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s",
         args.data.describe(gt),
-        args.seed,
+        args.draw.seed,
         args.halo,
         start.elapsed().as_secs_f64()
     );
-    print!("{}", render(&rows[..], args.format, &heading)?);
+    print!("{}", render(&rows[..], args.format.format, &heading)?);
     Ok(())
 }
 
 /// `--tile-size`: one fuser against regional fusers.
 fn regions(args: &BenchArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
-    let (seed, range, format) = (args.seed, args.range, args.format);
+    let (seed, range, format) = (args.draw.seed, args.draw.range, args.format.format);
     let halo = args.halo;
     let tiling = tiling(size, halo)?;
-    let cfg = paper_settings(methods, "csba-wls+,csba-wls", noise, seed, range)?;
+    let cfg = paper_settings(methods, &beside_paper(), noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_regions(gt, &cfg, tiling, halo);
     let heading = format!(
@@ -410,7 +410,7 @@ fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
     for (name, gt) in &logs {
         let mut per_seed = Vec::with_capacity(args.seeds.len());
         for &seed in &args.seeds {
-            let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, args.range)?;
+            let cfg = paper_settings(methods, &beside_oracle(), noise, seed, args.draw.range)?;
             per_seed.push(bench::run_tracking(gt, &cfg, tracker_params(args)));
         }
         runs.push(bench::LogSeeds::new(
@@ -430,7 +430,7 @@ fn tracking_seeds(args: &BenchArgs) -> anyhow::Result<()> {
         seeds.join(", "),
         start.elapsed().as_secs_f64()
     );
-    print!("{}", render(&report, args.format, &heading)?);
+    print!("{}", render(&report, args.format.format, &heading)?);
     Ok(())
 }
 
@@ -452,8 +452,8 @@ fn fused_association(s: &str) -> Result<Association, String> {
 /// `--tracking`: single-frame fusion against tracking.
 fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
-    let (seed, range, format) = (args.seed, args.range, args.format);
-    let cfg = paper_settings(methods, "csba-wls+,gt-wls", noise, seed, range)?;
+    let (seed, range, format) = (args.draw.seed, args.draw.range, args.format.format);
+    let cfg = paper_settings(methods, &beside_oracle(), noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_tracking(gt, &cfg, tracker_params(args));
     let heading = format!(
@@ -468,7 +468,7 @@ fn tracking(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
 /// `--profile`: the nuScenes detection benchmark under detector profiles.
 fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Result<()> {
     let (data, methods) = (&args.data, args.methods.as_str());
-    let (seed, range, format) = (args.seed, args.range, args.format);
+    let (seed, range, format) = (args.draw.seed, args.draw.range, args.format.format);
     let cfg = BenchConfig {
         methods: parse_list(methods, Method::all_with_ablations(), Method::parse_any)?,
         settings: parse_list(profile, vec![], |s| NoiseSetting::parse(s, 2))?,
@@ -490,16 +490,11 @@ fn detection(args: &BenchArgs, gt: &GroundTruth, profile: &str) -> anyhow::Resul
 /// `--async`: agents captured at different instants.
 fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
-    let (seed, range, format) = (args.seed, args.range, args.format);
+    let (seed, range, format) = (args.draw.seed, args.draw.range, args.format.format);
     let noise = if noise == "all" { "mild" } else { noise };
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
-    let methods = if methods == "all" {
-        "csba-wls+,gt-wls"
-    } else {
-        methods
-    };
     let cfg = BenchConfig {
-        methods: parse_list(methods, vec![], Method::parse_any)?,
+        methods: methods_or(methods, &beside_oracle())?,
         settings: vec![],
         seed,
         range,
@@ -518,7 +513,7 @@ fn asynchronous(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
 /// The paper's Table 2.
 fn table2(args: &BenchArgs, gt: &GroundTruth) -> anyhow::Result<()> {
     let (data, noise, methods) = (&args.data, args.noise.as_str(), args.methods.as_str());
-    let (seed, range, format) = (args.seed, args.range, args.format);
+    let (seed, range, format) = (args.draw.seed, args.draw.range, args.format.format);
     let agents = usize::from(args.agents);
     let settings = parse_list(noise, NoiseSetting::paper_with(agents), |s| {
         NoiseSetting::parse(s, agents)

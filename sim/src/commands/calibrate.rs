@@ -15,11 +15,8 @@ use v2x_sim::table::{
 pub struct CalibrateArgs {
     #[command(flatten)]
     pub data: DataArgs,
-    /// How boxes are matched to the objects they detected: `id` (by ground-truth id, the
-    /// instance_token each box carries), `distance` (the nearest object of the box's class
-    /// within --max-distance-m), or `auto`: by id when the boxes carry ids.
-    #[arg(long = "match", value_enum, default_value = "auto")]
-    pub matching: v2x_sim::cli::Match,
+    #[command(flatten)]
+    pub matching: v2x_sim::cli::MatchArg,
     /// With matching by distance: the largest centre distance (m) of a match. Errors beyond
     /// it are not seen, so give several times the agent's std.
     #[arg(long, default_value_t = 4.0)]
@@ -38,7 +35,7 @@ pub struct CalibrateArgs {
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let CalibrateArgs {
         data,
-        matching,
+        matching: v2x_sim::cli::MatchArg { matching },
         max_distance_m,
         score_bins,
         output,

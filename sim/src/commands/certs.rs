@@ -8,9 +8,8 @@ pub struct CertsArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// Namespace the access-control policy covers.
-    #[arg(long, default_value = "default")]
-    pub ns: String,
+    #[command(flatten)]
+    pub ns: v2x_protocol::net::Namespace,
     /// Endpoints the router listens on.
     #[arg(long, default_value = "tls/0.0.0.0:7447")]
     pub listen: Vec<String>,
@@ -38,7 +37,7 @@ pub fn run(args: CertsArgs) -> anyhow::Result<()> {
     } = args;
     let issued = v2x_sim::certs::issue(&v2x_sim::certs::CertsConfig {
         out,
-        ns,
+        ns: ns.ns,
         agents,
         listen,
         connect: router,

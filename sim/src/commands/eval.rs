@@ -20,13 +20,8 @@ pub struct EvalArgs {
     /// frames the file has).
     #[arg(long)]
     pub all_frames: bool,
-    /// How predictions are matched to ground truth: `id` (the paper's protocol: by
-    /// ground-truth id, precision, recall, mATE...), `distance` (the nuScenes detection
-    /// benchmark: by centre distance, AP at 0.5/1/2/4 m, TP errors at 2 m, NDS), or `auto`:
-    /// by id when the file's boxes carry ground-truth ids, else by distance (a detector's own
-    /// output has none).
-    #[arg(long = "match", value_enum, default_value = "auto")]
-    pub matching: v2x_sim::cli::Match,
+    #[command(flatten)]
+    pub matching: v2x_sim::cli::MatchArg,
     /// Score a tracking results file (`v2x-fuser track`) as the nuScenes tracking benchmark
     /// does: AMOTA, AMOTP, and MOTA, MOTP, IDS, FRAG at each class's best score threshold,
     /// 2 m centre distance, the seven tracking classes. The same file without --tracking
@@ -34,9 +29,8 @@ pub struct EvalArgs {
     /// scored by AB3DMOT's evaluation (3D IoU 0.25), as DMSTrack reports V2V4Real.
     #[arg(long, conflicts_with_all = ["replay_start_at", "at", "classes"])]
     pub tracking: bool,
-    /// Output format.
-    #[arg(long, value_enum, default_value = "table")]
-    pub format: Format,
+    #[command(flatten)]
+    pub format: v2x_sim::cli::FormatArg,
     /// For a fuser recording of `v2x-agent --clock real` replays: the agents' --start-at
     /// (Unix seconds), so that capture times map back to the data's frames.
     #[arg(long)]
@@ -65,9 +59,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let EvalArgs {
         data,
         all_frames,
-        matching,
+        matching: v2x_sim::cli::MatchArg { matching },
         tracking,
-        format,
+        format: v2x_sim::cli::FormatArg { format },
         replay_start_at,
         replay_speed,
         at,

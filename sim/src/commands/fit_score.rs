@@ -4,7 +4,6 @@ use anyhow::Context;
 use std::path::PathBuf;
 use v2x_fuser::uncertainty::detector::DetectorParams;
 use v2x_fuser::uncertainty::existence::FEATURE_NAMES;
-use v2x_fuser::Method;
 use v2x_sim::cli::DataArgs;
 use v2x_sim::existence_fit;
 
@@ -13,9 +12,8 @@ use v2x_sim::existence_fit;
 pub struct FitScoreArgs {
     #[command(flatten)]
     pub data: DataArgs,
-    /// The CSBA-3D method whose groups are scored.
-    #[arg(long, short, default_value_t = Method::default())]
-    pub method: Method,
+    #[command(flatten)]
+    pub method: v2x_sim::cli::MethodArg,
     /// BEV IoU at which a fused box counts as the labelled car it overlaps.
     #[arg(long, default_value_t = 0.5)]
     pub iou: f64,
@@ -32,7 +30,7 @@ pub struct FitScoreArgs {
 pub fn run(args: FitScoreArgs) -> anyhow::Result<()> {
     let FitScoreArgs {
         data,
-        method,
+        method: v2x_sim::cli::MethodArg { method },
         iou,
         cars,
         output,

@@ -32,12 +32,8 @@ pub struct GenArgs {
     /// Number of agents.
     #[arg(long, default_value_t = 2)]
     pub agents: usize,
-    /// Noise seed.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Sensing range of each agent in metres (default: every agent sees every object).
-    #[arg(long)]
-    pub range: Option<f64>,
+    #[command(flatten)]
+    pub draw: v2x_sim::cli::DrawArgs,
     /// Capture rate of each agent in Hz, comma-separated, or one for all (default: the
     /// data's rate, on its frames).
     #[arg(long)]
@@ -59,8 +55,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         faults,
         stated_std,
         agents,
-        seed,
-        range,
+        draw: v2x_sim::cli::DrawArgs { seed, range },
         agent_hz,
         phase_ms,
         out,

@@ -19,7 +19,7 @@ pub fn run(args: LoadArgs) -> anyhow::Result<()> {
 /// `--regions`: one table row per number of regional fusers.
 fn regions(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()> {
     let rows = rt.block_on(v2x_sim::load::run_regions(args))?;
-    if args.json {
+    if args.format.format == v2x_sim::table::Format::Json {
         println!("{}", serde_json::to_string_pretty(&rows)?);
     } else {
         println!(
@@ -72,7 +72,7 @@ fn max_load(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()>
     if let Some(why) = &stopped {
         eprintln!("the search stopped early: {why}");
     }
-    if args.json {
+    if args.format.format == v2x_sim::table::Format::Json {
         let v: Vec<_> = runs
             .iter()
             .map(|(r, held)| serde_json::json!({"held": held, "report": r}))
@@ -114,7 +114,7 @@ fn max_load(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()>
 /// One load: latencies over the run and its halves, CPU and memory.
 fn single(rt: &tokio::runtime::Runtime, args: &LoadArgs) -> anyhow::Result<()> {
     let r = rt.block_on(v2x_sim::load::run(args))?;
-    if args.json {
+    if args.format.format == v2x_sim::table::Format::Json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         let l = |x: &v2x_fuser::node::Latency| {

@@ -1,10 +1,8 @@
 //! The subcommands of `v2x-sim`, one module each, and what they share.
 
-use anyhow::{bail, Context};
-use std::path::PathBuf;
 use v2x_fuser::Method;
 use v2x_sim::bench::BenchConfig;
-use v2x_sim::noise::{place_agents, NoiseSetting};
+use v2x_sim::noise::NoiseSetting;
 
 pub mod bench;
 pub mod calibrate;
@@ -38,22 +36,39 @@ pub(crate) fn evaluate_tracking(
 /// `default_methods` when it is `all`.
 pub(crate) fn paper_settings(
     methods: &str,
-    default_methods: &str,
+    default_methods: &[Method],
     noise: &str,
     seed: u64,
     range: Option<f64>,
 ) -> anyhow::Result<BenchConfig> {
-    let methods = if methods == "all" {
-        default_methods
-    } else {
-        methods
-    };
     Ok(BenchConfig {
-        methods: parse_list(methods, vec![], Method::parse_any)?,
+        methods: methods_or(methods, default_methods)?,
         settings: parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?,
         seed,
         range,
     })
+}
+
+/// `--methods`: the list, or `default_methods` for `all`.
+pub(crate) fn methods_or(methods: &str, default_methods: &[Method]) -> anyhow::Result<Vec<Method>> {
+    if methods == "all" {
+        Ok(default_methods.to_vec())
+    } else {
+        parse_list(methods, vec![], Method::parse_any)
+    }
+}
+
+/// The default method beside the paper's csba-wls.
+pub(crate) fn beside_paper() -> [Method; 2] {
+    [
+        Method::default(),
+        Method::Csba(v2x_fuser::maths::association::CsbaParams::PAPER),
+    ]
+}
+
+/// The default method beside the oracle gt-wls.
+pub(crate) fn beside_oracle() -> [Method; 2] {
+    [Method::default(), Method::GtWls]
 }
 
 pub(crate) fn faults_help() -> String {
@@ -80,42 +95,4 @@ pub(crate) fn parse_list<T, E: std::error::Error + Send + Sync + 'static>(
     s.split(',')
         .map(|x| parse(x.trim()).map_err(anyhow::Error::from))
         .collect()
-}
-
-pub(crate) fn plot(
-    data: &v2x_sim::dataset::GroundTruth,
-    frame: usize,
-    setting: &NoiseSetting,
-    method: &Method,
-    seed: u64,
-    out: &std::path::Path,
-) -> anyhow::Result<PathBuf> {
-    let Some(f) = data.frames.get(frame) else {
-        bail!(
-            "--frame {frame} is out of range: the data has {} frames",
-            data.frames.len()
-        );
-    };
-    let agents = v2x_sim::bench::agent_detections(data, frame, setting, seed, None);
-    let fused = v2x_sim::bench::fusers::Fusers::new(&[*method], agents.len(), None).fuse(
-        0,
-        f.timestamp_us,
-        &agents,
-    );
-    let places = place_agents(f, agents.len(), seed);
-    let title = format!(
-        "frame {frame} ({}), noise {setting}, {method}",
-        f.sample_token
-    );
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let path = out.join(format!(
-        "frame-{frame}-{}.svg",
-        setting.name.replace('+', "-")
-    ));
-    std::fs::write(
-        &path,
-        v2x_sim::plot::frame_svg(f, &agents, &fused, &places, &title),
-    )
-    .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(path)
 }

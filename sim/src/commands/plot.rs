@@ -1,10 +1,10 @@
 //! `v2x-sim plot`.
 
-use super::*;
+use anyhow::{bail, Context};
 use std::path::PathBuf;
 use v2x_fuser::Method;
-use v2x_sim::cli::DataArgs;
-use v2x_sim::noise::NoiseSetting;
+use v2x_sim::cli::{DataArgs, DrawArgs};
+use v2x_sim::noise::{place_agents, NoiseSetting};
 
 /// The options of `v2x-sim plot`.
 #[derive(clap::Args)]
@@ -17,12 +17,10 @@ pub struct PlotArgs {
     /// Noise setting.
     #[arg(long, default_value = "mild+large")]
     pub noise: String,
-    /// Method for the fused boxes.
-    #[arg(long, default_value_t = v2x_fuser::Method::default())]
-    pub method: Method,
-    /// Noise seed.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    #[command(flatten)]
+    pub method: v2x_sim::cli::MethodArg,
+    #[command(flatten)]
+    pub draw: v2x_sim::cli::DrawArgs,
     /// Output directory (with --timeline: the SVG file to write).
     #[arg(long)]
     pub out: PathBuf,
@@ -38,8 +36,8 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
         data,
         frame,
         noise,
-        method,
-        seed,
+        method: v2x_sim::cli::MethodArg { method },
+        draw,
         out,
         timeline,
     } = args;
@@ -54,7 +52,46 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
     let setting = NoiseSetting::parse(&noise, 2).map_err(anyhow::Error::msg)?;
     eprintln!(
         "drew {}",
-        plot(&gt, frame, &setting, &method, seed, &out)?.display()
+        plot(&gt, frame, &setting, &method, draw, &out)?.display()
     );
     Ok(())
+}
+
+/// Draws frame `frame` of the data: the truth, each agent's boxes and the fused ones.
+fn plot(
+    data: &v2x_sim::dataset::GroundTruth,
+    frame: usize,
+    setting: &NoiseSetting,
+    method: &Method,
+    draw: DrawArgs,
+    out: &std::path::Path,
+) -> anyhow::Result<PathBuf> {
+    let Some(f) = data.frames.get(frame) else {
+        bail!(
+            "--frame {frame} is out of range: the data has {} frames",
+            data.frames.len()
+        );
+    };
+    let agents = v2x_sim::bench::agent_detections(data, frame, setting, draw.seed, draw.range);
+    let fused = v2x_sim::bench::fusers::Fusers::new(&[*method], agents.len(), None).fuse(
+        0,
+        f.timestamp_us,
+        &agents,
+    );
+    let places = place_agents(f, agents.len(), draw.seed);
+    let title = format!(
+        "frame {frame} ({}), noise {setting}, {method}",
+        f.sample_token
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let path = out.join(format!(
+        "frame-{frame}-{}.svg",
+        setting.name.replace('+', "-")
+    ));
+    std::fs::write(
+        &path,
+        v2x_sim::plot::frame_svg(f, &agents, &fused, &places, &title),
+    )
+    .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
 }

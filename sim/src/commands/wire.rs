@@ -33,10 +33,8 @@ pub struct WireArgs {
     /// file's `meta.v2x_agent`, else by the file's name.
     #[arg(long, required_unless_present = "read")]
     pub out: Option<PathBuf>,
-    /// WGS84 latitude and longitude (degrees) of the map frame's origin; the map's x axis
-    /// points East, y North. A CPM's positions are geographic: the receiver must use the same.
-    #[arg(long, value_name = "LAT,LON", default_value = "0,0")]
-    pub map_origin: Geo,
+    #[command(flatten)]
+    pub map_origin: v2x_cpm::MapOrigin,
     /// An agent that is a roadside unit (its CPMs carry the RSU container); repeatable.
     #[arg(long = "rsu", value_name = "AGENT")]
     pub rsu: Vec<String>,
@@ -52,7 +50,7 @@ pub struct WireArgs {
 /// Runs `v2x-sim wire`.
 pub fn run(args: WireArgs) -> anyhow::Result<()> {
     if args.read {
-        return read(&args.inputs, &args.map_origin);
+        return read(&args.inputs, &args.map_origin.geo);
     }
     let out = args
         .out
@@ -66,7 +64,7 @@ pub fn run(args: WireArgs) -> anyhow::Result<()> {
             .with_context(|| format!("cannot create {}", dir.display()))?;
         let (mut cpm_bytes, mut frame_bytes, mut boxes) = (0, 0, 0);
         for (sample, frame) in &frames {
-            let cpm = v2x_cpm::encode(frame, &args.map_origin).map_err(|e| {
+            let cpm = v2x_cpm::encode(frame, &args.map_origin.geo).map_err(|e| {
                 let hint = match e {
                     v2x_cpm::EncodeError::BeforeItsEpoch(_) => {
                         " (give --time-offset-us to place the data's clock after it)"
