@@ -10,6 +10,7 @@ use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
 use crate::time::window::Closed;
 use crate::tracker::handover::{id_block, published, step_region, Handover};
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
+use crate::uncertainty::detector::DetectorParams;
 use crate::Method;
 use tokio::sync::mpsc;
 use v2x_protocol::wire::{self, Fit};
@@ -86,15 +87,15 @@ pub fn fuse_window(
     (fused, lists)
 }
 
-/// Keeps the fused boxes a region owns (centre in its tile), with their sources.
-fn keep_owned(scope: &Scope, fused: &mut Fused) {
+/// Keeps the fused boxes `keep` says, with their sources.
+fn keep_fused(fused: &mut Fused, keep: impl Fn(&Detection) -> bool) {
     let dets = std::mem::take(&mut fused.frame.detections);
     let sources = std::mem::take(&mut fused.provenance.sources);
     let has_sources = sources.len() == dets.len();
     let mut sources = sources.into_iter();
     for d in dets {
         let s = if has_sources { sources.next() } else { None };
-        if scope.owns(&d) {
+        if keep(&d) {
             fused.frame.detections.push(d);
             fused.provenance.sources.extend(s);
         }
@@ -119,9 +120,22 @@ struct Carried {
 }
 
 impl Fusion {
-    /// A pipeline without history: registration to the infrastructure, the agents' own stds.
+    /// A pipeline without history: registration to the infrastructure, the agents' own stds;
+    /// when a detector's tail goes to the tracks ([`Fusion::tail_for_tracks`]), it keeps it.
     fn pipeline(&self) -> Pipeline {
-        Pipeline::new(self.steps.clone(), Reference::Infrastructure, None)
+        let mut steps = self.steps.clone();
+        if self.tail_for_tracks().is_some() {
+            steps.detector = steps.detector.map(DetectorParams::for_tracking);
+        }
+        Pipeline::new(steps, Reference::Infrastructure, None)
+    }
+
+    /// With tracking and a detector that drops its tail below an operating point: that point.
+    /// The tracks then take every fused box, as `v2x-fuser track` gives them (the tracks'
+    /// own operating point decides which are shown), and the fused frame drops the tail.
+    fn tail_for_tracks(&self) -> Option<f64> {
+        let min_score = self.track.and(self.steps.detector.as_ref())?.min_score;
+        (min_score > 0.0).then_some(min_score)
     }
 
     fn fresh(&self) -> Carried {
@@ -184,21 +198,28 @@ type JobOutput = (
 );
 
 /// Fuses one closed window on a blocking thread: the calibrated models, the learned stds,
-/// fusion, the region's share, the wire's domain, then the tracks (fed, in a region, every
-/// fused box of its tile and halo in the wire's domain, after its neighbours' ids).
+/// fusion, the detector's tail and the region's share dropped, the wire's domain, then the
+/// tracks (fed, in a region, every fused box of its tile and halo after its neighbours' ids,
+/// and the detector's tail, in the wire's domain).
 fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutput {
     // The association's bounds counted on this thread, for this window alone.
     let bounds_before = crate::maths::association::bounds_applied();
     let pipeline = state.pipeline.get_or_insert_with(|| f.pipeline());
     let (mut fused, lists) = fuse_window(pipeline, closed, seq);
-    let mut halo = None;
+    // The tracks' input when it is not the published frame: every fused box of a region's
+    // tile and halo, and with a detector's tail dropped from the frame, the tail too.
+    let mut untrimmed = None;
+    let tail = f.tail_for_tracks();
+    if state.tracker.is_some() && (f.scope != Scope::Whole || tail.is_some()) {
+        let mut all = fused.frame.clone();
+        wire::fit(&mut all);
+        untrimmed = Some(all);
+    }
+    if let Some(min_score) = tail {
+        keep_fused(&mut fused, |d| d.score >= min_score);
+    }
     if f.scope != Scope::Whole {
-        if state.tracker.is_some() {
-            let mut all = fused.frame.clone();
-            wire::fit(&mut all);
-            halo = Some(all);
-        }
-        keep_owned(&f.scope, &mut fused);
+        keep_fused(&mut fused, |d| f.scope.owns(d));
     }
     let fit = wire::fit_with(&mut fused.frame, Some(&mut fused.provenance));
     let bytes = wire::encode_with(&fused.frame, Some(&fused.provenance));
@@ -209,7 +230,7 @@ fn fuse_job(f: &Fusion, mut state: Carried, closed: Closed, seq: u32) -> JobOutp
             }
             h.adopt(t);
         }
-        let input = halo.as_ref().unwrap_or(&fused.frame);
+        let input = untrimmed.as_ref().unwrap_or(&fused.frame);
         let frame = tracks_frame(t, input, &lists, &f.steps.method, f.scope.region());
         let bytes = wire::encode(&frame);
         fused.tracks = Some(frame.detections);
@@ -318,5 +339,75 @@ pub(super) async fn run(
         if done.send(outcome).is_err() {
             break;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+
+    /// One agent's window at `t_us` with a car at `score`.
+    fn window(t_us: u64, score: f64) -> Closed {
+        let frame = Frame {
+            agent: "veh".into(),
+            kind: AgentKind::Vehicle,
+            seq: 0,
+            capture_us: t_us,
+            origin: [0.0; 3],
+            detections: vec![Detection {
+                score,
+                ..v2x_protocol::fixtures::car(10.0, 0.0, 0.3)
+            }],
+        };
+        Closed {
+            anchor_us: t_us,
+            frames: BTreeMap::from([("veh".to_string(), frame)]),
+            complete: true,
+            first_arrival_us: t_us,
+        }
+    }
+
+    #[test]
+    fn a_detectors_tail_is_dropped_from_the_frame_but_reaches_the_tracks() {
+        // A detector that shows boxes from 0.4, its groups scored by their members' scores.
+        let detector = DetectorParams {
+            min_score: 0.4,
+            existence: None,
+            ..Default::default()
+        };
+        let fusion = |track: bool| Fusion {
+            steps: Steps {
+                detector: Some(detector.clone()),
+                ..Steps::method(Method::default())
+            },
+            track: track.then(|| detector.tracker(TrackerParams::default())),
+            scope: Scope::Whole,
+            heard: None,
+        };
+        // A car seen at 0.3 only: below the operating point in every window.
+        for track in [false, true] {
+            let f = fusion(track);
+            let mut state = f.fresh();
+            let mut births = 0;
+            for k in 0..4u64 {
+                let (fused, _, _, tracked, next, _) =
+                    fuse_job(&f, state, window(k * 100_000, 0.3), 0);
+                state = next;
+                // The published frame drops it either way, and no track of it is shown.
+                assert!(fused.frame.detections.is_empty(), "{:?}", fused.frame);
+                assert!(fused.tracks.unwrap_or_default().is_empty());
+                births = tracked.map_or(0, |(_, s)| s.births);
+            }
+            // The tracker heard of it (as `v2x-fuser track` gives it every fused box): a
+            // track was confirmed, to be shown once its score reaches the operating point.
+            assert_eq!(births, u64::from(track));
+        }
+        // At 0.9 the car is in the frame and its track is shown.
+        let f = fusion(true);
+        let (fused, _, _, _, state, _) = fuse_job(&f, f.fresh(), window(0, 0.9), 0);
+        assert_eq!(fused.frame.detections.len(), 1);
+        let (fused, ..) = fuse_job(&f, state, window(100_000, 0.9), 1);
+        assert_eq!(fused.tracks.map(|t| t.len()), Some(1));
     }
 }
