@@ -132,7 +132,7 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
     rows
 }
 
-/// Regional fusion against one fuser on the same frames (`bench --tile-size`): per setting and
+/// Regional fusion against one fuser on the same frames (`bench regions`): per setting and
 /// method, the method as one fuser runs it and the union of its regional fusers' outputs, one
 /// region per tile some box lies in ([`v2x_fuser::intake::region`]).
 pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: f64) -> Vec<Row> {
@@ -167,7 +167,7 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
     rows
 }
 
-/// One row of the distance-matched table (`bench --profile`).
+/// One row of the distance-matched table (`bench detection`).
 #[derive(Clone, Debug, Serialize)]
 pub struct DetectionRow {
     /// The noise setting.
@@ -201,7 +201,7 @@ impl Rows for [DetectionRow] {
     }
 }
 
-/// The distance-matched table (the nuScenes detection benchmark, `bench --profile`): under each
+/// The distance-matched table (the nuScenes detection benchmark, `bench detection`): under each
 /// setting, each single agent and each method, and with `align` each method again after the
 /// agents are registered to the roadside unit (agent 2) by [`v2x_fuser::time::align`], filtered over
 /// the frames of a scene.

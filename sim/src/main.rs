@@ -31,9 +31,10 @@ enum Command {
     /// real object) against a split's labels, written as JSON for `v2x-fuser fuse/track
     /// --existence-model FILE`.
     FitScore(commands::fit_score::FitScoreArgs),
-    /// Reproduce the paper's Table 2: every method under each noise setting, with the single
-    /// agents and the lower bound.
-    Bench(commands::bench::BenchArgs),
+    /// Reproduce the paper's Table 2 (every method under each noise setting, with the single
+    /// agents and the lower bound), a real data set's own tables with --dataset, or another
+    /// table: tracking, detection, regions, async.
+    Bench(Box<commands::bench::BenchArgs>),
     /// Draw one frame as an SVG: ground truth, each agent's boxes, the fused boxes.
     Plot(commands::plot::PlotArgs),
     #[command(flatten)]
@@ -66,7 +67,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(args) => commands::eval::run(args)?,
         Command::Calibrate(args) => commands::calibrate::run(args)?,
         Command::FitScore(args) => commands::fit_score::run(args)?,
-        Command::Bench(args) => commands::bench::run(args)?,
+        Command::Bench(args) => commands::bench::run(*args)?,
         Command::Mcap(args) => commands::mcap::run(args)?,
         Command::Wire(args) => commands::wire::run(args)?,
         Command::Load(args) => commands::load::run(args)?,

@@ -378,7 +378,7 @@ mod tests {
         };
         let fusion = |track: bool| Fusion {
             steps: Steps {
-                detector: Some(detector.clone()),
+                detector: Some(detector),
                 ..Steps::method(Method::default())
             },
             track: track.then(|| detector.tracker(TrackerParams::default())),

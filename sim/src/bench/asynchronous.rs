@@ -1,4 +1,4 @@
-//! `v2x-sim bench --async`: what capture-time offsets between two agents cost, and how much of
+//! `v2x-sim bench async`: what capture-time offsets between two agents cost, and how much of
 //! it motion compensation wins back.
 //!
 //! Agent 1 (the vehicle) captures on the data's frames. In a "10+10 Hz" pair, agent 2 (the

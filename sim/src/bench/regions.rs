@@ -1,4 +1,4 @@
-//! Tracks across regions (`bench --tile-size S --tracking`): each method's fused boxes tracked by
+//! Tracks across regions (`bench regions --tracking`): each method's fused boxes tracked by
 //! one fuser, by regional fusers that never hear each other, and by regional fusers handing
 //! their tracks over at the borders ([`v2x_fuser::tracker::handover`]); and the same with each
 //! agent's boxes through the tracks. The identity switches the borders add are the regional rows'
@@ -36,7 +36,7 @@ enum Way {
 }
 
 /// The rows: under each setting, per method (the oracle gt-wls but guided) each way of
-/// [`WAYS`], scored as `bench --tracking` scores its tracked rows; the trackers `params`'s
+/// [`WAYS`], scored as `bench tracking` scores its tracked rows; the trackers `params`'s
 /// (`soft` for the tracked ways only).
 pub fn run_region_tracking(
     gt: &GroundTruth,
@@ -102,7 +102,7 @@ fn scene(
     let slots = cfg.methods.len() * WAYS.len();
     let mut accs = vec![Accumulator::new(); slots];
     let mut evals = vec![TrackingEval::new(); slots];
-    // Every class is tracked, so that the detection columns compare with `bench --tracking`'s.
+    // Every class is tracked, so that the detection columns compare with `bench tracking`'s.
     let mut ways: Vec<Way> = (0..slots)
         .map(|slot| {
             let (guided, scope) = WAYS[slot % WAYS.len()];

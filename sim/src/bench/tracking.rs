@@ -1,4 +1,4 @@
-//! The tracking table (`bench --tracking`): each agent and each method's fused boxes followed
+//! The tracking table (`bench tracking`): each agent and each method's fused boxes followed
 //! over each scene, the guided rows, the oracle's boxes tracked by id, the true-state oracle,
 //! and the summary over noise seeds.
 
@@ -84,7 +84,7 @@ impl Serialize for Scored {
     }
 }
 
-/// One row of the tracking table (`bench --tracking`).
+/// One row of the tracking table (`bench tracking`).
 #[derive(Clone, Debug, Serialize)]
 pub struct TrackingRow {
     /// The noise setting.

@@ -1,0 +1,42 @@
+//! `v2x-sim bench async`: two agents captured at different instants, fused with and without
+//! motion compensation.
+
+use super::*;
+use std::time::Instant;
+use v2x_sim::bench::BenchConfig;
+use v2x_sim::noise::NoiseSetting;
+use v2x_sim::table::render;
+
+/// The options of `bench async`.
+#[derive(clap::Args)]
+pub struct AsyncArgs {
+    #[command(flatten)]
+    pub common: Common,
+    #[command(flatten)]
+    pub noise: NoiseArg,
+}
+
+/// Runs `bench async`.
+pub(super) fn run(args: &AsyncArgs) -> anyhow::Result<()> {
+    let c = &args.common;
+    let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
+    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let gt = &data.load()?;
+    let noise = if noise == "all" { "mild" } else { noise };
+    let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
+    let cfg = BenchConfig {
+        methods: methods_or(methods, &beside_oracle())?,
+        settings: vec![],
+        seed,
+        range,
+    };
+    let start = Instant::now();
+    let rows = v2x_sim::bench::asynchronous::run(gt, &cfg, &setting);
+    let heading = format!(
+        "{} ; noise {setting}, seed {seed}; {:.1} s",
+        data.describe(gt),
+        start.elapsed().as_secs_f64()
+    );
+    print!("{}", render(&rows[..], format, &heading)?);
+    Ok(())
+}
