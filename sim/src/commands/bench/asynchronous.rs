@@ -5,7 +5,6 @@ use super::*;
 use std::time::Instant;
 use v2x_sim::bench::BenchConfig;
 use v2x_sim::noise::NoiseSetting;
-use v2x_sim::table::render;
 
 /// The options of `bench async`.
 #[derive(clap::Args)]
@@ -20,7 +19,7 @@ pub struct AsyncArgs {
 pub(super) fn run(args: &AsyncArgs) -> anyhow::Result<()> {
     let c = &args.common;
     let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
-    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let (seed, range) = (c.draw.seed, c.draw.range);
     let gt = &data.load()?;
     let noise = if noise == "all" { "mild" } else { noise };
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
@@ -32,11 +31,10 @@ pub(super) fn run(args: &AsyncArgs) -> anyhow::Result<()> {
     };
     let start = Instant::now();
     let rows = v2x_sim::bench::asynchronous::run(gt, &cfg, &setting);
-    let heading = format!(
-        "{} ; noise {setting}, seed {seed}; {:.1} s",
-        data.describe(gt),
-        start.elapsed().as_secs_f64()
-    );
-    print!("{}", render(&rows[..], format, &heading)?);
-    Ok(())
+    c.print(
+        &rows[..],
+        gt,
+        &format!("noise {setting}, seed {seed}"),
+        start,
+    )
 }

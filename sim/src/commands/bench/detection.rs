@@ -5,7 +5,6 @@ use std::time::Instant;
 use v2x_fuser::Method;
 use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::noise::NoiseSetting;
-use v2x_sim::table::render;
 
 /// The options of `bench detection`.
 #[derive(clap::Args)]
@@ -26,7 +25,7 @@ pub struct DetectionArgs {
 pub(super) fn run(args: &DetectionArgs) -> anyhow::Result<()> {
     let c = &args.common;
     let (data, methods, profile) = (&c.data, c.methods.as_str(), args.profile.as_str());
-    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let (seed, range) = (c.draw.seed, c.draw.range);
     let gt = &data.load()?;
     let cfg = BenchConfig {
         methods: parse_list(methods, Method::all_with_ablations(), Method::parse_any)?,
@@ -37,11 +36,6 @@ pub(super) fn run(args: &DetectionArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let params = v2x_fuser::time::align::AlignParams::default();
     let rows = bench::run_detection(gt, &cfg, args.align.then_some(&params), &|| {});
-    let heading = format!(
-        "{} ; noise seed {seed}; distance matching (nuScenes); {:.1} s",
-        data.describe(gt),
-        start.elapsed().as_secs_f64()
-    );
-    print!("{}", render(&rows[..], format, &heading)?);
-    Ok(())
+    let what = format!("noise seed {seed}; distance matching (nuScenes)");
+    c.print(&rows[..], gt, &what, start)
 }

@@ -138,6 +138,26 @@ pub struct TableArgs {
     pub plots: Option<PathBuf>,
 }
 
+impl Common {
+    /// Prints a table's rows under the line that says what ran: the data `gt`, `what`, and the
+    /// seconds since `start`.
+    fn print<R: v2x_sim::table::Rows + ?Sized>(
+        &self,
+        rows: &R,
+        gt: &v2x_sim::dataset::GroundTruth,
+        what: &str,
+        start: std::time::Instant,
+    ) -> anyhow::Result<()> {
+        let secs = start.elapsed().as_secs_f64();
+        let heading = format!("{} ; {what}; {secs:.1} s", self.data.describe(gt));
+        print!(
+            "{}",
+            v2x_sim::table::render(rows, self.format.format, &heading)?
+        );
+        Ok(())
+    }
+}
+
 impl BenchMode {
     /// The options every mode takes.
     fn common(&self) -> &Common {

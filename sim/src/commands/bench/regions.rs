@@ -5,7 +5,6 @@ use super::*;
 use std::time::Instant;
 use v2x_sim::bench;
 use v2x_sim::dataset::GroundTruth;
-use v2x_sim::table::render;
 
 /// The options of `bench regions`.
 #[derive(clap::Args)]
@@ -68,35 +67,23 @@ fn region_tracking(args: &RegionsArgs, gt: &GroundTruth, size: f64) -> anyhow::R
         args.halo,
         args.association.tracker(),
     );
-    let heading = format!(
-        "{} ; noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking; {:.1} s",
-        args.common.data.describe(gt),
-        args.common.draw.seed,
-        args.halo,
-        start.elapsed().as_secs_f64()
+    let what = format!(
+        "noise seed {}; tiles of {size} m, halo {} m; id matching for the boxes, 2 m for tracking",
+        args.common.draw.seed, args.halo
     );
-    print!(
-        "{}",
-        render(&rows[..], args.common.format.format, &heading)?
-    );
-    Ok(())
+    args.common.print(&rows[..], gt, &what, start)
 }
 
 /// One fuser against regional fusers.
 fn regions(args: &RegionsArgs, gt: &GroundTruth, size: f64) -> anyhow::Result<()> {
     let c = &args.common;
-    let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
-    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let (noise, methods) = (args.noise.noise.as_str(), c.methods.as_str());
+    let (seed, range) = (c.draw.seed, c.draw.range);
     let halo = args.halo;
     let tiling = tiling(size, halo)?;
     let cfg = paper_settings(methods, &beside_paper(), noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_regions(gt, &cfg, tiling, halo);
-    let heading = format!(
-        "{} ; noise seed {seed}; tiles of {size} m, halo {halo} m; {:.1} s",
-        data.describe(gt),
-        start.elapsed().as_secs_f64()
-    );
-    print!("{}", render(&rows[..], format, &heading)?);
-    Ok(())
+    let what = format!("noise seed {seed}; tiles of {size} m, halo {halo} m");
+    c.print(&rows[..], gt, &what, start)
 }

@@ -7,13 +7,12 @@ use std::time::Instant;
 use v2x_fuser::Method;
 use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::noise::NoiseSetting;
-use v2x_sim::table::render;
 
 /// The paper's Table 2: each agent, each method (every one for 'all') and the bound.
 pub(super) fn run(args: &TableArgs) -> anyhow::Result<()> {
     let c = &args.common;
     let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
-    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let (seed, range) = (c.draw.seed, c.draw.range);
     let gt = &data.load()?;
     let agents = usize::from(args.agents);
     let settings = parse_list(noise, NoiseSetting::paper_with(agents), |s| {
@@ -41,8 +40,5 @@ pub(super) fn run(args: &TableArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let rows = bench::run(gt, &cfg, &|| bar.inc(1));
     bar.finish_and_clear();
-    let secs = start.elapsed().as_secs_f64();
-    let heading = format!("{} ; noise seed {seed}; {:.1} s", data.describe(gt), secs);
-    print!("{}", render(&rows[..], format, &heading)?);
-    Ok(())
+    c.print(&rows[..], gt, &format!("noise seed {seed}"), start)
 }

@@ -42,18 +42,13 @@ pub(super) fn run(args: &TrackingArgs) -> anyhow::Result<()> {
     }
     let c = &args.common;
     let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
-    let (seed, range, format) = (c.draw.seed, c.draw.range, c.format.format);
+    let (seed, range) = (c.draw.seed, c.draw.range);
     let gt = &data.load()?;
     let cfg = paper_settings(methods, &beside_oracle(), noise, seed, range)?;
     let start = Instant::now();
     let rows = bench::run_tracking(gt, &cfg, args.association.tracker());
-    let heading = format!(
-        "{} ; noise seed {seed}; id matching for the boxes, 2 m for tracking; {:.1} s",
-        data.describe(gt),
-        start.elapsed().as_secs_f64()
-    );
-    print!("{}", render(&rows[..], format, &heading)?);
-    Ok(())
+    let what = format!("noise seed {seed}; id matching for the boxes, 2 m for tracking");
+    c.print(&rows[..], gt, &what, start)
 }
 
 /// The logs of `tracking --seeds`: --dataroot and each --more-dataroot, or the town under
