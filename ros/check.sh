@@ -28,7 +28,7 @@ z=(--no-multicast-scouting)
 pids+=($!)
 # The vehicle's lidar at (100, 50) in the map heading +y, as a static transform file.
 echo '{"translation": [100, 50, 0], "rotation": [0, 0, 0.7071067811865476, 0.7071067811865476]}' > "$tmp/tf.json"
-"$BIN/v2x-agent" --ros-topic /veh/detections --ros-type vision --tf-file "$tmp/tf.json" \
+"$BIN/v2x-agent" --ros-topic /veh/detections --ros-type vision --tf "$tmp/tf.json" \
     --name veh --ns rosdemo "${z[@]}" -e "$ep" 2> "$tmp/veh.log" &
 pids+=($!)
 "$BIN/v2x-agent" --ros-topic /rsu/objects --ros-type autoware --ros-layout bridge \
