@@ -152,17 +152,17 @@ impl FuserSettings {
         cfg.window_ms = f.window_ms;
         cfg.max_wait_ms = self.max_wait_ms;
         let detector = f.detector.params()?;
-        cfg.detector = f.detector.detector.then_some(detector);
+        cfg.steps.detector = f.detector.detector.then_some(detector);
         self.admission.apply(&mut cfg.ingest)?;
         cfg.queue = self.admission.fusion_queue;
         cfg.log_interval_s = self.admission.log_interval_s;
-        cfg.motion = f.motion.params()?;
-        cfg.align = f.align.params()?;
-        cfg.learn = f.stds.learn()?;
-        cfg.models = f.stds.models()?;
+        cfg.steps.motion = f.motion.params()?;
+        cfg.steps.align = f.align.params()?;
+        cfg.steps.learn = f.stds.learn()?;
+        cfg.steps.models = std::sync::Arc::new(f.stds.models()?);
         cfg.track = self
             .tracker()?
-            .map(|p| cfg.detector.map_or(p, |d| d.tracker(p)));
+            .map(|p| cfg.steps.detector.map_or(p, |d| d.tracker(p)));
         cfg.set_time_scale(f.motion.time_scale);
         Ok(cfg)
     }

@@ -4,6 +4,7 @@
 use crate::intake::ingest::IngestConfig;
 use crate::intake::region::Region;
 use crate::intake::region::Scope;
+use crate::pipeline::Steps;
 use crate::time::motion::MotionParams;
 use crate::Method;
 use anyhow::anyhow;
@@ -17,12 +18,10 @@ use v2x_protocol::{Frame, Provenance};
 pub struct NodeConfig {
     /// Scenario namespace.
     pub ns: String,
-    /// Fusion method.
-    pub method: Method,
-    /// The agents send a detector's boxes (`crate::uncertainty::detector`): a CSBA-3D method's groups are
-    /// scored by the noisy-OR of their members and fused boxes below the threshold dropped;
-    /// the stds are the agents' own. `None`: the method's own scores, every box kept.
-    pub detector: Option<crate::uncertainty::detector::DetectorParams>,
+    /// What each window goes through (`crate::pipeline`): the method, a detector's scoring and
+    /// tail, motion compensation (on by default), registration, learned stds and calibrated
+    /// models by agent name.
+    pub steps: Steps,
     /// Window width delta t (ms).
     pub window_ms: f64,
     /// Longest wait for missing agents after a window's first frame (ms).
@@ -33,20 +32,8 @@ pub struct NodeConfig {
     pub queue: usize,
     /// Interval of the rate-limited log summaries (s).
     pub log_interval_s: f64,
-    /// Motion compensation of each window to its latest capture time (`None`: boxes are fused
-    /// as captured).
-    pub motion: Option<MotionParams>,
-    /// Registration of every agent to the roadside unit by its boxes before association
-    /// (`None`: agents' poses are trusted).
-    pub align: Option<crate::time::align::AlignParams>,
     /// Tracking of the fused boxes, published on `v2x/NS/tracks` (`None`: no tracks).
     pub track: Option<crate::tracker::TrackerParams>,
-    /// Each agent's stds learned from its boxes and fused instead of the stated ones (`None`:
-    /// the stated ones are trusted).
-    pub learn: Option<crate::uncertainty::learn::LearnParams>,
-    /// Calibrated error models by agent name, applied to the agents' boxes before anything
-    /// else (`--std-model`).
-    pub models: crate::uncertainty::stdmodel::Models,
     /// Where the boxes are shown (an MCAP file, a live Foxglove server), if anywhere.
     pub viz: Option<Arc<crate::viz::Viz>>,
     /// The region this fuser serves (`None`: the single fuser of the namespace, on
@@ -111,18 +98,16 @@ impl NodeConfig {
     pub fn new(ns: &str, method: Method) -> Self {
         NodeConfig {
             ns: ns.to_string(),
-            method,
-            detector: None,
+            steps: Steps {
+                motion: Some(MotionParams::default()),
+                ..Steps::method(method)
+            },
             window_ms: 100.0,
             max_wait_ms: 150.0,
             ingest: IngestConfig::default(),
             queue: 16,
             log_interval_s: 10.0,
-            motion: Some(MotionParams::default()),
-            align: None,
             track: None,
-            learn: None,
-            models: Default::default(),
             viz: None,
             region: None,
             handover: true,
@@ -140,8 +125,8 @@ impl NodeConfig {
     pub fn set_time_scale(&mut self, s: f64) {
         crate::pipeline::set_time_scale(
             s,
-            self.motion.as_mut(),
-            self.learn.as_mut(),
+            self.steps.motion.as_mut(),
+            self.steps.learn.as_mut(),
             self.track.as_mut(),
         );
     }

@@ -115,7 +115,7 @@ impl State {
             log: RateLog::new((cfg.log_interval_s.max(0.1) * 1e6) as u64, now),
             stats: NodeStats {
                 ns: cfg.ns.clone(),
-                method: cfg.method.name(),
+                method: cfg.steps.method.name(),
                 region: cfg.scope().tile().map(|t| t.to_string()),
                 ..Default::default()
             },

@@ -30,14 +30,7 @@ pub(super) async fn start_worker(
         _ => (None, Vec::new()),
     };
     let fusion = worker::Fusion {
-        steps: crate::pipeline::Steps {
-            method: cfg.method,
-            detector: cfg.detector,
-            motion: cfg.motion,
-            align: cfg.align,
-            learn: cfg.learn,
-            models: std::sync::Arc::new(cfg.models.clone()),
-        },
+        steps: cfg.steps.clone(),
         track: cfg.track,
         scope: cfg.scope(),
         heard,

@@ -282,7 +282,7 @@ fn node_config(
         .node_config(&scenario.namespace, scenario.speed)?;
     // Real detectors' boxes: their groups scored and their tail dropped, as `--detector` does.
     if scenario.dataset.kind == crate::cli::DatasetKind::V2v4real {
-        cfg.detector = Some(v2x_fuser::uncertainty::detector::DetectorParams::default());
+        cfg.steps.detector = Some(v2x_fuser::uncertainty::detector::DetectorParams::default());
     }
     cfg.region = region;
     cfg.handover = scenario.regions.as_ref().is_none_or(|r| r.track_handover);

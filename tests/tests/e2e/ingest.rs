@@ -555,7 +555,7 @@ async fn registration_is_reported_in_the_stats() {
     // calibration error): within a few windows the fuser applies the shift, and says so.
     let ns = "registration";
     let mut c = cfg(ns, 300.0);
-    c.align = Some(Default::default());
+    c.steps.align = Some(Default::default());
     let mut s = setup(ns, c).await;
     let cars = |dx: f64, dy: f64| -> Vec<Detection> {
         (0..6)

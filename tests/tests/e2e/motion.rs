@@ -23,7 +23,7 @@ async fn fused_errors(ns: &'static str, motion: Option<MotionParams>, offset_us:
     let fs = listen(port).await;
     let mut cfg = NodeConfig::new(ns, "csba-wls+".parse().unwrap());
     cfg.window_ms = 150.0;
-    cfg.motion = motion;
+    cfg.steps.motion = motion;
     let mut fuser = spawn_fuser_with(fs, cfg);
     let mut agents = Vec::new();
     let mut sessions = Vec::new();

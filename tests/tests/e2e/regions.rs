@@ -86,7 +86,7 @@ async fn two_regions_over_two_routers_fuse_every_object_once() {
     let mut fusers = Vec::new();
     for (tile, port) in tiles.iter().zip([pa, pb]) {
         let mut cfg = NodeConfig::new(NS, method);
-        cfg.motion = None;
+        cfg.steps.motion = None;
         cfg.max_wait_ms = 300.0;
         cfg.track = Some(Default::default());
         cfg.region = Some(Region {
