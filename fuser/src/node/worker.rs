@@ -345,7 +345,6 @@ pub(super) async fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
 
     /// One agent's window at `t_us` with a car at `score`.
     fn window(t_us: u64, score: f64) -> Closed {
@@ -360,12 +359,7 @@ mod tests {
                 ..v2x_protocol::fixtures::car(10.0, 0.0, 0.3)
             }],
         };
-        Closed {
-            anchor_us: t_us,
-            frames: BTreeMap::from([("veh".to_string(), frame)]),
-            complete: true,
-            first_arrival_us: t_us,
-        }
+        Closed::of([frame])
     }
 
     #[test]

@@ -192,15 +192,8 @@ mod tests {
             origin: [0.0; 3],
             detections: vec![moving()],
         };
-        let closed = crate::time::window::Closed {
-            anchor_us: 1_000_000,
-            frames: [frame("a", 1_000_000), frame("b", 1_100_000)]
-                .into_iter()
-                .map(|f| (f.agent.clone(), f))
-                .collect(),
-            complete: true,
-            first_arrival_us: 0,
-        };
+        let closed =
+            crate::time::window::Closed::of([frame("a", 1_000_000), frame("b", 1_100_000)]);
         let (t_ref, out) = align_window(closed.clone(), Some(&Default::default()));
         assert_eq!(t_ref, 1_100_000);
         assert!(

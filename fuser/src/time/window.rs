@@ -46,6 +46,22 @@ pub struct Closed {
     pub first_arrival_us: u64,
 }
 
+impl Closed {
+    /// A complete window of these frames (one per agent), anchored at their earliest capture
+    /// and arrived then: frames already grouped, as a bench's or a test's.
+    pub fn of(frames: impl IntoIterator<Item = Frame>) -> Closed {
+        let frames: BTreeMap<String, Frame> =
+            frames.into_iter().map(|f| (f.agent.clone(), f)).collect();
+        let anchor_us = frames.values().map(|f| f.capture_us).min().unwrap_or(0);
+        Closed {
+            anchor_us,
+            frames,
+            complete: true,
+            first_arrival_us: anchor_us,
+        }
+    }
+}
+
 #[derive(Debug)]
 struct Open {
     anchor_us: u64,

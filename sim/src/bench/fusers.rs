@@ -1,7 +1,6 @@
 //! The methods of a bench, each run as the fuser runs a window: through its pipeline
 //! (`v2x_fuser::pipeline`), so that a per-window step added there reaches every bench.
 
-use std::collections::BTreeMap;
 use v2x_fuser::pipeline::{Pipeline, Reference, Steps};
 use v2x_fuser::time::align::AlignParams;
 use v2x_fuser::time::window::Closed;
@@ -64,25 +63,14 @@ impl Fusers {
         captures: &[u64],
         lists: &[Vec<Detection>],
     ) -> Vec<Detection> {
-        let frames: BTreeMap<String, Frame> = (0..lists.len())
-            .map(|a| {
-                let frame = Frame {
-                    agent: self.names[a].clone(),
-                    kind: self.kinds[a],
-                    seq: 0,
-                    capture_us: captures[a],
-                    origin: [0.0; 3],
-                    detections: lists[a].clone(),
-                };
-                (self.names[a].clone(), frame)
-            })
-            .collect();
-        let closed = Closed {
-            anchor_us: captures.iter().copied().min().unwrap_or(0),
-            frames,
-            complete: true,
-            first_arrival_us: 0,
-        };
+        let closed = Closed::of((0..lists.len()).map(|a| Frame {
+            agent: self.names[a].clone(),
+            kind: self.kinds[a],
+            seq: 0,
+            capture_us: captures[a],
+            origin: [0.0; 3],
+            detections: lists[a].clone(),
+        }));
         let pipeline = &mut self.pipelines[m];
         let prepared = pipeline.prepare(closed);
         pipeline

@@ -42,20 +42,11 @@ pub(crate) fn paper_settings(
     range: Option<f64>,
 ) -> anyhow::Result<BenchConfig> {
     Ok(BenchConfig {
-        methods: methods_or(methods, default_methods)?,
+        methods: parse_list(methods, default_methods.to_vec(), Method::parse_any)?,
         settings: parse_list(noise, NoiseSetting::paper(), |s| NoiseSetting::parse(s, 2))?,
         seed,
         range,
     })
-}
-
-/// `--methods`: the list, or `default_methods` for `all`.
-pub(crate) fn methods_or(methods: &str, default_methods: &[Method]) -> anyhow::Result<Vec<Method>> {
-    if methods == "all" {
-        Ok(default_methods.to_vec())
-    } else {
-        parse_list(methods, vec![], Method::parse_any)
-    }
 }
 
 /// The default method beside the paper's csba-wls.

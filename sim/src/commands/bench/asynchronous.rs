@@ -24,7 +24,7 @@ pub(super) fn run(args: &AsyncArgs) -> anyhow::Result<()> {
     let noise = if noise == "all" { "mild" } else { noise };
     let setting = NoiseSetting::parse(noise, 2).map_err(anyhow::Error::msg)?;
     let cfg = BenchConfig {
-        methods: methods_or(methods, &beside_oracle())?,
+        methods: parse_list(methods, beside_oracle().to_vec(), Method::parse_any)?,
         settings: vec![],
         seed,
         range,

@@ -48,14 +48,9 @@ pub(super) fn dair(args: &TableArgs) -> anyhow::Result<()> {
 /// `--methods` on real data: `all` is every method but the oracle, which needs ground-truth
 /// ids the data's own boxes do not carry.
 fn real_data_methods(list: &str) -> anyhow::Result<Vec<Method>> {
-    Ok(if list == "all" {
-        Method::all_with_ablations()
-            .into_iter()
-            .filter(|m| *m != Method::GtWls)
-            .collect()
-    } else {
-        parse_list(list, vec![], Method::parse_any)?
-    })
+    let mut all = Method::all_with_ablations();
+    all.retain(|m| *m != Method::GtWls);
+    parse_list(list, all, Method::parse_any)
 }
 
 /// `--dataset v2v4real`: each car, the dataset's references and every method on real
