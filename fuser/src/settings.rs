@@ -261,7 +261,7 @@ mod tests {
                 "--area-radius-m",
             ),
             (
-                |s| s.tracking.association = Association::Soft,
+                |s| s.tracking.association = Association::Assignment,
                 "association",
                 "--association",
             ),

@@ -164,18 +164,21 @@ def test_a_detectors_results_files_fuse_and_track_as_the_cli_does(tmp_path):
         v.fuse_files(paths, tmp_path / "x.json", detector=True, default_std="mild")
 
 
-def test_soft_association_equals_the_cli(cli, generated, tmp_path):
-    """``association="soft"``: the same file as `v2x-fuser track --association soft`, and the
-    same ids window by window from ``Tracker(association="soft")`` fed the fused boxes."""
+def test_each_association_equals_the_cli(cli, generated, tmp_path):
+    """``association="assignment"``: the same file as `v2x-fuser track --association assignment`,
+    and the same ids window by window from ``Tracker(association="assignment")`` fed the fused
+    boxes; ``association="soft"`` is the default's file."""
     paths = [generated / a for a in AGENTS]
-    run("v2x-fuser", "track", "--association", "soft", "-o", tmp_path / "cli.json", *paths)
-    v.track_files(paths, tmp_path / "py.json", association="soft")
+    v.track_files(paths, tmp_path / "soft.json", association="soft")
+    assert load(tmp_path / "soft.json") == load(cli / "tracks.json")
+    run("v2x-fuser", "track", "--association", "assignment", "-o", tmp_path / "cli.json", *paths)
+    v.track_files(paths, tmp_path / "py.json", association="assignment")
     assert load(tmp_path / "py.json") == load(tmp_path / "cli.json")
     assert load(cli / "tracks.json") != load(tmp_path / "cli.json")
     fused = load(cli / "fused.json")
     times = fused["meta"]["v2x_timestamps"]
     expected = load(tmp_path / "cli.json")["results"]
-    tracker = v.Tracker(association="soft")
+    tracker = v.Tracker(association="assignment")
     for sample in sorted(fused["results"], key=lambda s: times[s]):
         got = tracker.step(times[sample], fused["results"][sample])
         want = expected[sample]

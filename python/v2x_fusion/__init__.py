@@ -272,9 +272,9 @@ def track_files(
     paths: Sequence[PathLike], output: PathLike, method: str = "csba-wls+", **options: Any
 ) -> dict:
     """Reads, fuses, tracks and writes a nuScenes tracking results file: ``v2x-fuser track``.
-    Takes ``fuse_files``' options and the tracking ones: ``association`` ("assignment", "soft":
-    each track updated with its boxes weighed by the chance each is its own, or "guided": each
-    agent's boxes through the tracks), ``confirm_hits``, ``max_misses`` and ``all_classes``;
+    Takes ``fuse_files``' options and the tracking ones: ``association`` ("soft", the default:
+    each track updated with its boxes weighed by the chance each is its own, "assignment": the
+    box of the best assignment, or "guided": each agent's boxes through the tracks), ``confirm_hits``, ``max_misses`` and ``all_classes``;
     returns the windows, boxes, the tracker's counters (live, births, deaths) and learned stds."""
     opts = _options(dict(options, method=method))
     return json.loads(_native.run_files([os.fspath(p) for p in paths], os.fspath(output), opts, True))
@@ -282,9 +282,9 @@ def track_files(
 
 class Tracker:
     """Follows fused boxes over time, window by window, as ``v2x-fuser track`` and the node's
-    ``--track`` do: an interacting-multiple-model Kalman filter per track, gated likeliest-box
-    association (with ``association="soft"``, each track updated with its boxes weighed by the
-    chance each is its own), confirmation after ``confirm_hits`` and an end after ``max_misses``
+    ``--track`` do: an interacting-multiple-model Kalman filter per track, each updated with the
+    boxes in its gate weighed by the chance each is its own (``association="assignment"``: the
+    box of the best assignment alone), confirmation after ``confirm_hits`` and an end after ``max_misses``
     missed windows (each left out: ``v2x-fuser track``'s default)."""
 
     def __init__(

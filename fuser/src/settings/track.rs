@@ -9,11 +9,11 @@ use serde::{Deserialize, Serialize};
 #[cfg_attr(feature = "node", derive(clap::Args))]
 #[serde(default)]
 pub struct TrackSettings {
-    /// How boxes reach the tracks: `assignment` (the fused boxes, each to the track of the
-    /// best assignment), `soft` (each track updated with its fused boxes weighed by the chance
-    /// each is its own, docs/method.md §8.2) or `guided` (each agent's boxes through the
-    /// tracks first, fused between agents only where no track explains them, §8.1).
-    #[cfg_attr(feature = "node", arg(long, value_name = "assignment|soft|guided", default_value_t = TrackSettings::default().association))]
+    /// How boxes reach the tracks: `soft` (each track updated with its fused boxes weighed by
+    /// the chance each is its own, docs/method.md §8.2), `assignment` (the fused boxes, each to
+    /// the track of the best assignment) or `guided` (each agent's boxes through the tracks
+    /// first, fused between agents only where no track explains them, §8.1).
+    #[cfg_attr(feature = "node", arg(long, value_name = "soft|assignment|guided", default_value_t = TrackSettings::default().association))]
     pub association: Association,
     /// Hits in a row that confirm a track: 2 (a box seen once never becomes a track); 1 shows
     /// every box at once.

@@ -7,10 +7,10 @@
 #[serde(rename_all = "kebab-case")]
 pub enum Association {
     /// The fused boxes, each to the track of the best assignment ([`Tracker::step`](super::Tracker::step)).
-    #[default]
     Assignment,
     /// The fused boxes, each track updated with its boxes weighed by the chance each is its
     /// own (`docs/method.md` §8.2).
+    #[default]
     Soft,
     /// Each agent's boxes through the tracks first, fused between agents only where no track
     /// explains them ([`Tracker::step_agents`](super::Tracker::step_agents), `docs/method.md` §8.1).
@@ -24,8 +24,8 @@ pub enum Association {
 impl Association {
     /// The modes a user may choose (by-id is the simulation's oracle).
     pub const CHOICES: [Association; 3] = [
-        Association::Assignment,
         Association::Soft,
+        Association::Assignment,
         Association::Guided,
     ];
 
@@ -186,12 +186,12 @@ impl TrackerParams {
     }
 
     /// These parameters for tracking through the tracks (`guided`) or the fused boxes, a
-    /// fused-box mode (assignment or soft) kept for the fused boxes.
+    /// fused-box mode (soft or assignment) kept for the fused boxes.
     pub fn with_guided(self, guided: bool) -> Self {
         let mut p = self;
         p.association.mode = match (guided, self.association.mode) {
             (true, _) => Association::Guided,
-            (false, Association::Guided) => Association::Assignment,
+            (false, Association::Guided) => Association::default(),
             (false, mode) => mode,
         };
         p

@@ -71,7 +71,7 @@ pub fn tracked(
         method.name(),
         match params.association.mode {
             Association::Guided => "guided",
-            Association::Soft => "tracked soft",
+            Association::Assignment => "tracked assignment",
             _ => "tracked",
         }
     );

@@ -84,9 +84,9 @@ pub struct NoiseArg {
 #[derive(clap::Args, Clone, Copy)]
 pub struct AssociationArg {
     /// How the tracked rows' boxes reach their tracks, as `v2x-fuser track --association`
-    /// (assignment or soft; docs/method.md §8.2); the guided rows are printed beside them
+    /// (soft or assignment; docs/method.md §8.2); the guided rows are printed beside them
     /// either way.
-    #[arg(long, value_name = "assignment|soft", default_value_t = Association::default(), value_parser = fused_association)]
+    #[arg(long, value_name = "soft|assignment", default_value_t = Association::default(), value_parser = fused_association)]
     pub association: Association,
 }
 
