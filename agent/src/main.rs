@@ -8,14 +8,14 @@ use std::time::Duration;
 use v2x_agent::{now_us, replay, Agent, Link, ReplayClock};
 use v2x_protocol::net::{open_session, ZenohArgs};
 use v2x_protocol::nuscenes_json::{read_results, MissingStd, Results, TokenTable};
-use v2x_protocol::tiles::Tiling;
 use v2x_protocol::{AgentKind, Frame, Uncertainty};
 
 #[derive(Parser)]
 #[command(
     name = "v2x-agent",
     version,
-    about = "Replay a nuScenes results file, or forward a ROS 2 detector's topic, as one V2X agent over Zenoh"
+    about = "Replay a nuScenes results file, or forward a ROS 2 detector's topic, as one V2X agent over Zenoh",
+    long_about = "Replay a nuScenes results file, or forward a ROS 2 detector's topic, as one V2X agent over Zenoh: each frame on v2x/NS/det/AGENT for a single fuser, or with --tile-size as one part per tile its boxes lie in, on v2x/NS/det/TILE/AGENT, for regional fusers."
 )]
 struct Cli {
     /// The results file to replay (one agent's detections per sample token); not with
@@ -31,44 +31,26 @@ struct Cli {
     #[command(flatten)]
     ns: v2x_protocol::net::Namespace,
     /// nuScenes sample table (sample.json) giving each sample's timestamp; without it, samples
-    /// are sent in token order at --hz (or at the `v2x_timestamps` map in the file's meta).
+    /// are sent in token order at --replay's hz (or at the `v2x_timestamps` map in the file's
+    /// meta).
     #[arg(long)]
     sample_table: Option<PathBuf>,
-    /// Frame rate when no timestamps are known.
-    #[arg(long, default_value_t = 10.0)]
-    hz: f64,
-    /// Playback speed factor (2 = twice as fast).
-    #[arg(long, default_value_t = 1.0)]
-    speed: f64,
-    /// Which clock stamps capture times: `real` maps the data's time onto this machine's clock
-    /// from --start-at (what a fuser with its default clock tolerance expects); `data` keeps the
-    /// data's own timestamps (for `v2x-fuser node --max-clock-skew-ms 0`).
-    #[arg(long, value_enum, default_value = "real")]
-    clock: ClockArg,
-    /// With --clock real: when the first frame is captured, in Unix seconds (default: now).
-    /// Give several agents the same value and they replay in step, their frames fused together.
-    #[arg(long)]
-    start_at: Option<f64>,
+    #[command(flatten)]
+    replay: v2x_protocol::cli::ReplayArg,
     /// Stds for boxes without std fields: mild, moderate, large or POS,SIZE,YAW_DEG.
     #[arg(long, value_parser = v2x_protocol::parse_std)]
     default_std: Option<Uncertainty>,
     /// The simulated link and sensor clock, KEY=VALUE,... as a scenario's `link` table has
     /// them: latency_ms (one-way latency), jitter_ms (uniform in [0, J] ms), drop_rate (the
-    /// chance a frame is lost), clock_offset_ms (added to every capture time, may be negative);
-    /// each left out is 0. E.g. latency_ms=20,jitter_ms=10,drop_rate=0.05.
+    /// chance a frame is lost), clock_offset_ms (added to every capture time, may be negative),
+    /// each left out 0; and seed, the simulation's (1). E.g. latency_ms=20,jitter_ms=10,drop_rate=0.05.
     #[arg(long, value_name = "KEY=VALUE,...", default_value = "", hide_default_value = true, value_parser = parse_link, allow_hyphen_values = true)]
-    link: Link,
+    link: LinkArg,
     /// Wait at most this long for a fuser to subscribe before sending (s).
     #[arg(long, default_value_t = 30.0)]
     wait_s: f64,
-    /// Seed of the link simulation.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Publish for regional fusers: each frame as one part per tile of this side (m) its boxes
-    /// lie in, on v2x/NS/det/TILE/AGENT (the fusers' `--tile-size`). Default: one frame on
-    /// v2x/NS/det/AGENT for a single fuser.
-    #[arg(long)]
-    tile_size: Option<f64>,
+    #[command(flatten)]
+    tiles: v2x_protocol::tiles::TileSize,
     /// What goes on the air: the project's frames, or ETSI Collective Perception Messages
     /// (UPER, docs/cpm.md), which the fuser reads as frames.
     #[arg(long, value_enum, default_value = "frame")]
@@ -108,12 +90,6 @@ enum Wire {
     Cpm,
 }
 
-#[derive(Copy, Clone, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum ClockArg {
-    Real,
-    Data,
-}
-
 fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -145,16 +121,13 @@ fn main() -> std::process::ExitCode {
 
 async fn run(cli: Cli) -> anyhow::Result<()> {
     v2x_protocol::net::init_logging("info,zenoh=warn");
-    if !(cli.speed > 0.0 && cli.speed.is_finite()) {
-        bail!("--speed must be > 0");
-    }
     if !(cli.wait_s >= 0.0 && cli.wait_s.is_finite()) {
         bail!("--wait-s must be >= 0");
     }
     if let Some(topic) = &cli.ros_topic {
         return run_ros(&cli, topic).await;
     }
-    let clock = replay_clock(&cli)?;
+    let clock = replay_clock(&cli);
     let missing = cli
         .default_std
         .map_or(MissingStd::Error, MissingStd::Default);
@@ -178,10 +151,9 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     let frames = frames_of(&cli, results)?;
     let (session, mut agent) = start(&cli).await?;
     let wait = Duration::from_secs_f64(cli.wait_s);
-    match cli.tile_size {
+    match cli.tiles.tiling {
         None => agent.wait_for_subscriber(wait).await?,
-        Some(size) => {
-            let tiling = Tiling::new(size).map_err(|e| anyhow!("--tile-size: {e}"))?;
+        Some(tiling) => {
             // Wait for the fuser of the tile the first frame's boxes are centred on.
             let home = frames.first().map_or([0.0; 3], |f| f.origin);
             agent = agent.with_tiling(tiling);
@@ -194,14 +166,14 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     let report = replay(
         &mut agent,
         frames,
-        cli.speed,
+        cli.replay.replay.speed,
         clock,
         v2x_protocol::net::shutdown_signal(),
     )
     .await?;
     // Let delayed publications leave before closing.
     tokio::time::sleep(Duration::from_millis(
-        (cli.link.latency_ms + cli.link.jitter_ms) as u64 + 200,
+        (cli.link.link.latency_ms + cli.link.link.jitter_ms) as u64 + 200,
     ))
     .await;
     let t = agent.counters().totals();
@@ -212,11 +184,36 @@ async fn run(cli: Cli) -> anyhow::Result<()> {
     close(session, agent).await
 }
 
-/// `--link`: the link's table, checked.
-fn parse_link(s: &str) -> Result<Link, String> {
-    let link: Link = v2x_protocol::pairs::from_pairs(s)?;
+/// `--link`: the simulated link and the seed it is drawn with.
+#[derive(Clone, Debug)]
+struct LinkArg {
+    link: Link,
+    seed: u64,
+}
+
+/// `--link`: the link's table (its `seed` key apart, 1 when left out), checked.
+fn parse_link(s: &str) -> Result<LinkArg, String> {
+    let mut seed = None;
+    let mut rest = Vec::new();
+    for part in s.split(',') {
+        match part.trim().strip_prefix("seed=") {
+            Some(v) if seed.is_none() => {
+                seed = Some(
+                    v.trim()
+                        .parse()
+                        .map_err(|_| format!("seed: expected a whole number, got '{v}'"))?,
+                )
+            }
+            Some(_) => return Err("'seed' is given twice".into()),
+            None => rest.push(part),
+        }
+    }
+    let link: Link = v2x_protocol::pairs::from_pairs(&rest.join(","))?;
     link.validate().map_err(|e| e.to_string())?;
-    Ok(link)
+    Ok(LinkArg {
+        link,
+        seed: seed.unwrap_or(1),
+    })
 }
 
 /// Withdraws the agent, then closes its session.
@@ -230,9 +227,17 @@ async fn close(session: zenoh::Session, agent: Agent) -> anyhow::Result<()> {
 
 /// The agent's session and the agent on it, with its simulated link and its wire.
 async fn start(cli: &Cli) -> anyhow::Result<(zenoh::Session, Agent)> {
-    let link = cli.link.clone();
+    let link = cli.link.link.clone();
     let session = open_session(&cli.zenoh).await?;
-    let mut agent = Agent::start(&session, &cli.ns.ns, &cli.name, cli.kind, link, cli.seed).await?;
+    let mut agent = Agent::start(
+        &session,
+        &cli.ns.ns,
+        &cli.name,
+        cli.kind,
+        link,
+        cli.link.seed,
+    )
+    .await?;
     if cli.wire == Wire::Cpm {
         agent = agent.sending_cpm(cli.map_origin.geo);
     }
@@ -303,21 +308,16 @@ fn transform_file(path: &std::path::Path) -> anyhow::Result<v2x_ros::convert::Tr
     })
 }
 
-/// The clock a replay runs on, from --clock and --start-at.
-fn replay_clock(cli: &Cli) -> anyhow::Result<ReplayClock> {
-    Ok(match (cli.clock, cli.start_at) {
-        (ClockArg::Data, Some(_)) => bail!("--start-at goes with --clock real"),
-        (ClockArg::Data, None) => ReplayClock::Data,
-        (ClockArg::Real, None) => ReplayClock::Real {
-            start_us: now_us(),
+/// The clock a replay runs on, from --replay's clock and start_at (checked when parsed).
+fn replay_clock(cli: &Cli) -> ReplayClock {
+    let r = cli.replay.replay;
+    match r.clock {
+        v2x_protocol::cli::ReplayClock::Data => ReplayClock::Data,
+        v2x_protocol::cli::ReplayClock::Real => ReplayClock::Real {
+            start_us: r.start_at.map_or_else(now_us, |t| (t * 1e6) as u64),
             data_start_us: None,
         },
-        (ClockArg::Real, Some(t)) if t > 0.0 && t.is_finite() => ReplayClock::Real {
-            start_us: (t * 1e6) as u64,
-            data_start_us: None,
-        },
-        (ClockArg::Real, Some(t)) => bail!("--start-at must be a positive Unix time (got {t})"),
-    })
+    }
 }
 
 /// The file's samples as frames in capture order, each at its time: from --sample-table, else
@@ -337,15 +337,10 @@ fn frames_of(cli: &Cli, results: Results) -> anyhow::Result<Vec<Frame>> {
             .unwrap_or_default(),
     };
     if times.is_empty() {
-        if !(cli.hz > 0.0 && cli.hz.is_finite()) {
-            bail!("--hz must be > 0");
-        }
-        tracing::warn!(
-            "no timestamps known: sending samples in token order at {} Hz",
-            cli.hz
-        );
+        let hz = cli.replay.replay.hz;
+        tracing::warn!("no timestamps known: sending samples in token order at {hz} Hz");
         for (i, s) in results.samples.keys().enumerate() {
-            times.insert(s.clone(), (i as f64 * 1e6 / cli.hz) as u64);
+            times.insert(s.clone(), (i as f64 * 1e6 / hz) as u64);
         }
     }
     let mut frames = Vec::new();
@@ -373,4 +368,23 @@ fn frames_of(cli: &Cli, results: Results) -> anyhow::Result<Vec<Frame>> {
     }
     frames.sort_by_key(|f| f.capture_us);
     Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_link_takes_its_seed_and_refuses_a_bad_key() {
+        let l = parse_link("latency_ms=20,seed=3,drop_rate=0.1").unwrap();
+        assert_eq!(
+            (l.link.latency_ms, l.link.drop_rate, l.seed),
+            (20.0, 0.1, 3)
+        );
+        assert_eq!(parse_link("").unwrap().seed, 1);
+        assert!(parse_link("seed=x").unwrap_err().starts_with("seed:"));
+        assert!(parse_link("seed=1,seed=2").unwrap_err().contains("twice"));
+        assert!(parse_link("sed=3").unwrap_err().contains("sed"));
+        assert!(parse_link("drop_rate=2").unwrap_err().contains("drop_rate"));
+    }
 }

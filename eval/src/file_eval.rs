@@ -278,7 +278,7 @@ fn scorable_samples(
     let (samples, unknown) = sample_times(gt, results, opts.replay, opts.timing);
     if !unknown.is_empty() {
         return Err(EvalError(format!(
-            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs --replay-start-at and --replay-speed)",
+            "{}: {} sample(s) are not in the ground truth, e.g. '{}' (is this the right --dataroot/--version, or the same synthetic town flags as when it was made? A recording of agents replaying on the real clock needs their --replay start_at and speed)",
             path.display(),
             unknown.len(),
             unknown[0]

@@ -35,7 +35,7 @@ grep -q subscribed "$tmp/sub.log" || { cat "$tmp/sub.log"; echo "python client: 
 start=$("$VENV/bin/python" -c 'import time; print(f"{time.time() + 2:.3f}")')
 for a in "veh vehicle agent1.json" "rsu infrastructure agent2.json"; do
     set -- $a
-    "$BIN/v2x-agent" "$tmp/$3" --name "$1" --kind "$2" --ns pyclient --speed 2 --start-at "$start" \
+    "$BIN/v2x-agent" "$tmp/$3" --name "$1" --kind "$2" --ns pyclient --replay "speed=2,start_at=$start" \
         --no-multicast-scouting -e "$ep" 2> "$tmp/$1.log" &
     pids+=($!)
 done

@@ -31,13 +31,15 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Fuse nuScenes detection-results files offline, one file per agent.
+    /// Fuse nuScenes detection-results files offline, one file per agent, into the results file
+    /// -o names (a folder of KITTI rows with --output-format kitti).
     #[command(after_help = methods_help())]
     Fuse(FuseArgs),
     /// Fuse results files, one per agent, then follow the fused boxes over time with a
     /// constant-velocity Kalman tracker, and write nuScenes tracking results (`tracking_id`,
     /// `tracking_name`, `tracking_score`, beside the detection fields). The files must carry
-    /// capture times (meta.v2x_timestamps, as `v2x-sim gen` writes them).
+    /// capture times (meta.v2x_timestamps, as `v2x-sim gen` writes them). -o names the file (a
+    /// folder with --output-format kitti).
     #[command(after_help = methods_help())]
     Track(TrackArgs),
     /// Run the fuser on the network: subscribe to every agent, fuse each time window, publish.
@@ -116,5 +118,35 @@ mod tests {
             assert_eq!(sorted.len(), flags.len());
         }
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn a_regional_fusers_tiles_are_checked_and_need_its_tile() {
+        use clap::Parser;
+        let region = |flags: &[&str]| {
+            let cli = Cli::try_parse_from(["v2x-fuser", "node"].iter().chain(flags))?;
+            match cli.command {
+                super::Command::Node(n) => Ok::<_, clap::Error>(n.region.region()),
+                _ => unreachable!("parsed as node"),
+            }
+        };
+        assert!(region(&[]).unwrap().unwrap().is_none());
+        let r = region(&["--tile", "0_-1", "--halo", "10"])
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        assert_eq!((r.tiling.size_m(), r.halo_m), (200.0, 10.0));
+        let r = region(&["--tile", "1_1", "--tile-size", "50"])
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        assert_eq!((r.tiling.size_m(), r.halo_m), (50.0, 30.0));
+        let e = region(&["--tile-size", "50"])
+            .unwrap()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("give --tile too"), "{e}");
+        assert!(region(&["--tile", "0_0", "--tile-size", "0"]).is_err());
+        assert!(region(&["--tile", "0_0", "--halo", "nan"]).is_err());
     }
 }

@@ -10,6 +10,8 @@
 //! files only to read and write JSON and KITTI text; with it, [`net`] opens Zenoh sessions.
 
 pub mod acl;
+#[cfg(feature = "cli")]
+pub mod cli;
 #[cfg(feature = "fixtures")]
 pub mod fixtures;
 pub mod fuzzing;

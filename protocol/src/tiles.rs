@@ -13,6 +13,12 @@ use std::str::FromStr;
 /// but a part per tile beyond this many would flood the network).
 pub const MAX_TILES_PER_CAPTURE: usize = 64;
 
+/// Default tile side (m).
+pub const DEFAULT_TILE_M: f64 = 200.0;
+/// Default halo (m): beyond csba-wls+'s reach at large noise (6 Mahalanobis units of two 3 m
+/// stds, 25.5 m, per axis).
+pub const DEFAULT_HALO_M: f64 = 30.0;
+
 /// One tile of the grid: column `x`, row `y` (tile (0, 0) starts at the map origin).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Tile {
@@ -37,6 +43,12 @@ pub enum TileError {
     /// A tile side that is not finite or under 1 m.
     #[error("tile size {0} m: expected a finite size of at least 1 m")]
     Size(f64),
+    /// A tile side or halo that is not a number.
+    #[error("'{0}': expected metres")]
+    NotMetres(String),
+    /// A halo that is negative or not finite.
+    #[error("halo {0} m: expected a finite width of at least 0 m")]
+    Halo(f64),
     /// A tile list longer than any list of [`MAX_TILES_PER_CAPTURE`] tiles.
     #[error("tile list of {0} bytes is too long")]
     TooLong(usize),
@@ -70,6 +82,51 @@ impl FromStr for Tile {
         }
         Ok(t)
     }
+}
+
+impl FromStr for Tiling {
+    type Err = TileError;
+
+    fn from_str(s: &str) -> Result<Self, TileError> {
+        Tiling::new(s.parse().map_err(|_| TileError::NotMetres(s.to_string()))?)
+    }
+}
+
+/// The map's tiles on the command line (`--tile-size`), declared once for agents, regional
+/// fusers and the regions bench.
+#[derive(Copy, Clone, Debug, Default)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct TileSize {
+    /// Side of the map's square tiles (m), one for every agent and regional fuser of a
+    /// deployment (at least 1 m; a fuser serving a --tile: 200 unless given).
+    #[cfg_attr(feature = "cli", arg(long = "tile-size", value_name = "METRES"))]
+    pub tiling: Option<Tiling>,
+}
+
+/// A regional fuser's halo on the command line (`--halo`), for fusers and the regions bench.
+#[derive(Copy, Clone, Debug, Default)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+pub struct Halo {
+    /// How far beyond its tile a regional fuser takes boxes (m; 30 unless given): at least the
+    /// association's reach, so groups across a border are fused as one fuser would.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "METRES", value_parser = parse_halo))]
+    pub halo: Option<f64>,
+}
+
+impl Halo {
+    /// The halo given, or [`DEFAULT_HALO_M`].
+    pub fn halo_m(&self) -> f64 {
+        self.halo.unwrap_or(DEFAULT_HALO_M)
+    }
+}
+
+/// A halo width: finite and at least 0 m.
+pub fn parse_halo(s: &str) -> Result<f64, TileError> {
+    let m: f64 = s.parse().map_err(|_| TileError::NotMetres(s.to_string()))?;
+    if !(m.is_finite() && m >= 0.0) {
+        return Err(TileError::Halo(m));
+    }
+    Ok(m)
 }
 
 /// The grid: square tiles of one side, aligned on the map origin.

@@ -50,7 +50,7 @@ def test_a_python_agent_joins_a_live_fuser(generated, tmp_path):
                         "--linger", 3, "--out", tmp_path / "frames.jsonl", generated / "agent1.json",
                         log="example.log")
         rsu = start(BIN / "v2x-agent", generated / "agent2.json", "--name", "rsu", "--kind", "infrastructure",
-                    "--ns", ns, "--speed", 2, "--start-at", start_at, "--no-multicast-scouting", "-e", ep,
+                    "--ns", ns, "--replay", f"speed=2,start_at={start_at}", "--no-multicast-scouting", "-e", ep,
                     log="rsu.log")
         wait(fuser, "fuser.log")
         wait(example, "example.log")

@@ -47,15 +47,12 @@ pub struct DataArgs {
     /// the official loader does.
     #[arg(long, value_enum, default_value = "on")]
     pub calibration_offset: Switch,
-    /// DAIR-V2X: the vehicle's boxes from a detector's results instead of its labels: a folder
-    /// of {frame_id}.json, or one JSON object by frame id, each with `boxes_3d` (8 corners in
-    /// mmdetection3d's order, in the vehicle's LiDAR frame), `labels_3d` and `scores_3d`.
-    #[arg(long, requires = "dataroot")]
-    pub veh_results: Option<PathBuf>,
-    /// DAIR-V2X: the roadside's boxes from a detector's results (as --veh-results, in its
-    /// virtual LiDAR frame).
-    #[arg(long, requires = "dataroot")]
-    pub inf_results: Option<PathBuf>,
+    /// DAIR-V2X: a side's boxes from a detector's results instead of its labels, SIDE=PATH
+    /// (veh or inf; repeat for both): a folder of {frame_id}.json, or one JSON object by frame
+    /// id, each with `boxes_3d` (8 corners in mmdetection3d's order, in that side's LiDAR frame,
+    /// the roadside's virtual one), `labels_3d` and `scores_3d`.
+    #[arg(long, value_name = "SIDE=PATH", value_parser = parse_dair_results, requires = "dataroot")]
+    pub dair_results: Vec<(usize, PathBuf)>,
     /// V2V4Real: the split, train (develop and tune here) or val (the dataset's test split).
     #[arg(long, default_value = "train")]
     pub split: v2x_truth::v2v4real::Split,
@@ -130,11 +127,7 @@ impl DataArgs {
                         d.corner_mismatches
                     );
                 }
-                for (agent, path) in [&self.veh_results, &self.inf_results]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let Some(path) = path else { continue };
+                for &(agent, ref path) in &self.dair_results {
                     let results = crate::dair::results::read_results(path)?;
                     let missing = d.use_results(agent, &results);
                     if missing > 0 {
@@ -154,8 +147,8 @@ impl DataArgs {
 
     /// Loads or generates the ground truth (for DAIR-V2X, its cooperative labels).
     pub fn load(&self) -> anyhow::Result<GroundTruth> {
-        if !self.is_dair() && (self.veh_results.is_some() || self.inf_results.is_some()) {
-            bail!("--veh-results and --inf-results read DAIR-V2X detection results: they need --dataset dair-v2x");
+        if !self.is_dair() && !self.dair_results.is_empty() {
+            bail!("--dair-results reads DAIR-V2X detection results: it needs --dataset dair-v2x");
         }
         if self.is_dair() {
             return Ok(self.load_dair()?.gt);
@@ -232,6 +225,22 @@ pub use v2x_eval::file_eval::{
 /// Reads a file's text with the path in the error.
 pub fn read_text(path: &Path) -> anyhow::Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+/// `--dair-results SIDE=PATH`: the side's index among `v2x_truth::dair::AGENTS` and the path.
+fn parse_dair_results(s: &str) -> Result<(usize, PathBuf), String> {
+    let sides = v2x_truth::dair::AGENTS;
+    let (side, path) = s.split_once('=').ok_or_else(|| {
+        format!(
+            "'{s}': expected SIDE=PATH, SIDE one of {}",
+            sides.join(", ")
+        )
+    })?;
+    let i = sides
+        .iter()
+        .position(|a| *a == side)
+        .ok_or_else(|| format!("side '{side}': expected one of {}", sides.join(", ")))?;
+    Ok((i, PathBuf::from(path)))
 }
 
 /// The output format of a command that prints rows (`--format`).

@@ -77,8 +77,7 @@ impl DatasetSpec {
         DataArgs {
             dataroot: self.dataroot.clone(),
             dataset: self.kind,
-            veh_results: None,
-            inf_results: None,
+            dair_results: Vec::new(),
             calibration_offset: if self.calibration_offset {
                 crate::cli::Switch::On
             } else {

@@ -27,10 +27,8 @@ pub(crate) struct FilesArgs {
     /// `v2x-sim gen` writes the roadside unit as agent2.json.
     #[arg(long, default_value_t = 2, requires = "align")]
     pub(crate) align_to: usize,
-    /// Where to write the output, fused boxes (fuse) or tracks (track): a results file, or a
-    /// folder with --output-format kitti.
-    #[arg(long, short)]
-    pub(crate) output: PathBuf,
+    #[command(flatten)]
+    pub(crate) output: v2x_protocol::cli::Output,
     /// Inputs, one per agent, in agent order: nuScenes results files, or folders of KITTI
     /// detection rows (NNNN.txt per sequence, every box in the first agent's frame at 10 Hz,
     /// as V2V4Real's per-car detections come).
@@ -100,7 +98,7 @@ pub(crate) struct TrackArgs {
 /// `v2x-fuser fuse`.
 pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
     let FuseArgs { files } = args;
-    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output);
+    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output.path);
     let (missing, opts) = files.options()?;
     let report = v2x_fuser::offline::fuse_files(
         &method,
@@ -152,7 +150,7 @@ pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
 /// `v2x-fuser track`.
 pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
     let TrackArgs { files, tracking } = args;
-    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output);
+    let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output.path);
     let (missing, opts) = files.options()?;
     let params = tracking.params().map_err(flag_error)?;
     let tracks = v2x_fuser::offline::track_files(

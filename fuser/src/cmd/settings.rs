@@ -35,29 +35,27 @@ pub(crate) struct RegionArgs {
     /// centre lies in it. Agents must publish per tile (`v2x-agent --tile-size`, same size).
     #[arg(long)]
     pub(crate) tile: Option<v2x_protocol::tiles::Tile>,
-    /// Side of the map's square tiles (m), as the agents use.
-    #[arg(long, default_value_t = v2x_fuser::intake::region::DEFAULT_TILE_M, requires = "tile")]
-    pub(crate) tile_size: f64,
-    /// How far beyond its tile a regional fuser takes boxes (m): at least the association's
-    /// reach, so groups across the border are fused as one fuser would.
-    #[arg(long, default_value_t = v2x_fuser::intake::region::DEFAULT_HALO_M, requires = "tile")]
-    pub(crate) halo: f64,
+    #[command(flatten)]
+    pub(crate) tiles: v2x_protocol::tiles::TileSize,
+    #[command(flatten)]
+    pub(crate) halo: v2x_protocol::tiles::Halo,
 }
 
 impl RegionArgs {
     pub(crate) fn region(&self) -> anyhow::Result<Option<v2x_fuser::intake::region::Region>> {
         let Some(tile) = self.tile else {
+            if self.tiles.tiling.is_some() || self.halo.halo.is_some() {
+                anyhow::bail!("--tile-size and --halo shape a regional fuser: give --tile too");
+            }
             return Ok(None);
         };
-        let tiling = v2x_protocol::tiles::Tiling::new(self.tile_size)
-            .map_err(|e| anyhow::anyhow!("--tile-size: {e}"))?;
-        if !(self.halo >= 0.0 && self.halo.is_finite()) {
-            anyhow::bail!("--halo must be >= 0 m");
-        }
+        let default = v2x_fuser::intake::region::DEFAULT_TILE_M;
         Ok(Some(v2x_fuser::intake::region::Region {
-            tiling,
+            tiling: self.tiles.tiling.unwrap_or(
+                v2x_protocol::tiles::Tiling::new(default).expect("the default is a valid size"),
+            ),
             tile,
-            halo_m: self.halo,
+            halo_m: self.halo.halo_m(),
         }))
     }
 }

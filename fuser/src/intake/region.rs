@@ -11,14 +11,8 @@
 //! halo at least as wide as the association's reach (the gate's radius) makes that every group.
 
 use std::collections::BTreeMap;
-pub use v2x_protocol::tiles::{Tile, Tiling};
+pub use v2x_protocol::tiles::{Tile, Tiling, DEFAULT_HALO_M, DEFAULT_TILE_M};
 use v2x_protocol::Detection;
-
-/// Default tile side (m).
-pub const DEFAULT_TILE_M: f64 = 200.0;
-/// Default halo (m): beyond csba-wls+'s reach at large noise (6 Mahalanobis units of two 3 m
-/// stds, 25.5 m, per axis).
-pub const DEFAULT_HALO_M: f64 = 30.0;
 
 /// An agent's boxes by the tile their centre lies in (one frame per tile it sees).
 pub fn split(tiling: &Tiling, dets: &[Detection]) -> BTreeMap<Tile, Vec<Detection>> {

@@ -10,7 +10,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 #[serde(default)]
 pub struct AdmissionSettings {
     /// Reject frames stamped further than this from the fuser's clock, ahead or behind (ms);
-    /// 0 accepts any capture time (agents replaying data on its own clock, `v2x-agent --clock data`).
+    /// 0 accepts any capture time (agents replaying data on its own clock, `v2x-agent --replay clock=data`).
     #[cfg_attr(feature = "node", arg(long, default_value_t = AdmissionSettings::default().max_clock_skew_ms))]
     pub max_clock_skew_ms: f64,
     /// Most agents tracked at once; beyond, the least recently heard agent without a liveliness

@@ -24,9 +24,8 @@ pub struct CalibrateArgs {
     /// Score bins per class, at the scores' quantiles (1: no bins).
     #[arg(long, default_value_t = 3)]
     pub score_bins: usize,
-    /// Where to write the model (JSON), for `v2x-fuser fuse/track/node --std-model AGENT=FILE`.
-    #[arg(long, short)]
-    pub output: PathBuf,
+    #[command(flatten)]
+    pub output: v2x_protocol::cli::Output,
     /// The agent's results file (nuScenes detection results, as scored by `v2x-sim eval`).
     pub results: PathBuf,
 }
@@ -38,7 +37,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         matching: v2x_sim::cli::MatchArg { matching },
         max_distance_m,
         score_bins,
-        output,
+        output: v2x_protocol::cli::Output { path: output },
         results,
     } = args;
     if !(1..=20).contains(&score_bins) {

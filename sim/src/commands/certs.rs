@@ -1,13 +1,10 @@
 //! `v2x-sim certs`.
 
-use std::path::PathBuf;
-
 /// The options of `v2x-sim certs`.
 #[derive(clap::Args)]
 pub struct CertsArgs {
-    /// Output directory.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub out: v2x_protocol::cli::Output,
     #[command(flatten)]
     pub ns: v2x_protocol::net::Namespace,
     /// Endpoints the router listens on.
@@ -28,7 +25,7 @@ pub struct CertsArgs {
 /// Runs `v2x-sim certs`.
 pub fn run(args: CertsArgs) -> anyhow::Result<()> {
     let CertsArgs {
-        out,
+        out: v2x_protocol::cli::Output { path: out },
         ns,
         listen,
         router,

@@ -27,17 +27,14 @@ pub struct EvalArgs {
     /// 2 m centre distance, the seven tracking classes. The same file without --tracking
     /// scores its boxes as detections. With --dataset v2v4real: a folder of KITTI tracking rows
     /// scored by AB3DMOT's evaluation (3D IoU 0.25), as DMSTrack reports V2V4Real.
-    #[arg(long, conflicts_with_all = ["replay_start_at", "at", "classes"])]
+    #[arg(long, conflicts_with_all = ["replay", "at", "classes"])]
     pub tracking: bool,
     #[command(flatten)]
     pub format: v2x_sim::cli::FormatArg,
-    /// For a fuser recording of `v2x-agent --clock real` replays: the agents' --start-at
-    /// (Unix seconds), so that capture times map back to the data's frames.
-    #[arg(long)]
-    pub replay_start_at: Option<f64>,
-    /// With --replay-start-at: the agents' --speed.
-    #[arg(long, default_value_t = 1.0, requires = "replay_start_at")]
-    pub replay_speed: f64,
+    /// For a fuser recording of agents' replays on the real clock: the agents' --replay (its
+    /// start_at and speed), so that capture times map back to the data's frames.
+    #[command(flatten)]
+    pub replay: v2x_protocol::cli::ReplayArg,
     /// When a sample is scored: `frame` (a sample token at its own frame, whatever the
     /// file's meta.v2x_timestamps say) or `capture` (at its capture time from
     /// meta.v2x_timestamps, the ground truth interpolated along its tracks; only for ground
@@ -62,8 +59,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         matching: v2x_sim::cli::MatchArg { matching },
         tracking,
         format: v2x_sim::cli::FormatArg { format },
-        replay_start_at,
-        replay_speed,
+        replay: v2x_protocol::cli::ReplayArg { replay },
         at,
         classes,
         pred,
@@ -74,7 +70,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if tracking {
         return tracking_table(&data, &pred, all_frames, format);
     }
-    let replay = replay_map(replay_start_at, replay_speed)?;
+    let replay = replay_map(replay)?;
     let dair = if data.is_dair() {
         Some(data.load_dair()?)
     } else {
@@ -126,22 +122,21 @@ fn table_or_csv<R: Rows + ?Sized>(rows: &R, csv: bool) -> String {
         .unwrap_or_else(|| rows.table())
 }
 
-/// How a recording on the real clock maps to data time (`--replay-start-at`, `--replay-speed`).
+/// How a recording on the real clock maps to data time (`--replay`'s start_at and speed,
+/// checked when parsed); none for the data's own clock.
 fn replay_map(
-    start_at: Option<f64>,
-    speed: f64,
+    replay: v2x_protocol::cli::Replay,
 ) -> anyhow::Result<Option<v2x_sim::cli::ReplayMap>> {
-    match start_at {
-        None => Ok(None),
-        Some(t) if t > 0.0 && t.is_finite() && speed > 0.0 && speed.is_finite() => {
-            Ok(Some(v2x_sim::cli::ReplayMap {
-                start_us: (t * 1e6) as u64,
-                speed,
-            }))
+    use v2x_protocol::cli::ReplayClock;
+    match (replay.clock, replay.start_at) {
+        (ReplayClock::Real, Some(t)) => Ok(Some(v2x_sim::cli::ReplayMap {
+            start_us: (t * 1e6) as u64,
+            speed: replay.speed,
+        })),
+        (ReplayClock::Real, None) if replay.speed != 1.0 => {
+            bail!("--replay: give the agents' start_at with their speed")
         }
-        Some(_) => {
-            bail!("--replay-start-at must be a positive Unix time and --replay-speed > 0")
-        }
+        _ => Ok(None),
     }
 }
 

@@ -21,9 +21,8 @@ pub struct FitScoreArgs {
     /// receiving car first) instead of the split's published ones: your own detector's boxes.
     #[arg(long, num_args = 2, value_names = ["EGO_DIR", "CAR1_DIR"])]
     pub cars: Option<Vec<PathBuf>>,
-    /// Where to write the model (JSON), for `v2x-fuser fuse/track --existence-model FILE`.
-    #[arg(long, short)]
-    pub output: PathBuf,
+    #[command(flatten)]
+    pub output: v2x_protocol::cli::Output,
 }
 
 /// Runs `v2x-sim fit-score`.
@@ -33,7 +32,7 @@ pub fn run(args: FitScoreArgs) -> anyhow::Result<()> {
         method: v2x_sim::cli::MethodArg { method },
         iou,
         cars,
-        output,
+        output: v2x_protocol::cli::Output { path: output },
     } = args;
     if !(iou > 0.0 && iou <= 1.0) {
         anyhow::bail!("--iou must be in (0, 1], not {iou}");

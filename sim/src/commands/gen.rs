@@ -1,7 +1,6 @@
 //! `v2x-sim gen`.
 
 use anyhow::Context;
-use std::path::PathBuf;
 use v2x_protocol::nuscenes_json::write_results;
 use v2x_sim::cli::DataArgs;
 use v2x_sim::noise::NoiseSetting;
@@ -42,9 +41,8 @@ pub struct GenArgs {
     /// for all (default 0).
     #[arg(long)]
     pub phase_ms: Option<String>,
-    /// Output directory.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub out: v2x_protocol::cli::Output,
 }
 
 /// Runs `v2x-sim gen`.
@@ -58,7 +56,7 @@ pub fn run(args: GenArgs) -> anyhow::Result<()> {
         draw: v2x_sim::cli::DrawArgs { seed, range },
         agent_hz,
         phase_ms,
-        out,
+        out: v2x_protocol::cli::Output { path: out },
     } = args;
     if data.is_v2v4real() {
         if noise.is_some()

@@ -11,14 +11,17 @@ pub struct McapArgs {
     pub data: DataArgs,
     /// The results file (from `v2x-fuser fuse`, `node --record`, `v2x-sim gen` or `run --record`).
     pub pred: PathBuf,
-    /// The MCAP file to write.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub out: v2x_protocol::cli::Output,
 }
 
 /// Runs `v2x-sim mcap`.
 pub fn run(args: McapArgs) -> anyhow::Result<()> {
-    let McapArgs { data, pred, out } = args;
+    let McapArgs {
+        data,
+        pred,
+        out: v2x_protocol::cli::Output { path: out },
+    } = args;
     let gt = data.load()?;
     let mut tokens = gt.tokens.clone();
     let results = v2x_protocol::nuscenes_json::read_results(

@@ -21,9 +21,8 @@ pub struct PlotArgs {
     pub method: v2x_sim::cli::MethodArg,
     #[command(flatten)]
     pub draw: v2x_sim::cli::DrawArgs,
-    /// Output directory (with --timeline: the SVG file to write).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub out: v2x_protocol::cli::Output,
     /// Instead of a frame: draw a run's per-second series (`v2x-sim run --timeline
     /// FILE.json`), one panel per measure, the scripted events marked.
     #[arg(long)]
@@ -38,7 +37,7 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
         noise,
         method: v2x_sim::cli::MethodArg { method },
         draw,
-        out,
+        out: v2x_protocol::cli::Output { path: out },
         timeline,
     } = args;
     if let Some(path) = timeline {

@@ -454,9 +454,9 @@ fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     );
     let (ok, _, err) = run(Command::new(bin("v2x-sim"))
         .args(["gen", "--dataroot", "/nonexistent", "--version", "v1.0-x"])
-        .args(["--veh-results", "x.json", "--out"])
+        .args(["--dair-results", "veh=x.json", "--out"])
         .arg(&dir));
-    assert!(!ok && err.contains("need --dataset dair-v2x"), "{err}");
+    assert!(!ok && err.contains("needs --dataset dair-v2x"), "{err}");
     // A detector's results in the official format replace the roadside's labels.
     let results = serde_json::json!({
         "001010": {"boxes_3d": [], "labels_3d": [], "scores_3d": []},
@@ -465,8 +465,8 @@ fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     std::fs::write(dir.join("inf-results.json"), results.to_string()).unwrap();
     let (ok, out, err) = run(Command::new(bin("v2x-sim"))
         .args(DAIR_BENCH)
-        .arg("--inf-results")
-        .arg(dir.join("inf-results.json"))
+        .arg("--dair-results")
+        .arg(format!("inf={}", dir.join("inf-results.json").display()))
         .arg("--dataroot")
         .arg(&c));
     assert!(ok, "{err}");

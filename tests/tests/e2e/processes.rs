@@ -21,7 +21,7 @@ fn wait_exit(child: &mut std::process::Child, secs: u64, what: &str) -> std::pro
     }
 }
 
-/// A Unix time `secs` from now, as `--start-at` takes it.
+/// A Unix time `secs` from now, as `--replay start_at=` takes it.
 fn start_in(secs: f64) -> String {
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -53,20 +53,20 @@ fn succeeded(out: std::process::Output, what: &str) -> std::process::Output {
     out
 }
 
-/// A `v2x-agent` process replaying `file` with `args`, from `start_at`, to the fuser at
+/// A `v2x-agent` process replaying `file` with `args` as `--replay` says, to the fuser at
 /// `endpoint`.
 fn replay_agent(
     file: &std::path::Path,
     args: &[&str],
-    start_at: &str,
+    replay: &str,
     endpoint: &str,
 ) -> std::process::Child {
     Command::new(bin("v2x-agent"))
         .arg(file)
         .args(args)
         .args([
-            "--start-at",
-            start_at,
+            "--replay",
+            replay,
             "--no-multicast-scouting",
             "-e",
             endpoint,
@@ -130,7 +130,7 @@ fn agents_and_fuser_as_separate_processes() {
 
     let port = free_port().unwrap();
     // Both agents replay on the real clock from the same start, so their frames meet in windows.
-    let start_at = start_in(3.0);
+    let replay = format!("start_at={},speed=2", start_in(3.0));
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let record = dir.join("fused.json");
     let args = [
@@ -152,10 +152,8 @@ fn agents_and_fuser_as_separate_processes() {
     ]
     .iter()
     .map(|(name, kind, file)| {
-        let args = [
-            "--name", name, "--kind", kind, "--ns", "procs", "--speed", "2",
-        ];
-        replay_agent(&dir.join(file), &args, &start_at, &endpoint)
+        let args = ["--name", name, "--kind", kind, "--ns", "procs"];
+        replay_agent(&dir.join(file), &args, &replay, &endpoint)
     })
     .collect();
     agents_done(agents, "sent 30 of 30 frames");
@@ -166,8 +164,7 @@ fn agents_and_fuser_as_separate_processes() {
     assert_eq!(stats["agents"]["veh"]["fused"], 30);
 
     let out = Command::new(bin("v2x-sim"))
-        .args(["eval", "--format", "json", "--replay-speed", "2"])
-        .args(["--replay-start-at", &start_at])
+        .args(["eval", "--format", "json", "--replay", &replay])
         .args(town)
         .arg(&record)
         .output()
@@ -491,7 +488,7 @@ fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
     succeeded(out, "fuse");
 
     let port = free_port().unwrap();
-    let start_at = start_in(3.0);
+    let replay = format!("start_at={},speed=4", start_in(3.0));
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let record = dir.join("fused.json");
     let args = [
@@ -507,8 +504,8 @@ fn v2v4real_cars_replayed_as_processes_fuse_as_offline() {
     let agents = [("ego", &a1), ("car1", &a2)]
         .iter()
         .map(|(name, file)| {
-            let args = ["--name", name, "--ns", "v2v", "--speed", "4"];
-            replay_agent(file, &args, &start_at, &endpoint)
+            let args = ["--name", name, "--ns", "v2v"];
+            replay_agent(file, &args, &replay, &endpoint)
         })
         .collect();
     agents_done(agents, "sent 5 of 5 frames");

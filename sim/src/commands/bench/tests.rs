@@ -43,7 +43,6 @@ fn each_mode_takes_its_own_options_and_real_data_runs_its_own_tables() {
         &["tracking", "--agents", "4"],
         &["async", "--profile", "realistic"],
         &["detection"],
-        &["regions"],
         &["--agents", "4", "tracking"],
         &["tracking", "--parts", "2"],
         &["tracking", "--town-seeds", "7"],
@@ -65,6 +64,18 @@ fn each_mode_takes_its_own_options_and_real_data_runs_its_own_tables() {
         assert!(parse(bad).is_err(), "{bad:?}");
     }
     assert_eq!(parse(&["--agents", "64"]).unwrap().table.agents, 64);
+    // The regions need their tiles' side; a bad one is named before any data is read.
+    assert!(refused(&["regions"]).contains("give --tile-size"));
+    let err = parse(&["regions", "--tile-size", "0.5"])
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("at least 1 m"), "{err}");
+    let err = parse(&["regions", "--tile-size", "50", "--halo=-1"])
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("halo -1 m"), "{err}");
     // The real data sets: their own tables, with their own two agents.
     let v2v = ["--dataset", "v2v4real", "--dataroot", "x"];
     for mode in [
