@@ -273,8 +273,8 @@ fn parse_range(s: &str) -> Result<f64, String> {
 /// The fusion method (`-m/--method`).
 #[derive(Args, Clone, Copy, Debug)]
 pub struct MethodArg {
-    /// Fusion method (`v2x-fuser fuse --help` lists them).
-    #[arg(long, short, default_value_t = v2x_fuser::Method::default())]
+    /// Fusion method.
+    #[arg(long, short, default_value_t = v2x_fuser::Method::default(), value_parser = v2x_fuser::maths::method::method_parser())]
     pub method: v2x_fuser::Method,
 }
 

@@ -262,6 +262,18 @@ impl fmt::Display for Method {
     }
 }
 
+/// The command line's `--method`: the methods a user may choose, each listed in `--help` with
+/// its line from [`METHODS`].
+#[cfg(feature = "node")]
+pub fn method_parser() -> impl clap::builder::TypedValueParser<Value = Method> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    let names = METHODS
+        .iter()
+        .filter(|n| !n.ablation)
+        .map(|n| PossibleValue::new(n.name).help(n.about));
+    PossibleValuesParser::new(names).map(|s| s.parse().expect("a listed name parses"))
+}
+
 /// A method a user may choose, by name (an ablation is the bench's: [`Method::parse_any`]).
 impl FromStr for Method {
     type Err = UnknownName;

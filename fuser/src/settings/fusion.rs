@@ -20,8 +20,8 @@ use v2x_protocol::{InvalidValue, Uncertainty};
 #[cfg_attr(feature = "node", derive(clap::Args))]
 #[serde(default)]
 pub struct FusionSettings {
-    /// Fusion method of each window (`v2x-fuser methods` lists them).
-    #[cfg_attr(feature = "node", arg(long, short, default_value_t = Method::default()))]
+    /// Fusion method of each window.
+    #[cfg_attr(feature = "node", arg(long, short, default_value_t = Method::default(), value_parser = crate::maths::method::method_parser()))]
     pub method: Method,
     /// Window width delta t (ms), when the boxes carry capture times.
     #[cfg_attr(feature = "node", arg(long, default_value_t = FusionSettings::default().window_ms))]
