@@ -104,6 +104,31 @@ fn random_read_ns(bytes: usize) -> f64 {
     t.elapsed().as_secs_f64() * 1e9 / READS as f64
 }
 
+/// Median seconds per fuse of the small scene, the large one and the copies, timed round by
+/// round in turn.
+fn time_three(
+    m: &Method,
+    small: &[Vec<Detection>],
+    large: &[Vec<Detection>],
+    copies: &[Vec<Detection>],
+) -> (f64, f64, f64) {
+    let (mut ts, mut tl, mut tc) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..ROUNDS {
+        let t = Instant::now();
+        for _ in 0..SMALL_PER_ROUND {
+            black_box(m.fuse(black_box(small)));
+        }
+        ts.push(t.elapsed().as_secs_f64() / SMALL_PER_ROUND as f64);
+        let t = Instant::now();
+        black_box(m.fuse(black_box(large)));
+        tl.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        black_box(m.fuse(black_box(copies)));
+        tc.push(t.elapsed().as_secs_f64());
+    }
+    (median(&mut ts), median(&mut tl), median(&mut tc))
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; names filter the methods and noise levels, as criterion's
     // filters do.
@@ -148,21 +173,7 @@ fn main() {
             let (small, large) = (scene(200, 2, noise, 1), scene(1000, 2, noise, 1));
             let (copies, step) = copies_apart(&m, &small);
             steps.push(format!("{name} {}: {step} m", noise.name()));
-            let (mut ts, mut tl, mut tc) = (Vec::new(), Vec::new(), Vec::new());
-            for _ in 0..ROUNDS {
-                let t = Instant::now();
-                for _ in 0..SMALL_PER_ROUND {
-                    black_box(m.fuse(black_box(&small)));
-                }
-                ts.push(t.elapsed().as_secs_f64() / SMALL_PER_ROUND as f64);
-                let t = Instant::now();
-                black_box(m.fuse(black_box(&large)));
-                tl.push(t.elapsed().as_secs_f64());
-                let t = Instant::now();
-                black_box(m.fuse(black_box(&copies)));
-                tc.push(t.elapsed().as_secs_f64());
-            }
-            let (s, l, c) = (median(&mut ts), median(&mut tl), median(&mut tc));
+            let (s, l, c) = time_three(&m, &small, &large, &copies);
             println!(
                 "| {name} | {} | {:.1} µs | {:.1} µs | {:.2}x | {:.1} µs | {:.2}x | {:.2}x |",
                 noise.name(),
