@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 mod commands;
+mod sources;
 
 #[derive(Parser)]
 #[command(
@@ -66,11 +67,11 @@ fn main() -> std::process::ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     v2x_protocol::net::init_logging("warn,zenoh=error");
     match cli.command {
-        Command::Gen(args) => commands::gen::run(args)?,
-        Command::Eval(args) => commands::eval::run(args)?,
+        Command::Gen(args) => sources::open(&args.data).gen(&args)?,
+        Command::Eval(args) => sources::open(&args.data).eval(&args)?,
         Command::Calibrate(args) => commands::calibrate::run(args)?,
         Command::FitScore(args) => commands::fit_score::run(args)?,
-        Command::Bench(args) => commands::bench::run(*args)?,
+        Command::Bench(args) => sources::bench(*args)?,
         Command::Mcap(args) => commands::mcap::run(args)?,
         Command::Wire(args) => commands::wire::run(args)?,
         Command::Load(args) => commands::load::run(args)?,

@@ -4,7 +4,7 @@ use super::*;
 use anyhow::bail;
 use std::path::PathBuf;
 use v2x_sim::bench;
-use v2x_sim::cli::{evaluate_file, DataArgs, EvalOptions, Evaluation};
+use v2x_sim::cli::{DataArgs, EvalOptions};
 use v2x_sim::table::{
     markdown,
     Align::{Left, Right},
@@ -51,72 +51,29 @@ pub struct EvalArgs {
     pub pred: PathBuf,
 }
 
-/// Runs `v2x-sim eval`.
-pub fn run(args: EvalArgs) -> anyhow::Result<()> {
-    let EvalArgs {
-        data,
-        all_frames,
-        matching: v2x_sim::cli::MatchArg { matching },
-        tracking,
-        format: v2x_sim::cli::FormatArg { format },
-        replay: v2x_protocol::cli::ReplayArg { replay },
-        at,
-        classes,
-        pred,
-    } = args;
-    if data.is_v2v4real() {
-        return v2v4real(&data, &pred, tracking, format);
-    }
-    if tracking {
-        return tracking_table(&data, &pred, all_frames, format);
-    }
-    let replay = replay_map(replay)?;
-    let dair = if data.is_dair() {
-        Some(data.load_dair()?)
-    } else {
-        None
-    };
-    let gt = match &dair {
-        Some(d) => d.gt.clone(),
-        None => data.load()?,
-    };
-    let opts = EvalOptions {
-        all_frames,
-        replay,
-        how: matching,
-        timing: at,
-        classes,
-    };
-    let (evaluation, note) = evaluate_file(&gt, &pred, &opts)?;
+/// The results file scored against `gt` as the options say, its note printed.
+pub(crate) fn evaluate(
+    args: &EvalArgs,
+    gt: &v2x_sim::dataset::GroundTruth,
+) -> anyhow::Result<v2x_sim::cli::Evaluation> {
+    let (evaluation, note) = v2x_sim::cli::evaluate_file(gt, &args.pred, &options(args)?)?;
     eprintln!("{note}");
-    let csv = format == Format::Csv;
-    if let Some(d) = &dair {
-        return dair_eval(d, &pred, all_frames, evaluation, format);
-    }
-    match evaluation {
-        e if format == Format::Json => println!("{}", serde_json::to_string_pretty(&e)?),
-        Evaluation::Distance(d) => {
-            let rows = [bench::DetectionRow {
-                noise: String::new(),
-                method: pred.display().to_string(),
-                metrics: d,
-            }];
-            print!("{}", table_or_csv(&rows[..], csv));
-        }
-        Evaluation::Id(m) => {
-            let rows = [bench::Row {
-                noise: "-".into(),
-                method: pred.display().to_string(),
-                metrics: m,
-            }];
-            print!("{}", table_or_csv(&rows[..], csv));
-        }
-    }
-    Ok(())
+    Ok(evaluation)
+}
+
+/// How a results file is matched and which frames and classes count.
+fn options(args: &EvalArgs) -> anyhow::Result<EvalOptions> {
+    Ok(EvalOptions {
+        all_frames: args.all_frames,
+        replay: replay_map(args.replay.replay)?,
+        how: args.matching.matching,
+        timing: args.at,
+        classes: args.classes.clone(),
+    })
 }
 
 /// The rows as CSV when asked and they have a CSV form, else as a table.
-fn table_or_csv<R: Rows + ?Sized>(rows: &R, csv: bool) -> String {
+pub(crate) fn table_or_csv<R: Rows + ?Sized>(rows: &R, csv: bool) -> String {
     csv.then(|| rows.csv())
         .flatten()
         .unwrap_or_else(|| rows.table())
@@ -140,52 +97,11 @@ fn replay_map(
     }
 }
 
-/// The DAIR-V2X protocol beside the devkit-style figures, for one results file.
-fn dair_eval(
-    d: &v2x_sim::dair::Dair,
-    pred: &std::path::Path,
-    all_frames: bool,
-    evaluation: Evaluation,
-    format: Format,
-) -> anyhow::Result<()> {
-    let results = v2x_protocol::nuscenes_json::read_results(
-        pred,
-        &mut d.gt.tokens.clone(),
-        v2x_protocol::nuscenes_json::MissingStd::Default(v2x_protocol::Uncertainty::uniform(
-            1.0, 1.0, 1.0,
-        )),
-    )?;
-    let (dair, scored) = v2x_sim::bench::dair::score_results(d, &results, all_frames);
-    eprintln!(
-        "DAIR-V2X protocol over {scored} pairs, in the vehicle's frame within its evaluation range"
-    );
-    let Evaluation::Distance(detection) = evaluation else {
-        bail!("{}: DAIR-V2X boxes carry no ground-truth ids: score them with --match distance (or auto)", pred.display());
-    };
-    let rows = [v2x_sim::bench::dair::DairRow {
-        method: pred.display().to_string(),
-        detection,
-        dair,
-        bytes_per_frame: None,
-        cpm_bytes_per_frame: None,
-        official_ab: None,
-    }];
-    match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&rows[0])?),
-        _ => print!("{}", table_or_csv(&rows[..], format == Format::Csv)),
-    }
-    Ok(())
-}
-
 /// `--tracking`: the nuScenes tracking benchmark's figures of a tracking results file.
-fn tracking_table(
-    data: &DataArgs,
-    pred: &std::path::Path,
-    all_frames: bool,
-    format: Format,
-) -> anyhow::Result<()> {
-    let gt = data.load()?;
-    let m = evaluate_tracking(&gt, pred, all_frames)?;
+pub(crate) fn tracking_table(args: &EvalArgs) -> anyhow::Result<()> {
+    let (pred, format) = (args.pred.as_path(), args.format.format);
+    let gt = args.data.load()?;
+    let m = evaluate_tracking(&gt, pred, args.all_frames)?;
     match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
         Format::Table | Format::Csv => {
@@ -201,49 +117,6 @@ fn tracking_table(
                 ("objects", Right),
             ]);
             print!("{}", markdown(&columns, [row]));
-        }
-    }
-    Ok(())
-}
-
-/// `--dataset v2v4real`: a folder of KITTI rows scored by V2V4Real's detection protocol, or with
-/// `--tracking` by AB3DMOT's tracking evaluation.
-fn v2v4real(
-    data: &DataArgs,
-    dir: &std::path::Path,
-    tracking: bool,
-    format: Format,
-) -> anyhow::Result<()> {
-    let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
-    if !dir.is_dir() {
-        bail!(
-            "{}: --dataset v2v4real scores a folder of KITTI rows (one NNNN.txt per sequence)",
-            dir.display()
-        );
-    }
-    if tracking {
-        let row = v2x_sim::bench::v2v4real::score_track_dir(&d, dir)?;
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
-            _ => print!("{}", [row][..].table()),
-        }
-    } else {
-        let m = v2x_sim::bench::v2v4real::score_detection_dir(&d, dir)?;
-        match format {
-            Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
-            _ => println!(
-                "{}: AP-BEV {} · AP-3D {} in frame order (V2V4Real's protocol); globally sorted \
-                 (OpenCOOD's --global_sort_detections) AP-BEV {} · AP-3D {} ({} frames, {} \
-                 labelled cars, {} boxes)",
-                dir.display(),
-                serde_json::to_string(&m.ap_bev)?,
-                serde_json::to_string(&m.ap_3d)?,
-                serde_json::to_string(&m.global.bev)?,
-                serde_json::to_string(&m.global.three_d)?,
-                m.frames,
-                m.gt,
-                m.predictions
-            ),
         }
     }
     Ok(())

@@ -45,104 +45,8 @@ pub struct GenArgs {
     pub out: v2x_protocol::cli::Output,
 }
 
-/// Runs `v2x-sim gen`.
-pub fn run(args: GenArgs) -> anyhow::Result<()> {
-    let GenArgs {
-        data,
-        noise,
-        faults,
-        stated_std,
-        agents,
-        draw: v2x_sim::cli::DrawArgs { seed, range },
-        agent_hz,
-        phase_ms,
-        out: v2x_protocol::cli::Output { path: out },
-    } = args;
-    if data.is_v2v4real() {
-        if noise.is_some()
-            || faults.is_some()
-            || stated_std.is_some()
-            || range.is_some()
-            || agent_hz.is_some()
-            || phase_ms.is_some()
-            || agents != 2
-        {
-            anyhow::bail!("--dataset v2v4real writes the two cars' own detections as they are: leave out --noise, --faults, --stated-std, --range, --agent-hz, --phase-ms and --agents");
-        }
-        return gen_v2v4real(&data, &out);
-    }
-    if data.is_dair() {
-        if agent_hz.is_some() || phase_ms.is_some() || agents != 2 {
-            anyhow::bail!("--agent-hz, --phase-ms and --agents do not apply to DAIR-V2X: its two agents capture at their recorded times");
-        }
-        let d = data.load_dair()?;
-        let noise = noise.as_deref().unwrap_or("labels");
-        let setting = setting_with_faults(noise, faults.as_deref(), stated_std.as_deref(), 2)?;
-        std::fs::create_dir_all(&out)
-            .with_context(|| format!("cannot create {}", out.display()))?;
-        let files = v2x_sim::gen::generate_dair(&d, &setting, seed, range);
-        for (a, r) in files.iter().enumerate() {
-            let p = out.join(format!("agent{}.json", a + 1));
-            write_agent(&p, r, &d.gt.tokens, &setting.agents[a])?;
-            eprintln!(
-                "wrote {} ({}, noise {})",
-                p.display(),
-                v2x_sim::dair::AGENTS[a],
-                setting.agents[a].label
-            );
-        }
-        eprintln!("{}", data.describe(&d.gt));
-        return Ok(());
-    }
-    let gt = data.load()?;
-    let noise = noise.as_deref().unwrap_or("mild+large");
-    let setting = setting_with_faults(noise, faults.as_deref(), stated_std.as_deref(), agents)?;
-    let timings = v2x_sim::gen::Timing::parse(
-        agent_hz.as_deref(),
-        phase_ms.as_deref(),
-        setting.agents.len(),
-    )?;
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let files = v2x_sim::gen::generate(&gt, &setting, &timings, seed, range);
-    for (a, r) in files.iter().enumerate() {
-        let p = out.join(format!("agent{}.json", a + 1));
-        write_agent(&p, r, &gt.tokens, &setting.agents[a])?;
-        eprintln!("wrote {} ({} noise)", p.display(), setting.agents[a].label);
-    }
-    eprintln!("{}", data.describe(&gt));
-    Ok(())
-}
-
-/// V2V4Real's two cars' own detections, written as they are.
-fn gen_v2v4real(data: &DataArgs, out: &std::path::Path) -> anyhow::Result<()> {
-    let d = data.load_v2v4real(v2x_fuser::offline::kitti_default_std())?;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let files = v2x_sim::gen::generate_v2v4real(&d, &Default::default());
-    let tokens = v2x_protocol::nuscenes_json::TokenTable::new();
-    for (k, r) in files.iter().enumerate() {
-        let p = out.join(format!("agent{}.json", k + 1));
-        write_results(&p, r, &tokens)?;
-        eprintln!(
-            "wrote {} ({}: {} frames, {} boxes, stds from each box's score)",
-            p.display(),
-            if k == 0 {
-                "the ego car"
-            } else {
-                "car 1, in the ego car's frame"
-            },
-            r.samples.len(),
-            r.samples.values().map(Vec::len).sum::<usize>()
-        );
-    }
-    eprintln!(
-        "V2V4Real {} split: fuse them with `v2x-fuser fuse --detector`, or replay them with `v2x-agent`",
-        d.split
-    );
-    Ok(())
-}
-
 /// A noise setting for `agents` agents with the faults and stated stds given, if any.
-fn setting_with_faults(
+pub(crate) fn setting_with_faults(
     noise: &str,
     faults: Option<&str>,
     stated: Option<&str>,
@@ -163,7 +67,7 @@ fn setting_with_faults(
 }
 
 /// Writes one agent's results file, without std fields when the agent states none.
-fn write_agent(
+pub(crate) fn write_agent(
     path: &std::path::Path,
     r: &v2x_protocol::nuscenes_json::Results,
     tokens: &v2x_protocol::nuscenes_json::TokenTable,

@@ -9,9 +9,10 @@ use v2x_sim::cli::{DataArgs, DrawArgs, FormatArg};
 
 mod asynchronous;
 mod detection;
-mod real;
 mod regions;
 mod table2;
+
+pub(crate) use table2::run as table2;
 mod tracking;
 
 /// The options of `v2x-sim bench`.
@@ -160,7 +161,7 @@ impl Common {
 
 impl BenchMode {
     /// The options every mode takes.
-    fn common(&self) -> &Common {
+    pub(crate) fn common(&self) -> &Common {
         match self {
             BenchMode::Tracking(a) => &a.common,
             BenchMode::Detection(a) => &a.common,
@@ -170,34 +171,22 @@ impl BenchMode {
     }
 }
 
-/// Runs `v2x-sim bench`: its mode, or the table its data calls for.
-pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    let Some(mode) = args.mode else {
-        let t = &args.table;
-        let d = &t.common.data;
-        if (d.is_dair() || d.is_v2v4real()) && t.agents != 2 {
-            bail!("--agents is for simulated agents: the real data sets have their own two");
-        }
-        return if d.is_dair() {
-            real::dair(t)
-        } else if d.is_v2v4real() {
-            real::v2v4real(t)
-        } else {
-            table2::run(t)
-        };
-    };
-    let d = &mode.common().data;
-    if d.is_dair() || d.is_v2v4real() {
-        let name = clap::ValueEnum::to_possible_value(&d.dataset)
-            .map_or_else(String::new, |v| v.get_name().to_string());
-        bail!("--dataset {name} runs its own tables (tracked rows included): run `v2x-sim bench` without a mode");
-    }
+/// Runs a bench mode over agents simulated on the data (`sources::bench` checks they are).
+pub fn run_mode(mode: BenchMode) -> anyhow::Result<()> {
     match mode {
         BenchMode::Tracking(a) => tracking::run(&a),
         BenchMode::Detection(a) => detection::run(&a),
         BenchMode::Regions(a) => regions::run(&a),
         BenchMode::Async(a) => asynchronous::run(&a),
     }
+}
+
+/// `--methods` on real data: `all` is every method but the oracle, which needs ground-truth
+/// ids the data's own boxes do not carry.
+pub(crate) fn real_data_methods(list: &str) -> anyhow::Result<Vec<v2x_fuser::Method>> {
+    let mut all = v2x_fuser::Method::all_with_ablations();
+    all.retain(|m| *m != v2x_fuser::Method::GtWls);
+    parse_list(list, all, v2x_fuser::Method::parse_any)
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@ use v2x_sim::bench::{self, BenchConfig};
 use v2x_sim::noise::NoiseSetting;
 
 /// The paper's Table 2: each agent, each method (every one for 'all') and the bound.
-pub(super) fn run(args: &TableArgs) -> anyhow::Result<()> {
+pub(crate) fn run(args: &TableArgs) -> anyhow::Result<()> {
     let c = &args.common;
     let (data, noise, methods) = (&c.data, args.noise.noise.as_str(), c.methods.as_str());
     let (seed, range) = (c.draw.seed, c.draw.range);

@@ -12,7 +12,9 @@ fn parse(flags: &[&str]) -> Result<BenchArgs, clap::Error> {
 }
 
 fn refused(flags: &[&str]) -> String {
-    run(parse(flags).unwrap()).unwrap_err().to_string()
+    crate::sources::bench(parse(flags).unwrap())
+        .unwrap_err()
+        .to_string()
 }
 
 #[test]
