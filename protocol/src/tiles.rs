@@ -103,6 +103,15 @@ pub struct TileSize {
     pub tiling: Option<Tiling>,
 }
 
+impl TileSize {
+    /// The tiles given, or tiles of [`DEFAULT_TILE_M`].
+    pub fn tiling_or_default(&self) -> Tiling {
+        self.tiling.unwrap_or(Tiling {
+            size_m: DEFAULT_TILE_M,
+        })
+    }
+}
+
 /// A regional fuser's halo on the command line (`--halo`), for fusers and the regions bench.
 #[derive(Copy, Clone, Debug, Default)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]

@@ -239,7 +239,7 @@ fn parse_dair_results(s: &str) -> Result<(usize, PathBuf), String> {
     let i = sides
         .iter()
         .position(|a| *a == side)
-        .ok_or_else(|| format!("side '{side}': expected one of {}", sides.join(", ")))?;
+        .ok_or_else(|| v2x_protocol::UnknownName::new("side", side, sides).to_string())?;
     Ok((i, PathBuf::from(path)))
 }
 

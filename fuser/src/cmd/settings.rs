@@ -49,11 +49,8 @@ impl RegionArgs {
             }
             return Ok(None);
         };
-        let default = v2x_fuser::intake::region::DEFAULT_TILE_M;
         Ok(Some(v2x_fuser::intake::region::Region {
-            tiling: self.tiles.tiling.unwrap_or(
-                v2x_protocol::tiles::Tiling::new(default).expect("the default is a valid size"),
-            ),
+            tiling: self.tiles.tiling_or_default(),
             tile,
             halo_m: self.halo.halo_m(),
         }))
