@@ -11,6 +11,7 @@
 //! - [`ab3dmot_eval`]: AB3DMOT's KITTI tracking evaluation (sAMOTA, AMOTA, MOTA at 3D IoU 0.25).
 //! - [`tracking_eval`]: the nuScenes tracking protocol (AMOTA, AMOTP, MOTA, IDS and the rest).
 //! - [`hota`]: HOTA with DetA, AssA and LocA, as TrackEval computes them.
+//! - [`protocol`]: the one shape a bench runs every protocol by, frame by frame.
 
 pub mod ab3dmot_eval;
 pub mod calibrate;
@@ -19,5 +20,6 @@ pub mod detection_eval;
 pub mod file_eval;
 pub mod hota;
 pub mod metrics;
+pub mod protocol;
 pub mod tracking_eval;
 pub mod v2v4real_eval;

@@ -2,7 +2,7 @@
 //! lower bound, on one ground truth. Frames are independent, so they are scored in parallel;
 //! the noise of a frame depends only on (seed, agent, frame), so results do not depend on threads.
 
-use crate::dataset::{GroundTruth, GtFrame};
+use crate::dataset::{GroundTruth, GtObject};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
 use crate::noise::{detect, place_agents, Capture, NoiseSetting};
@@ -12,10 +12,13 @@ use crate::table::{
     Rows,
 };
 use crate::tracking_eval::{TrackBox, TrackingEval, TrackingMetrics};
+use frames::{BenchFrame, Frames, RowBoxes, Rule};
 use fusers::Fusers;
 use rayon::prelude::*;
 use serde::Serialize;
+use v2x_eval::protocol::Merge;
 use v2x_fuser::intake::region::{self, Tiling};
+use v2x_fuser::pipeline::Steps;
 use v2x_fuser::time::align::AlignParams;
 use v2x_fuser::tracker::{Tracked, Tracker, TrackerParams};
 use v2x_fuser::Method;
@@ -24,6 +27,7 @@ use v2x_protocol::Detection;
 pub mod asynchronous;
 mod by_state;
 pub mod dair;
+pub mod frames;
 pub mod fusers;
 pub mod pr_plot;
 pub mod regions;
@@ -89,34 +93,88 @@ pub fn agent_detections(
         .collect()
 }
 
+/// The agents simulated over a ground truth under one noise setting, as the bench reads them.
+pub struct Simulated<'a> {
+    gt: &'a GroundTruth,
+    setting: &'a NoiseSetting,
+    seed: u64,
+    range: Option<f64>,
+    by_scene: bool,
+}
+
+impl<'a> Simulated<'a> {
+    /// The agents of `setting` over `gt`, drawn with `cfg`'s seed and range.
+    pub fn new(gt: &'a GroundTruth, cfg: &BenchConfig, setting: &'a NoiseSetting) -> Self {
+        Simulated {
+            gt,
+            setting,
+            seed: cfg.seed,
+            range: cfg.range,
+            by_scene: false,
+        }
+    }
+
+    /// The same, each scene's frames scored in order by one part: for steps with history.
+    pub fn by_scene(self) -> Self {
+        Simulated {
+            by_scene: true,
+            ..self
+        }
+    }
+}
+
+impl Frames for Simulated<'_> {
+    type Truth = Vec<GtObject>;
+    type Cost = ();
+
+    fn count(&self) -> usize {
+        self.gt.frames.len()
+    }
+
+    fn parts(&self) -> Vec<Vec<usize>> {
+        if self.by_scene {
+            scenes(self.gt)
+        } else {
+            frames::runs(self.count())
+        }
+    }
+
+    fn frame(&self, i: usize) -> Option<BenchFrame<Vec<GtObject>>> {
+        let frame = &self.gt.frames[i];
+        let places = place_agents(frame, self.setting.agents.len(), self.seed);
+        Some(BenchFrame {
+            index: i,
+            agents: agent_detections(self.gt, i, self.setting, self.seed, self.range),
+            kinds: places.iter().map(|p| p.kind).collect(),
+            t_us: frame.timestamp_us,
+            truth: frame.objects.clone(),
+        })
+    }
+
+    fn cost(&self, _: &BenchFrame<Vec<GtObject>>) {}
+}
+
 /// Runs the table; `tick` is called once per frame and setting done (for a progress bar).
 pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec<Row> {
     let mut rows = Vec::new();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let slots = n_agents + cfg.methods.len();
-        let accs = per_frame(gt, cfg, setting, slots, |accs, fusers, dets, frame| {
-            for (a, d) in dets.iter().enumerate() {
-                accs[a].add_frame(&frame.objects, d);
-            }
-            for m in 0..cfg.methods.len() {
-                let fused = fusers.fuse(m, frame.timestamp_us, dets);
-                accs[n_agents + m].add_frame(&frame.objects, &fused);
-            }
-            tick();
-        });
-        for a in 0..n_agents {
+        let kinds: Vec<RowBoxes<'_, _>> = (0..n_agents)
+            .map(RowBoxes::Agent)
+            .chain((0..cfg.methods.len()).map(RowBoxes::Method))
+            .collect();
+        // Frame by frame, without history: no step of this table carries any.
+        let fusers = Fusers::new(&cfg.methods, n_agents, None);
+        let source = Simulated::new(gt, cfg, setting);
+        let accs = frames::score(&source, &kinds, &fusers, Accumulator::new, tick).rows;
+        let names = (0..n_agents)
+            .map(|a| format!("agent{}", a + 1))
+            .chain(cfg.methods.iter().map(Method::name));
+        for (method, acc) in names.zip(&accs) {
             rows.push(Row {
                 noise: setting.name.clone(),
-                method: format!("agent{}", a + 1),
-                metrics: accs[a].summary(),
-            });
-        }
-        for (m, method) in cfg.methods.iter().enumerate() {
-            rows.push(Row {
-                noise: setting.name.clone(),
-                method: method.name(),
-                metrics: accs[n_agents + m].summary(),
+                method,
+                metrics: acc.summary(),
             });
         }
         let mut bound = Accumulator::new().summary();
@@ -137,20 +195,25 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
 /// region per tile some box lies in ([`v2x_fuser::intake::region`]).
 pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: f64) -> Vec<Row> {
     let mut rows = Vec::new();
+    // Each region's input through the method's pipeline (no step carries history here, so one
+    // pipeline serves every region).
+    let regional: Vec<Box<Rule<'_, Vec<GtObject>>>> = (0..cfg.methods.len())
+        .map(|m| {
+            Box::new(move |f: &BenchFrame<Vec<GtObject>>, fusers: &mut Fusers| {
+                let fuse = |input: &[Vec<Detection>]| fusers.fuse(m, f.t_us, input);
+                region::fuse_regions(tiling, halo_m, fuse, &f.agents)
+            }) as Box<Rule<'_, _>>
+        })
+        .collect();
+    let kinds: Vec<RowBoxes<'_, _>> = regional
+        .iter()
+        .enumerate()
+        .flat_map(|(m, rule)| [RowBoxes::Method(m), RowBoxes::Rule(&**rule)])
+        .collect();
     for setting in &cfg.settings {
-        let slots = 2 * cfg.methods.len();
-        let accs = per_frame(gt, cfg, setting, slots, |accs, fusers, dets, frame| {
-            let t = frame.timestamp_us;
-            for m in 0..cfg.methods.len() {
-                let one = fusers.fuse(m, t, dets);
-                accs[2 * m].add_frame(&frame.objects, &one);
-                // Each region's input through the method's pipeline (no step carries history
-                // here, so one pipeline serves every region).
-                let fuse = |input: &[Vec<Detection>]| fusers.fuse(m, t, input);
-                let regional = region::fuse_regions(tiling, halo_m, fuse, dets);
-                accs[2 * m + 1].add_frame(&frame.objects, &regional);
-            }
-        });
+        let fusers = Fusers::new(&cfg.methods, setting.agents.len(), None);
+        let source = Simulated::new(gt, cfg, setting);
+        let accs = frames::score(&source, &kinds, &fusers, Accumulator::new, &|| ()).rows;
         for (m, method) in cfg.methods.iter().enumerate() {
             for (k, name) in [method.name(), format!("{method} regions")]
                 .into_iter()
@@ -212,44 +275,24 @@ pub fn run_detection(
     tick: &(dyn Fn() + Sync),
 ) -> Vec<DetectionRow> {
     let mut rows = Vec::new();
+    // Each method plainly, then registered: the latter's pipelines filter over a scene's windows.
+    let plain = cfg.methods.iter().map(|&m| Steps::method(m));
+    let aligned = align_with.into_iter().flat_map(|p| {
+        cfg.methods.iter().map(|&m| Steps {
+            align: Some(*p),
+            ..Steps::method(m)
+        })
+    });
+    let steps: Vec<Steps> = plain.chain(aligned).collect();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let n_methods = cfg.methods.len();
-        let slots = n_agents + n_methods * (1 + usize::from(align_with.is_some()));
-        // Scenes in parallel, each scene's frames in order: registration filters over windows.
-        let evals = in_order(
-            scenes(gt).into_par_iter(),
-            |frames| {
-                let mut evals = vec![DetectionEval::new(); slots];
-                let mut plain = Fusers::new(&cfg.methods, n_agents, None);
-                let mut aligned = align_with.map(|p| Fusers::new(&cfg.methods, n_agents, Some(*p)));
-                for i in frames {
-                    let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                    let (objects, t) = (&gt.frames[i].objects, gt.frames[i].timestamp_us);
-                    for (a, d) in dets.iter().enumerate() {
-                        evals[a].add_frame(objects, d);
-                    }
-                    for m in 0..n_methods {
-                        evals[n_agents + m].add_frame(objects, &plain.fuse(m, t, &dets));
-                    }
-                    if let Some(aligned) = &mut aligned {
-                        let kinds = place_agents(&gt.frames[i], n_agents, cfg.seed)
-                            .iter()
-                            .map(|p| p.kind)
-                            .collect();
-                        aligned.set_kinds(kinds);
-                        for m in 0..n_methods {
-                            let slot = n_agents + n_methods + m;
-                            evals[slot].add_frame(objects, &aligned.fuse(m, t, &dets));
-                        }
-                    }
-                    tick();
-                }
-                evals
-            },
-            merge_slots,
-        )
-        .unwrap_or_else(|| vec![DetectionEval::new(); slots]);
+        let kinds: Vec<RowBoxes<'_, _>> = (0..n_agents)
+            .map(RowBoxes::Agent)
+            .chain((0..steps.len()).map(RowBoxes::Method))
+            .collect();
+        let fusers = Fusers::of_steps(steps.iter().cloned(), n_agents);
+        let source = Simulated::new(gt, cfg, setting).by_scene();
+        let evals = frames::score(&source, &kinds, &fusers, DetectionEval::new, tick).rows;
         let names = (0..n_agents)
             .map(|a| format!("agent{}", a + 1))
             .chain(cfg.methods.iter().map(|m| m.name()))
@@ -263,57 +306,6 @@ pub fn run_detection(
         }
     }
     rows
-}
-
-/// Figures of one slot of a table that add up over frames, as rayon joins its parts.
-pub(crate) trait Slot {
-    /// Adds `other`'s figures into these.
-    fn absorb(&mut self, other: Self);
-}
-
-impl Slot for Accumulator {
-    fn absorb(&mut self, other: Self) {
-        self.merge(&other);
-    }
-}
-
-impl Slot for DetectionEval {
-    fn absorb(&mut self, other: Self) {
-        self.merge(other);
-    }
-}
-
-impl Slot for TrackingEval {
-    fn absorb(&mut self, other: Self) {
-        self.merge(other);
-    }
-}
-
-/// Scores every frame of `gt` in parallel into `slots` accumulators: `add` takes each frame's
-/// agents' boxes (under `setting`) and its objects.
-fn per_frame(
-    gt: &GroundTruth,
-    cfg: &BenchConfig,
-    setting: &NoiseSetting,
-    slots: usize,
-    add: impl Fn(&mut [Accumulator], &mut Fusers, &[Vec<Detection>], &GtFrame) + Sync,
-) -> Vec<Accumulator> {
-    let frames: Vec<usize> = (0..gt.frames.len()).collect();
-    in_order(
-        frames.par_chunks(FRAMES_PER_TASK),
-        |chunk| {
-            let mut accs = vec![Accumulator::new(); slots];
-            // Frame by frame, without history: no step of these tables carries any.
-            let mut fusers = Fusers::new(&cfg.methods, setting.agents.len(), None);
-            for &i in chunk {
-                let dets = agent_detections(gt, i, setting, cfg.seed, cfg.range);
-                add(&mut accs, &mut fusers, &dets, &gt.frames[i]);
-            }
-            accs
-        },
-        merge_slots,
-    )
-    .unwrap_or_else(|| vec![Accumulator::new(); slots])
 }
 
 /// Frames a parallel task scores in a row.
@@ -331,7 +323,7 @@ pub(crate) fn in_order<I, T: Send>(
 }
 
 /// Merges two pairs of slots, each with its own.
-pub(crate) fn merge_pairs<A: Slot, B: Slot>(
+pub(crate) fn merge_pairs<A: Merge, B: Merge>(
     (a, b): (Vec<A>, Vec<B>),
     (c, d): (Vec<A>, Vec<B>),
 ) -> (Vec<A>, Vec<B>) {
@@ -339,7 +331,7 @@ pub(crate) fn merge_pairs<A: Slot, B: Slot>(
 }
 
 /// Adds `b`'s slots into `a`'s, one by one.
-pub(crate) fn merge_slots<T: Slot>(mut a: Vec<T>, b: Vec<T>) -> Vec<T> {
+pub(crate) fn merge_slots<T: Merge>(mut a: Vec<T>, b: Vec<T>) -> Vec<T> {
     for (x, y) in a.iter_mut().zip(b) {
         x.absorb(y);
     }

@@ -3,9 +3,11 @@
 //! scored by the nuScenes-style benchmark over the classes the ground truth holds and by the
 //! DAIR-V2X protocol in the vehicle's frame, with the bytes each frame costs on the wire.
 
-use crate::bench::{in_order, FRAMES_PER_TASK};
+use crate::bench::frames::{self, BenchFrame, Frames, RowBoxes};
+use crate::bench::fusers::Fusers;
 use crate::dair::{Dair, AGENTS};
 use crate::dair_eval::{detection_boxes, gt_boxes, official_bytes, DairEval, DairMetrics};
+use crate::dataset::GtObject;
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::noise::NoiseSetting;
 use crate::table::{
@@ -14,8 +16,8 @@ use crate::table::{
     Rows,
 };
 use crate::wire_bytes::{frame_bytes, Bytes};
-use rayon::prelude::*;
 use serde::Serialize;
+use v2x_eval::protocol::{Merge, VehicleFrame};
 use v2x_fuser::Method;
 use v2x_protocol::nuscenes_json::Results;
 use v2x_protocol::{AgentKind, Detection};
@@ -49,36 +51,66 @@ pub fn wire_bytes(agent: usize, capture_us: u64, dets: &[Detection]) -> Bytes {
     frame_bytes(AGENTS[agent], kind, capture_us, dets)
 }
 
-#[derive(Clone, Default)]
-struct Slots {
-    det: Vec<DetectionEval>,
-    dair: Vec<DairEval>,
+/// What the two agents' frames cost on the air, and the roadside's boxes as the official
+/// late-fusion evaluation counts them.
+#[derive(Clone, Copy, Default)]
+pub struct DairCost {
     bytes: [Bytes; 2],
     official: usize,
-    frames: usize,
 }
 
-impl Slots {
-    fn new(n: usize) -> Self {
-        Slots {
-            det: vec![DetectionEval::new(); n],
-            dair: vec![DairEval::new(); n],
-            ..Default::default()
-        }
-    }
-
-    fn merge(mut self, other: Slots) -> Slots {
-        for (a, b) in self.det.iter_mut().zip(other.det) {
-            a.merge(b);
-        }
-        for (a, b) in self.dair.iter_mut().zip(other.dair) {
-            a.merge(b);
-        }
+impl Merge for DairCost {
+    fn absorb(&mut self, other: Self) {
         self.bytes[0] += other.bytes[0];
         self.bytes[1] += other.bytes[1];
         self.official += other.official;
-        self.frames += other.frames;
-        self
+    }
+}
+
+/// DAIR-V2X's pairs as the bench reads them: each side's labels as `setting` sees them, scored
+/// devkit-style over the world's labels and by DAIR-V2X's protocol in the vehicle's frame.
+pub struct DairFrames<'a> {
+    d: &'a Dair,
+    setting: &'a NoiseSetting,
+    seed: u64,
+    range: Option<f64>,
+}
+
+impl Frames for DairFrames<'_> {
+    type Truth = (Vec<GtObject>, VehicleFrame);
+    type Cost = DairCost;
+
+    fn count(&self) -> usize {
+        self.d.gt.frames.len()
+    }
+
+    /// Pair `i`, unless its vehicle pose cannot be inverted.
+    fn frame(&self, i: usize) -> Option<BenchFrame<Self::Truth>> {
+        let to_vehicle = self.d.rec.pairs[i].veh_to_world.inverse()?;
+        let objects = self.d.gt.frames[i].objects.clone();
+        let boxes = gt_boxes(&objects, &to_vehicle);
+        Some(BenchFrame {
+            index: i,
+            agents: (0..2)
+                .map(|a| {
+                    let noise = &self.setting.agents[a];
+                    self.d.detections(a, i, noise, self.seed, self.range)
+                })
+                .collect(),
+            kinds: vec![AgentKind::Vehicle, AgentKind::Infrastructure],
+            t_us: self.d.capture_us(0, i),
+            truth: (objects, VehicleFrame { boxes, to_vehicle }),
+        })
+    }
+
+    fn cost(&self, f: &BenchFrame<Self::Truth>) -> DairCost {
+        let mut cost = DairCost::default();
+        for (a, dets) in f.agents.iter().enumerate() {
+            cost.bytes[a] += wire_bytes(a, self.d.capture_us(a, f.index), dets);
+        }
+        let roadside_in_range = detection_boxes(&f.agents[1], &f.truth.1.to_vehicle).len();
+        cost.official = official_bytes(roadside_in_range);
+        cost
     }
 }
 
@@ -91,64 +123,41 @@ pub fn run(
     seed: u64,
     range: Option<f64>,
 ) -> Vec<DairRow> {
-    let n = 2 + methods.len();
-    let frames: Vec<usize> = (0..d.gt.frames.len()).collect();
-    let slots = in_order(
-        frames.par_chunks(FRAMES_PER_TASK),
-        |chunk| {
-            let mut s = Slots::new(n);
-            let mut fusers = crate::bench::fusers::Fusers::new(methods, 2, None);
-            for &i in chunk {
-                let agents: Vec<Vec<Detection>> = (0..2)
-                    .map(|a| d.detections(a, i, &setting.agents[a], seed, range))
-                    .collect();
-                let Some(to_vehicle) = d.rec.pairs[i].veh_to_world.inverse() else {
-                    continue;
-                };
-                let objects = &d.gt.frames[i].objects;
-                let truth = gt_boxes(objects, &to_vehicle);
-                let mut score = |slot: usize, preds: &[Detection]| {
-                    s.det[slot].add_frame(objects, preds);
-                    s.dair[slot].add_frame(&truth, &detection_boxes(preds, &to_vehicle));
-                };
-                for (a, dets) in agents.iter().enumerate() {
-                    score(a, dets);
-                }
-                for m in 0..methods.len() {
-                    score(2 + m, &fusers.fuse(m, d.capture_us(0, i), &agents));
-                }
-                for (a, dets) in agents.iter().enumerate() {
-                    s.bytes[a] += wire_bytes(a, d.capture_us(a, i), dets);
-                }
-                s.official += official_bytes(detection_boxes(&agents[1], &to_vehicle).len());
-                s.frames += 1;
-            }
-            s
-        },
-        Slots::merge,
-    )
-    .unwrap_or_else(|| Slots::new(n));
-    let per_frame = |b: usize| b as f64 / slots.frames.max(1) as f64;
+    let source = DairFrames {
+        d,
+        setting,
+        seed,
+        range,
+    };
+    let kinds: Vec<RowBoxes<'_, _>> = (0..2)
+        .map(RowBoxes::Agent)
+        .chain((0..methods.len()).map(RowBoxes::Method))
+        .collect();
+    let fusers = Fusers::new(methods, 2, None);
+    let new = || (DetectionEval::new(), DairEval::new());
+    let totals = frames::score(&source, &kinds, &fusers, new, &|| ());
+    let per_frame = |b: usize| b as f64 / totals.frames.max(1) as f64;
     let both = |b: Bytes| (per_frame(b.frame), per_frame(b.cpm));
+    let [veh, inf] = totals.cost.bytes;
+    let mut pair = veh;
+    pair += inf;
     let names = AGENTS
         .iter()
         .map(|a| a.to_string())
         .chain(methods.iter().map(Method::name));
     names
+        .zip(&totals.rows)
         .enumerate()
-        .map(|(k, method)| {
-            let classes = slots.det[k].ground_truth_classes();
-            let mut pair = slots.bytes[0];
-            pair += slots.bytes[1];
+        .map(|(k, (method, (det, dair)))| {
             let ((bytes, cpm), official) = match k {
-                0 => (both(slots.bytes[0]), 0.0),
-                1 => (both(slots.bytes[1]), per_frame(slots.official)),
-                _ => (both(pair), per_frame(slots.official)),
+                0 => (both(veh), 0.0),
+                1 => (both(inf), per_frame(totals.cost.official)),
+                _ => (both(pair), per_frame(totals.cost.official)),
             };
             DairRow {
                 method,
-                detection: slots.det[k].summary_over(&classes),
-                dair: slots.dair[k].summary(),
+                detection: det.summary_over(&det.ground_truth_classes()),
+                dair: dair.summary(),
                 bytes_per_frame: Some(bytes),
                 cpm_bytes_per_frame: Some(cpm),
                 official_ab: Some(official),

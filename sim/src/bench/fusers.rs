@@ -32,9 +32,14 @@ impl Fusers {
         agents: usize,
         steps: impl Fn(Method) -> Steps,
     ) -> Fusers {
-        let pipelines = methods
-            .iter()
-            .map(|&method| Pipeline::new(steps(method), Reference::Infrastructure, None))
+        Fusers::of_steps(methods.iter().map(|&m| steps(m)), agents)
+    }
+
+    /// One pipeline per element of `steps`, in order, over `agents` agents.
+    pub fn of_steps(steps: impl IntoIterator<Item = Steps>, agents: usize) -> Fusers {
+        let pipelines = steps
+            .into_iter()
+            .map(|steps| Pipeline::new(steps, Reference::Infrastructure, None))
             .collect();
         Fusers {
             pipelines,

@@ -2,7 +2,8 @@
 //! the dataset's own fused references, its late-fusion rule, and every method fusing the two
 //! cars, each scored by V2V4Real's detection protocol, with the bytes a frame costs.
 
-use crate::bench::{in_order, FRAMES_PER_TASK};
+use crate::bench::frames::{self, BenchFrame, Frames, RowBoxes, Rule};
+use crate::bench::fusers::Fusers;
 use crate::table::{
     markdown,
     Align::{Left, Right},
@@ -13,6 +14,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use v2x_eval::dair_eval::View;
+use v2x_eval::protocol::Merge;
 use v2x_eval::v2v4real_eval::{Ordering, V2v4realEval, V2v4realMetrics, RANGES, THRESHOLDS};
 use v2x_fuser::maths::baselines::nms;
 use v2x_fuser::maths::geometry::bev_iou;
@@ -173,31 +175,6 @@ pub fn score_detection_dir(d: &V2v4real, dir: &Path) -> Result<V2v4realMetrics, 
     Ok(eval.summary())
 }
 
-/// Per-row accumulators, with each car's bytes.
-#[derive(Clone)]
-struct Slots {
-    eval: Vec<V2v4realEval>,
-    bytes: [Bytes; 2],
-}
-
-impl Slots {
-    fn new(n: usize) -> Self {
-        Slots {
-            eval: vec![V2v4realEval::new(); n],
-            bytes: [Bytes::default(); 2],
-        }
-    }
-
-    fn merge(mut self, other: Slots) -> Slots {
-        for (a, b) in self.eval.iter_mut().zip(other.eval) {
-            a.merge(b);
-        }
-        self.bytes[0] += other.bytes[0];
-        self.bytes[1] += other.bytes[1];
-        self
-    }
-}
-
 /// The BEV precision-recall curves of a row at 0.5 and 0.7, frame order solid, global sort
 /// dashed, each thinned to 400 points.
 fn curves(eval: &V2v4realEval) -> Vec<crate::bench::pr_plot::Line> {
@@ -228,36 +205,78 @@ pub fn write_plots(rows: &[V2v4realRow], dir: &Path) -> std::io::Result<Vec<Path
         .collect()
 }
 
+/// What each car's frames cost on the air.
+#[derive(Clone, Copy, Default)]
+pub struct CarBytes([Bytes; 2]);
+
+impl Merge for CarBytes {
+    fn absorb(&mut self, other: Self) {
+        self.0[0] += other.0[0];
+        self.0[1] += other.0[1];
+    }
+}
+
+/// The split's frames as the bench reads them: the two cars' detections, scored by V2V4Real's
+/// protocol against the labels.
+pub struct CarFrames<'a>(pub &'a V2v4real);
+
+impl Frames for CarFrames<'_> {
+    type Truth = Vec<Detection>;
+    type Cost = CarBytes;
+
+    fn count(&self) -> usize {
+        self.0.frames.len()
+    }
+
+    fn frame(&self, i: usize) -> Option<BenchFrame<Vec<Detection>>> {
+        let d = self.0;
+        Some(BenchFrame {
+            index: i,
+            agents: vec![d.cars[0][i].clone(), d.cars[1][i].clone()],
+            kinds: vec![AgentKind::Vehicle; 2],
+            t_us: d.frames[i].capture_us(),
+            truth: d.gt[i].clone(),
+        })
+    }
+
+    fn cost(&self, f: &BenchFrame<Vec<Detection>>) -> CarBytes {
+        let mut cost = CarBytes::default();
+        for (car, dets) in f.agents.iter().enumerate() {
+            cost.0[car] += car_bytes(car, f.t_us, dets);
+        }
+        cost
+    }
+}
+
 /// Scores every source over every frame, in frame order.
 pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
-    let n = sources.len();
-    let frames: Vec<usize> = (0..d.frames.len()).collect();
-    let slots = in_order(
-        frames.par_chunks(FRAMES_PER_TASK),
-        |chunk| {
-            let mut s = Slots::new(n);
-            for &i in chunk {
-                for (k, src) in sources.iter().enumerate() {
-                    s.eval[k].add_frame(&d.gt[i], &src.boxes(d, i));
-                }
-                for car in 0..2 {
-                    s.bytes[car] += car_bytes(car, d.frames[i].capture_us(), &d.cars[car][i]);
-                }
-            }
-            s
-        },
-        Slots::merge,
-    )
-    .unwrap_or_else(|| Slots::new(n));
+    let rules: Vec<Box<Rule<'_, Vec<Detection>>>> = sources
+        .iter()
+        .map(|src| {
+            Box::new(move |f: &BenchFrame<Vec<Detection>>, _: &mut Fusers| src.boxes(d, f.index))
+                as Box<Rule<'_, _>>
+        })
+        .collect();
+    let kinds: Vec<RowBoxes<'_, _>> = sources
+        .iter()
+        .zip(&rules)
+        .map(|(src, rule)| match src {
+            Source::Car(k) => RowBoxes::Agent(*k),
+            _ => RowBoxes::Rule(&**rule),
+        })
+        .collect();
+    // The methods fuse as `v2x-fuser fuse --detector` does (`Source::boxes`), not by these.
+    let fusers = Fusers::new(&[], 2, None);
+    let totals = frames::score(&CarFrames(d), &kinds, &fusers, V2v4realEval::new, &|| ());
     let frames = d.frames.len().max(1) as f64;
     sources
         .iter()
-        .zip(slots.eval)
+        .zip(totals.rows)
         .map(|(src, eval)| {
             let senders = src.senders();
             let mut sent = Bytes::default();
             for &c in senders {
-                sent += slots.bytes[c];
+                sent += totals.cost.0[c];
             }
             let per_frame = |b: usize| (!senders.is_empty()).then(|| b as f64 / frames);
             V2v4realRow {
