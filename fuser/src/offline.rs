@@ -11,12 +11,12 @@
 //! reference agent: pooled over windows when grouping by time, per sample otherwise.
 
 use crate::pipeline::{Pipeline, Prepared, Reference, Steps};
-use crate::time::align::{AlignParams, Registration};
+use crate::time::align::Registration;
 use crate::time::motion::MotionParams;
 use crate::time::window::Windows;
 use crate::tracker::{TrackStats, Tracker, TrackerParams};
 use crate::uncertainty::detector::DetectorParams;
-use crate::uncertainty::learn::{AgentReport, LearnParams};
+use crate::uncertainty::learn::AgentReport;
 use crate::uncertainty::stdmodel::{ErrorModel, Models};
 use crate::Method;
 use serde_json::Value;
@@ -85,50 +85,55 @@ impl OutputFormat {
     }
 }
 
-/// How to fuse files.
-#[derive(Clone, Debug, PartialEq)]
+/// How to fuse files: the per-window steps, and what files add to them.
+#[derive(Clone, Debug)]
 pub struct OfflineOptions {
-    /// Motion compensation to each window's reference time (`None`: fuse boxes as captured).
-    pub motion: Option<MotionParams>,
+    /// The method and the steps around it, as the node runs them; error models are keyed by
+    /// input ([`OfflineOptions::set_models`]), and the first input receives a detector's boxes.
+    pub steps: Steps,
     /// Window width delta t (ms) when grouping by capture time.
     pub window_ms: f64,
-    /// Registration of every agent to agent `reference` (an index into the inputs) by its boxes
-    /// before association (`None`: agents' poses are trusted).
-    pub align: Option<(AlignParams, usize)>,
-    /// Learn each agent's stds from its boxes as the windows pass ([`crate::uncertainty::learn`]; `None`:
-    /// the stated ones are trusted). Needs capture times.
-    pub learn: Option<LearnParams>,
-    /// Calibrated error models by input (an index into the inputs), applied to that input's
-    /// boxes before anything else ([`crate::uncertainty::stdmodel`]).
-    pub models: BTreeMap<usize, ErrorModel>,
-    /// The boxes are a detector's, with scores and no stds ([`crate::uncertainty::detector`]): they get the
-    /// detector's stds (the first input is the receiver), and CSBA-3D groups are scored by the
-    /// noisy-OR of their members with the tail dropped. `None`: the stds are the inputs' own.
-    pub detector: Option<DetectorParams>,
-    /// The detector's parameters wherever its treatment applies: given with `detector`, or
-    /// for a detector's KITTI rows ([`Inputs::options`]).
+    /// The input registration aligns every other to (an index into the inputs).
+    pub reference: usize,
+    /// The detector's parameters wherever its treatment applies: given with `steps.detector`,
+    /// or for a detector's KITTI rows ([`Inputs::options`]).
     pub detector_params: DetectorParams,
 }
 
 impl Default for OfflineOptions {
     fn default() -> Self {
         OfflineOptions {
-            motion: Some(MotionParams::default()),
+            steps: Steps {
+                motion: Some(MotionParams::default()),
+                ..Steps::method(Method::default())
+            },
             window_ms: 100.0,
-            align: None,
-            learn: None,
-            models: BTreeMap::new(),
-            detector: None,
+            reference: 0,
             detector_params: DetectorParams::default(),
         }
     }
 }
 
 impl OfflineOptions {
+    /// The default options, fusing by `method`.
+    pub fn method(method: Method) -> Self {
+        let mut o = OfflineOptions::default();
+        o.steps.method = method;
+        o
+    }
+
     /// Sets the replay speed of motion compensation and the learner at once
     /// ([`crate::pipeline::set_time_scale`]); a tracker's is its own parameter.
     pub fn set_time_scale(&mut self, s: f64) {
-        crate::pipeline::set_time_scale(s, self.motion.as_mut(), self.learn.as_mut(), None);
+        let steps = &mut self.steps;
+        crate::pipeline::set_time_scale(s, steps.motion.as_mut(), steps.learn.as_mut(), None);
+    }
+
+    /// Calibrated error models by input (an index into the inputs), applied to that input's
+    /// boxes before anything else ([`crate::uncertainty::stdmodel`]).
+    pub fn set_models(&mut self, by_input: BTreeMap<usize, ErrorModel>) {
+        let named = by_input.into_iter().map(|(a, m)| (name(a), m)).collect();
+        self.steps.models = std::sync::Arc::new(Models(named));
     }
 }
 
@@ -152,39 +157,20 @@ fn name(a: usize) -> String {
 }
 
 impl OfflineOptions {
-    /// The per-window pipeline these options give `method` over inputs named by [`name`]: the
-    /// first input receives a detector's boxes, and the reference is `align`'s.
-    pub fn pipeline(&self, method: &Method) -> Pipeline {
-        let steps = Steps {
-            method: *method,
-            detector: self.detector,
-            motion: self.motion,
-            align: self.align.map(|(p, _)| p),
-            learn: self.learn,
-            models: std::sync::Arc::new(Models(
-                self.models
-                    .iter()
-                    .map(|(a, m)| (name(*a), m.clone()))
-                    .collect(),
-            )),
-        };
-        let reference = Reference::Agent(name(self.align.map_or(0, |(_, r)| r)));
-        Pipeline::new(steps, reference, Some(name(0)))
+    /// The per-window pipeline of these options over inputs named by [`name`]: the first input
+    /// receives a detector's boxes, and registration aligns to [`OfflineOptions::reference`].
+    pub fn pipeline(&self) -> Pipeline {
+        let reference = Reference::Agent(name(self.reference));
+        Pipeline::new(self.steps.clone(), reference, Some(name(0)))
     }
 }
 
 /// One time step of every input's boxes (`per_agent[k]`, input k's), each box as it was
 /// captured, through the pipeline's detector and fusion steps (no registration, no history).
-pub fn fuse_step(
-    method: &Method,
-    opts: &OfflineOptions,
-    per_agent: &[Vec<Detection>],
-) -> Vec<Detection> {
-    let mut p = OfflineOptions {
-        align: None,
-        ..opts.clone()
-    }
-    .pipeline(method);
+pub fn fuse_step(opts: &OfflineOptions, per_agent: &[Vec<Detection>]) -> Vec<Detection> {
+    let mut once = opts.clone();
+    once.steps.align = None;
+    let mut p = once.pipeline();
     let names: Vec<String> = (0..per_agent.len()).map(name).collect();
     let kinds = vec![AgentKind::Vehicle; per_agent.len()];
     p.fuse_frame(None, &names, &kinds, per_agent)
@@ -192,11 +178,11 @@ pub fn fuse_step(
 
 /// Fuses the agents' files: by capture-time windows when every file has capture times, else by
 /// sample token.
-pub fn fuse_results(method: &Method, agents: &[Results], opts: &OfflineOptions) -> Results {
+pub fn fuse_results(agents: &[Results], opts: &OfflineOptions) -> Results {
     let times: Option<Vec<HashMap<String, u64>>> = agents.iter().map(capture_times).collect();
     match times {
-        Some(times) if !agents.is_empty() => fuse_by_time(method, agents, &times, opts),
-        _ => fuse_by_token(method, agents, opts),
+        Some(times) if !agents.is_empty() => fuse_by_time(agents, &times, opts),
+        _ => fuse_by_token(agents, opts),
     }
 }
 
@@ -242,9 +228,9 @@ fn set_meta(out: &mut Results, key: &str, value: Value) {
     out.meta[key] = value;
 }
 
-fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> Results {
+fn fuse_by_token(agents: &[Results], opts: &OfflineOptions) -> Results {
     // Sample tokens carry no order, so each sample is registered on its own evidence.
-    let mut pipeline = opts.pipeline(method);
+    let mut pipeline = opts.pipeline();
     let mut registered = serde_json::Map::new();
     let names: Vec<String> = (0..agents.len()).map(name).collect();
     let kinds = vec![AgentKind::Vehicle; agents.len()];
@@ -269,14 +255,13 @@ fn fuse_by_token(method: &Method, agents: &[Results], opts: &OfflineOptions) -> 
         out.samples
             .insert(s.clone(), pipeline.steps().fuse_boxes(&per_agent, receiver));
     }
-    if opts.align.is_some() {
+    if opts.steps.align.is_some() {
         set_meta(&mut out, "v2x_registration", Value::Object(registered));
     }
     out
 }
 
 fn fuse_by_time(
-    method: &Method,
     agents: &[Results],
     times: &[HashMap<String, u64>],
     opts: &OfflineOptions,
@@ -286,7 +271,7 @@ fn fuse_by_time(
         ..Default::default()
     };
     let mut samples = BTreeMap::new();
-    let meta = by_time(method, agents, times, opts, |steps, sample, prepared| {
+    let meta = by_time(agents, times, opts, |steps, sample, prepared| {
         samples.insert(
             sample.clone(),
             steps.fuse_boxes(&prepared.lists, prepared.receiver),
@@ -322,10 +307,9 @@ impl TimeMeta {
 }
 
 /// Every frame of every agent, in capture order, through the node's window state machine: each
-/// window prepared by `method`'s pipeline ([`OfflineOptions::pipeline`]) goes to `each` with the
+/// window prepared by the options' pipeline ([`OfflineOptions::pipeline`]) goes to `each` with the
 /// pipeline's steps and the window's sample (that of its latest frame), in time order.
 fn by_time(
-    method: &Method,
     agents: &[Results],
     times: &[HashMap<String, u64>],
     opts: &OfflineOptions,
@@ -354,7 +338,7 @@ fn by_time(
     }
     let all: BTreeSet<String> = (0..agents.len()).map(name).collect();
     let mut stamps = serde_json::Map::new();
-    let mut pipeline = opts.pipeline(method);
+    let mut pipeline = opts.pipeline();
     let mut registered = serde_json::Map::new();
     for closed in windows.flush(|_| all.clone()) {
         let captured: Vec<(String, u32, u64)> = closed
@@ -368,7 +352,7 @@ fn by_time(
             .find(|f| f.2 == prepared.t_ref)
             .map(|(agent, seq, _)| token_of[&(agent.clone(), *seq)].clone())
             .unwrap_or_default();
-        if opts.align.is_some() {
+        if opts.steps.align.is_some() {
             registered.extend(
                 registration_json(&prepared.agents, &prepared.registration)
                     .map(|r| (latest.clone(), r)),
@@ -379,8 +363,8 @@ fn by_time(
     }
     TimeMeta {
         stamps,
-        registered: opts.align.is_some().then_some(registered),
-        learned: opts.learn.map(|_| {
+        registered: opts.steps.align.is_some().then_some(registered),
+        learned: opts.steps.learn.map(|_| {
             pipeline
                 .learned()
                 .into_iter()
@@ -423,7 +407,6 @@ pub struct FuseReport {
 /// Reads, fuses and writes (a nuScenes results file, or KITTI detection rows per sequence):
 /// the `v2x-fuser fuse` command.
 pub fn fuse_files(
-    method: &Method,
     inputs: &[PathBuf],
     output: &std::path::Path,
     missing: MissingStd,
@@ -431,7 +414,7 @@ pub fn fuse_files(
     format: OutputFormat,
 ) -> Result<FuseReport, FilesError> {
     let read = read_inputs(inputs, missing)?;
-    let (fused, report) = fuse_agents(method, &read.agents, inputs, &read.options(opts))?;
+    let (fused, report) = fuse_agents(&read.agents, inputs, &read.options(opts))?;
     match format.resolve(&read) {
         OutputFormat::Kitti => {
             kitti::write_detection_dir(output, &fused, read.sequences)?;
@@ -444,13 +427,12 @@ pub fn fuse_files(
 /// Fuses the agents' results as [`fuse_files`] fuses files (`names[k]` names agent k's in
 /// errors): the fused results and what was done.
 pub fn fuse_agents(
-    method: &Method,
     agents: &[Results],
     names: &[PathBuf],
     opts: &OfflineOptions,
 ) -> Result<(Results, FuseReport), JsonError> {
     let by_time = !agents.is_empty() && agents.iter().all(|r| capture_times(r).is_some());
-    if opts.learn.is_some() && !by_time {
+    if opts.steps.learn.is_some() && !by_time {
         let without = agents.iter().position(|r| capture_times(r).is_none());
         return Err(JsonError {
             file: without.map(|k| names[k].clone()).unwrap_or_default(),
@@ -462,7 +444,7 @@ pub fn fuse_agents(
                 .into(),
         });
     }
-    let fused = fuse_results(method, agents, opts);
+    let fused = fuse_results(agents, opts);
     let boxes_in = agents
         .iter()
         .flat_map(|r| r.samples.values())
@@ -531,6 +513,7 @@ fn registration_summary(fused: &Results) -> Vec<(String, usize, usize, Option<Re
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::time::align::AlignParams;
     use v2x_protocol::{Class, Uncertainty, NO_ID};
 
     /// Two agents over `n` samples seeing the same 6 cars; agent 1 reports them 1.8 m east and
@@ -574,12 +557,11 @@ mod tests {
         let method: Method = "csba-wls+".parse().unwrap();
         for times in [false, true] {
             let agents = files(20, times);
-            let plain = fuse_results(&method, &agents, &OfflineOptions::default());
-            let opts = OfflineOptions {
-                align: Some((AlignParams::default(), 1)),
-                ..Default::default()
-            };
-            let aligned = fuse_results(&method, &agents, &opts);
+            let plain = fuse_results(&agents, &OfflineOptions::method(method));
+            let mut opts = OfflineOptions::method(method);
+            opts.steps.align = Some(AlignParams::default());
+            opts.reference = 1;
+            let aligned = fuse_results(&agents, &opts);
             // each sample's registration of input 1 is reported; without times each sample
             // stands alone and is significant at once, with times the filter needs a few
             // windows of evidence (measurements 0.1 s apart are not independent)

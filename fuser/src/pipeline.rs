@@ -266,14 +266,11 @@ mod tests {
             ),
             (4.0, 4.0, 4.0)
         );
-        let mut o = crate::offline::OfflineOptions {
-            motion: Some(MotionParams::default()),
-            learn: Some(LearnParams::default()),
-            ..Default::default()
-        };
+        let mut o = crate::offline::OfflineOptions::default();
+        o.steps.learn = Some(LearnParams::default());
         o.set_time_scale(0.5);
-        assert_eq!(o.motion.unwrap().time_scale, 0.5);
-        assert_eq!(o.learn.unwrap().tracker.motion.time_scale, 0.5);
+        assert_eq!(o.steps.motion.unwrap().time_scale, 0.5);
+        assert_eq!(o.steps.learn.unwrap().tracker.motion.time_scale, 0.5);
     }
 
     #[test]

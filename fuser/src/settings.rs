@@ -151,15 +151,10 @@ impl FuserSettings {
         let mut cfg = crate::node::NodeConfig::new(ns, f.method);
         cfg.window_ms = f.window_ms;
         cfg.max_wait_ms = self.max_wait_ms;
-        let detector = f.detector.params()?;
-        cfg.steps.detector = f.detector.detector.then_some(detector);
+        cfg.steps = f.steps()?;
         self.admission.apply(&mut cfg.ingest)?;
         cfg.queue = self.admission.fusion_queue;
         cfg.log_interval_s = self.admission.log_interval_s;
-        cfg.steps.motion = f.motion.params()?;
-        cfg.steps.align = f.align.params()?;
-        cfg.steps.learn = f.stds.learn()?;
-        cfg.steps.models = std::sync::Arc::new(f.stds.models()?);
         cfg.track = self
             .tracker()?
             .map(|p| cfg.steps.detector.map_or(p, |d| d.tracker(p)));

@@ -50,7 +50,7 @@ pub fn fuse_documents(
     options: Options,
 ) -> PyResult<(String, String)> {
     options.refuse_tracking()?;
-    let (method, missing, opts) = options.offline(documents.len())?;
+    let (missing, opts) = options.offline(documents.len())?;
     py.detach(|| {
         let mut tokens = TokenTable::new();
         let names: Vec<PathBuf> = (0..documents.len())
@@ -62,8 +62,7 @@ pub fn fuse_documents(
             .map(|(text, name)| parse_results(name, text, &mut tokens, missing))
             .collect::<Result<Vec<_>, _>>()
             .map_err(value_error)?;
-        let (fused, report) =
-            offline::fuse_agents(&method, &agents, &names, &opts).map_err(value_error)?;
+        let (fused, report) = offline::fuse_agents(&agents, &names, &opts).map_err(value_error)?;
         Ok((
             results_json(&fused, &tokens).to_string(),
             report_json(&report).to_string(),
@@ -84,31 +83,17 @@ pub fn run_files(
     if !track {
         options.refuse_tracking()?;
     }
-    let (method, missing, opts) = options.offline(inputs.len())?;
+    let (missing, opts) = options.offline(inputs.len())?;
     let params = options.tracker()?;
     py.detach(|| {
         if !track {
-            let report = offline::fuse_files(
-                &method,
-                &inputs,
-                &output,
-                missing,
-                &opts,
-                OutputFormat::Auto,
-            )
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let report = offline::fuse_files(&inputs, &output, missing, &opts, OutputFormat::Auto)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
             return Ok(report_json(&report).to_string());
         }
-        let tracks = offline::track_files(
-            &method,
-            &inputs,
-            &output,
-            missing,
-            &opts,
-            params,
-            OutputFormat::Auto,
-        )
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let tracks =
+            offline::track_files(&inputs, &output, missing, &opts, params, OutputFormat::Auto)
+                .map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(json!({
             "windows": tracks.results.samples.len(),
             "boxes": tracks.results.samples.values().map(Vec::len).sum::<usize>(),

@@ -100,28 +100,32 @@ fn parse_std(s: &str) -> PyResult<v2x_protocol::Uncertainty> {
 }
 
 impl Options {
-    /// The method, how boxes without stds are read and the offline options, for `inputs` agents.
-    pub fn offline(&self, inputs: usize) -> PyResult<(Method, MissingStd, OfflineOptions)> {
+    /// How boxes without stds are read and the offline options (the method among their steps),
+    /// for `inputs` agents.
+    pub fn offline(&self, inputs: usize) -> PyResult<(MissingStd, OfflineOptions)> {
         let default_std = self.default_std.as_deref().map(parse_std).transpose()?;
         let (missing, mut opts) = self.fusion.offline(inputs, default_std).map_err(setting)?;
         // align_to names the reference agent and turns registration on.
         let registration = self.fusion.align.registration.params().map_err(setting)?;
-        opts.align = match self.align_to {
+        match self.align_to {
             None if self.fusion.align.align => {
                 return Err(PyValueError::new_err(
                     "align: give align_to, the reference agent's index",
                 ))
             }
-            None => None,
-            Some(k) if k < inputs => Some((registration, k)),
+            None => opts.steps.align = None,
+            Some(k) if k < inputs => {
+                opts.steps.align = Some(registration);
+                opts.reference = k;
+            }
             Some(k) => {
                 return Err(PyValueError::new_err(format!(
                     "align_to {k}: there are {inputs} agents (give their index, 0 to {})",
                     inputs.saturating_sub(1)
                 )))
             }
-        };
-        Ok((self.fusion.method, missing, opts))
+        }
+        Ok((missing, opts))
     }
 
     /// Refuses a tracking key, for the functions that do not track.

@@ -341,25 +341,19 @@ mod tests {
         assert_eq!(car1[1].std, stds(&p, &car1[1], false));
         assert!(car1[1].std.pos[0] > ego[0].std.pos[0]);
         // Fused with the detector's treatment, the files give what the folders give.
-        let opts = OfflineOptions {
-            detector: Some(p),
-            ..Default::default()
-        };
+        let csba = "csba-wls+".parse::<v2x_fuser::Method>().unwrap();
+        let mut opts = OfflineOptions::method(csba);
+        opts.steps.detector = Some(p);
         let folders = read_inputs(
             &v2x_truth::v2v4real::Paths::new(&root, split).cars,
             v2x_protocol::nuscenes_json::MissingStd::Error,
         )
         .unwrap();
         let from_folders = fuse_results(
-            &"csba-wls+".parse::<v2x_fuser::Method>().unwrap(),
             &folders.agents,
-            &folders.options(&Default::default()),
+            &folders.options(&OfflineOptions::method(csba)),
         );
-        let from_files = fuse_results(
-            &"csba-wls+".parse::<v2x_fuser::Method>().unwrap(),
-            &files,
-            &opts,
-        );
+        let from_files = fuse_results(&files, &opts);
         let boxes = |r: &Results| -> Vec<(String, Vec<[f64; 3]>, Vec<f64>)> {
             r.samples
                 .iter()

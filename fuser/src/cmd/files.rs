@@ -67,14 +67,15 @@ impl FilesArgs {
             .fusion
             .offline(inputs, self.default_std)
             .map_err(flag_error)?;
-        let align = self.fusion.align.params().map_err(flag_error)?;
-        if align.is_some() && !(1..=inputs).contains(&self.align_to) {
-            anyhow::bail!(
-                "--align-to {}: there are {inputs} inputs (give 1 to {inputs})",
-                self.align_to
-            );
+        if opts.steps.align.is_some() {
+            if !(1..=inputs).contains(&self.align_to) {
+                anyhow::bail!(
+                    "--align-to {}: there are {inputs} inputs (give 1 to {inputs})",
+                    self.align_to
+                );
+            }
+            opts.reference = self.align_to - 1;
         }
-        opts.align = align.map(|p| (p, self.align_to - 1));
         Ok((missing, opts))
     }
 }
@@ -100,15 +101,9 @@ pub(crate) fn fuse(args: FuseArgs) -> anyhow::Result<()> {
     let FuseArgs { files } = args;
     let (method, inputs, output) = (files.fusion.method, &files.inputs, &files.output.path);
     let (missing, opts) = files.options()?;
-    let report = v2x_fuser::offline::fuse_files(
-        &method,
-        inputs,
-        output,
-        missing,
-        &opts,
-        files.output_format.into(),
-    )?;
-    let how = match (report.by_time, opts.motion.is_some()) {
+    let report =
+        v2x_fuser::offline::fuse_files(inputs, output, missing, &opts, files.output_format.into())?;
+    let how = match (report.by_time, opts.steps.motion.is_some()) {
         (true, true) => "grouped by capture time, motion-compensated",
         (true, false) => "grouped by capture time, not compensated",
         (false, _) => "grouped by sample token (the files carry no capture times)",
@@ -154,7 +149,6 @@ pub(crate) fn track(args: TrackArgs) -> anyhow::Result<()> {
     let (missing, opts) = files.options()?;
     let params = tracking.params().map_err(flag_error)?;
     let tracks = v2x_fuser::offline::track_files(
-        &method,
         inputs,
         output,
         missing,

@@ -19,7 +19,7 @@ pub struct Inputs {
     /// With KITTI folders, every sequence number any of them holds (else empty).
     pub sequences: BTreeSet<u32>,
     /// Every input is a detector's KITTI rows and no std was given for them: they take the
-    /// detector's stds and scoring ([`OfflineOptions::detector`]).
+    /// detector's stds and scoring ([`crate::pipeline::Steps::detector`]).
     pub from_detector: bool,
 }
 
@@ -29,7 +29,7 @@ impl Inputs {
     pub fn options(&self, opts: &OfflineOptions) -> OfflineOptions {
         let mut o = opts.clone();
         if detector_applies(self.from_detector, &o) {
-            o.detector = Some(o.detector_params);
+            o.steps.detector = Some(o.detector_params);
         }
         o
     }
@@ -37,7 +37,7 @@ impl Inputs {
     /// The tracker's parameters for these inputs: a detector's tracks are output from its
     /// operating point on ([`DetectorParams::min_score`]).
     pub fn tracker_params(&self, opts: &OfflineOptions, params: TrackerParams) -> TrackerParams {
-        match self.options(opts).detector {
+        match self.options(opts).steps.detector {
             Some(d) => d.tracker(params),
             None => params,
         }
@@ -47,7 +47,7 @@ impl Inputs {
     /// tail dropped ([`DetectorParams::for_tracking`]).
     pub fn tracking_options(&self, opts: &OfflineOptions) -> OfflineOptions {
         let mut o = self.options(opts);
-        o.detector = o.detector.map(DetectorParams::for_tracking);
+        o.steps.detector = o.steps.detector.map(DetectorParams::for_tracking);
         o
     }
 }
@@ -66,7 +66,8 @@ pub fn from_detector(paths: &[PathBuf], missing: MissingStd) -> bool {
 /// Whether a detector's rows get the detector's treatment under `opts`: unless it is given
 /// already, or learned stds or error models replace it.
 pub(super) fn detector_applies(from_detector: bool, opts: &OfflineOptions) -> bool {
-    from_detector && opts.detector.is_none() && opts.learn.is_none() && opts.models.is_empty()
+    let steps = &opts.steps;
+    from_detector && steps.detector.is_none() && steps.learn.is_none() && steps.models.0.is_empty()
 }
 
 /// Reads one input per agent with a shared token table: a results file, or a folder of KITTI

@@ -17,7 +17,6 @@ pub struct Tracks {
 /// Fuses the agents' files, then runs the tracker over the fused windows in time order. The
 /// files must carry capture times (`meta.v2x_timestamps`, as `v2x-sim gen` writes them).
 pub fn track_results(
-    method: &Method,
     agents: &[Results],
     opts: &OfflineOptions,
     params: TrackerParams,
@@ -26,9 +25,9 @@ pub fn track_results(
         return Err(FilesError::NoCaptureTimes);
     }
     if params.guided() {
-        return Ok(track_through(method, agents, opts, params));
+        return Ok(track_through(agents, opts, params));
     }
-    let fused = fuse_results(method, agents, opts);
+    let fused = fuse_results(agents, opts);
     let times = capture_times(&fused).expect("fusion by time stamps every sample");
     let mut order: Vec<(&u64, &String)> = fused.samples.keys().map(|s| (&times[s], s)).collect();
     order.sort();
@@ -55,13 +54,8 @@ pub fn track_results(
 }
 
 /// Tracking through the tracks ([`Tracker::step_agents`]): each window's agents' boxes go to the
-/// tracker directly, `method` fusing between agents only the boxes no track explains.
-fn track_through(
-    method: &Method,
-    agents: &[Results],
-    opts: &OfflineOptions,
-    params: TrackerParams,
-) -> Tracks {
+/// tracker directly, the options' method fusing between agents only the boxes no track explains.
+fn track_through(agents: &[Results], opts: &OfflineOptions, params: TrackerParams) -> Tracks {
     let times: Vec<HashMap<String, u64>> = agents
         .iter()
         .map(|r| capture_times(r).expect("checked by the caller"))
@@ -72,9 +66,9 @@ fn track_through(
         ..Default::default()
     };
     let mut ids = BTreeMap::new();
-    let meta = by_time(method, agents, &times, opts, |_, sample, prepared| {
+    let meta = by_time(agents, &times, opts, |_, sample, prepared| {
         let (boxes, track_ids) = tracker
-            .step_agents(prepared.t_ref, &prepared.lists, method)
+            .step_agents(prepared.t_ref, &prepared.lists, &opts.steps.method)
             .into_iter()
             .map(|tr| (tr.det, tr.tracking_id))
             .unzip();
@@ -92,7 +86,6 @@ fn track_through(
 /// Reads, fuses, tracks and writes tracking results (a nuScenes tracking file, or KITTI tracking
 /// rows per sequence): the `v2x-fuser track` command. KITTI sequences are tracked one by one.
 pub fn track_files(
-    method: &Method,
     inputs: &[PathBuf],
     output: &std::path::Path,
     missing: MissingStd,
@@ -104,9 +97,9 @@ pub fn track_files(
     let params = read.tracker_params(opts, params);
     let opts = &read.tracking_options(opts);
     let tracks = if read.sequences.is_empty() {
-        track_results(method, &read.agents, opts, params)?
+        track_results(&read.agents, opts, params)?
     } else {
-        track_sequences(method, &read.agents, opts, params)?
+        track_sequences(&read.agents, opts, params)?
     };
     match format.resolve(&read) {
         OutputFormat::Kitti => {
@@ -123,7 +116,6 @@ pub fn track_files(
 /// Tracks each KITTI sequence on its own (a fresh tracker per sequence), joining the outputs:
 /// what `v2x-fuser track` does with KITTI folders.
 pub fn track_sequences(
-    method: &Method,
     agents: &[Results],
     opts: &OfflineOptions,
     params: TrackerParams,
@@ -156,7 +148,7 @@ pub fn track_sequences(
         stats: TrackStats::default(),
     };
     for parts in per_seq.into_values() {
-        let t = track_results(method, &parts, opts, params)?;
+        let t = track_results(&parts, opts, params)?;
         all.results.samples.extend(t.results.samples);
         all.ids.extend(t.ids);
         all.stats.births += t.stats.births;

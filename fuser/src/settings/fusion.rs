@@ -3,6 +3,7 @@
 
 use super::SettingsError;
 use crate::offline::OfflineOptions;
+use crate::pipeline::Steps;
 use crate::time::align::AlignParams;
 use crate::time::motion::MotionParams;
 use crate::uncertainty::detector::DetectorParams;
@@ -75,8 +76,8 @@ impl FusionSettings {
 /// refused for want of stds, and the offline steps.
 impl FusionSettings {
     /// What to do with a box of the `inputs` files that states no std (`default_std`: fill it
-    /// in), and the offline options, the model files read. Registration is set by the caller,
-    /// which knows the reference agent.
+    /// in), and the offline options, the model files read. The caller sets the reference agent
+    /// of registration ([`OfflineOptions::reference`]).
     pub fn offline(
         &self,
         inputs: usize,
@@ -90,20 +91,17 @@ impl FusionSettings {
             ));
         }
         let models = self.models_by_input(inputs)?;
-        let detector_params = self.detector.params()?;
         let mut opts = OfflineOptions {
-            motion: self.motion.params()?,
+            steps: self.steps_with(Models::default())?,
             window_ms: self.window_ms,
-            align: None,
-            learn: self.stds.learn()?,
-            models,
-            detector: self.detector.detector.then_some(detector_params),
-            detector_params,
+            reference: 0,
+            detector_params: self.detector.params()?,
         };
+        opts.set_models(models);
         opts.set_time_scale(self.motion.time_scale);
         // A detector's boxes or a model for every input replace the stds; a learner starts
         // from its prior.
-        let replaced = self.stds.learn_std || (inputs > 0 && opts.models.len() >= inputs);
+        let replaced = self.stds.learn_std || (inputs > 0 && opts.steps.models.0.len() >= inputs);
         let missing = match (default_std, replaced) {
             _ if self.detector.detector => MissingStd::Default(crate::offline::kitti_default_std()),
             (Some(u), _) => MissingStd::Default(u),
@@ -111,6 +109,25 @@ impl FusionSettings {
             (None, false) => MissingStd::Error,
         };
         Ok((missing, opts))
+    }
+
+    /// The per-window steps these settings give: the method and every step around it, the
+    /// error models read from their files and keyed by agent name.
+    pub fn steps(&self) -> Result<Steps, SettingsError> {
+        self.steps_with(self.stds.models()?)
+    }
+
+    /// [`FusionSettings::steps`] with `models` as the error models.
+    fn steps_with(&self, models: Models) -> Result<Steps, SettingsError> {
+        let detector = self.detector.params()?;
+        Ok(Steps {
+            method: self.method,
+            detector: self.detector.detector.then_some(detector),
+            motion: self.motion.params()?,
+            align: self.align.params()?,
+            learn: self.stds.learn()?,
+            models: std::sync::Arc::new(models),
+        })
     }
 
     /// The error models by input position: each agent named agentN, 1 <= N <= `inputs`.

@@ -86,11 +86,9 @@ impl Source {
             Source::LateFusionRule => rule().collect(),
             Source::LateFusionRuleTail => rule().filter(|b| b.score >= RULE_CUT).collect(),
             Source::Method(m) => {
-                let opts = OfflineOptions {
-                    detector: Some(DetectorParams::default()),
-                    ..Default::default()
-                };
-                fuse_step(m, &opts, &both())
+                let mut opts = OfflineOptions::method(*m);
+                opts.steps.detector = Some(DetectorParams::default());
+                fuse_step(&opts, &both())
             }
         }
     }

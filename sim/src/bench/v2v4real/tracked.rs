@@ -50,9 +50,8 @@ pub fn tracked(
     params: TrackerParams,
 ) -> Result<TrackedRow, FilesError> {
     let read = read_inputs(cars, MissingStd::Error)?;
-    let opts = OfflineOptions::default();
+    let opts = OfflineOptions::method(*method);
     let tracks = track_sequences(
-        method,
         &read.agents,
         &read.tracking_options(&opts),
         read.tracker_params(&opts, params),
