@@ -29,10 +29,16 @@ pub struct WireArgs {
     /// The encoding written.
     #[arg(long, value_enum, default_value = "cpm")]
     pub format: WireFormat,
-    /// The folder to write: OUT/<agent>/<sample>.uper (or .frame), the agent named by the
-    /// file's `meta.v2x_agent`, else by the file's name.
-    #[arg(long, required_unless_present = "read")]
-    pub out: Option<PathBuf>,
+    /// The folder to write: PATH/<agent>/<sample>.uper (or .frame), the agent named by the
+    /// file's `meta.v2x_agent`, else by the file's name (not with --read).
+    #[arg(
+        short = 'o',
+        long = "output",
+        visible_alias = "out",
+        value_name = "PATH",
+        required_unless_present = "read"
+    )]
+    pub output: Option<PathBuf>,
     #[command(flatten)]
     pub map_origin: v2x_cpm::MapOrigin,
     /// An agent that is a roadside unit (its CPMs carry the RSU container); repeatable.
@@ -53,9 +59,9 @@ pub fn run(args: WireArgs) -> anyhow::Result<()> {
         return read(&args.inputs, &args.map_origin.geo);
     }
     let out = args
-        .out
+        .output
         .as_deref()
-        .expect("clap requires --out without --read");
+        .expect("clap requires --output without --read");
     println!("agent\tframes\tboxes/frame\tCPM bytes/frame\tframe bytes/frame");
     for path in &args.inputs {
         let (agent, frames) = frames_of(path, &args)?;
