@@ -159,14 +159,14 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
     let mut rows = Vec::new();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let kinds: Vec<RowBoxes<'_, _>> = (0..n_agents)
+        let row_boxes: Vec<RowBoxes<'_, _>> = (0..n_agents)
             .map(RowBoxes::Agent)
             .chain((0..cfg.methods.len()).map(RowBoxes::Method))
             .collect();
         // Frame by frame, without history: no step of this table carries any.
         let fusers = Fusers::new(&cfg.methods, n_agents, None);
         let source = Simulated::new(gt, cfg, setting);
-        let accs = frames::score(&source, &kinds, &fusers, Accumulator::new, tick).rows;
+        let accs = frames::score(&source, &row_boxes, &fusers, Accumulator::new, tick).rows;
         let names = (0..n_agents)
             .map(|a| format!("agent{}", a + 1))
             .chain(cfg.methods.iter().map(Method::name));
@@ -205,7 +205,7 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
             }) as Box<Rule<'_, _>>
         })
         .collect();
-    let kinds: Vec<RowBoxes<'_, _>> = regional
+    let row_boxes: Vec<RowBoxes<'_, _>> = regional
         .iter()
         .enumerate()
         .flat_map(|(m, rule)| [RowBoxes::Method(m), RowBoxes::Rule(&**rule)])
@@ -213,7 +213,7 @@ pub fn run_regions(gt: &GroundTruth, cfg: &BenchConfig, tiling: Tiling, halo_m: 
     for setting in &cfg.settings {
         let fusers = Fusers::new(&cfg.methods, setting.agents.len(), None);
         let source = Simulated::new(gt, cfg, setting);
-        let accs = frames::score(&source, &kinds, &fusers, Accumulator::new, &|| ()).rows;
+        let accs = frames::score(&source, &row_boxes, &fusers, Accumulator::new, &|| ()).rows;
         for (m, method) in cfg.methods.iter().enumerate() {
             for (k, name) in [method.name(), format!("{method} regions")]
                 .into_iter()
@@ -286,13 +286,13 @@ pub fn run_detection(
     let steps: Vec<Steps> = plain.chain(aligned).collect();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let kinds: Vec<RowBoxes<'_, _>> = (0..n_agents)
+        let row_boxes: Vec<RowBoxes<'_, _>> = (0..n_agents)
             .map(RowBoxes::Agent)
             .chain((0..steps.len()).map(RowBoxes::Method))
             .collect();
         let fusers = Fusers::of_steps(steps.iter().cloned(), n_agents);
         let source = Simulated::new(gt, cfg, setting).by_scene();
-        let evals = frames::score(&source, &kinds, &fusers, DetectionEval::new, tick).rows;
+        let evals = frames::score(&source, &row_boxes, &fusers, DetectionEval::new, tick).rows;
         let names = (0..n_agents)
             .map(|a| format!("agent{}", a + 1))
             .chain(cfg.methods.iter().map(|m| m.name()))

@@ -3,14 +3,14 @@
 //! takes at BEV IoU `iou` (each frame's fused boxes in order of their best member's score, each
 //! taking the free label it overlaps most, as the detection protocols match).
 
-use crate::bench::{in_order, FRAMES_PER_TASK};
+use crate::bench::frames::Frames;
+use crate::bench::in_order;
 use rayon::prelude::*;
 use v2x_fuser::maths::association::CsbaParams;
 use v2x_fuser::maths::geometry::bev_iou;
 use v2x_fuser::uncertainty::detector::{fuse_described, ready, DetectorParams};
 use v2x_fuser::uncertainty::existence::{ExistenceError, ExistenceModel, Features};
 use v2x_protocol::Detection;
-use v2x_truth::v2v4real::V2v4real;
 
 /// Each fused box of one frame with its features and whether it takes a label at `iou`; the
 /// cars' boxes get the detector's stds (the first car the receiver).
@@ -51,22 +51,20 @@ pub fn frame_samples(
         .collect()
 }
 
-/// Every frame's samples, in frame order.
-pub fn samples(
-    d: &V2v4real,
+/// Every frame's samples, in frame order, of a source whose frames carry two agents' detector
+/// boxes (the first the receiver) and the labelled boxes.
+pub fn samples<F: Frames<Truth = Vec<Detection>>>(
+    source: &F,
     p: &DetectorParams,
     csba: &CsbaParams,
     iou: f64,
 ) -> Vec<(Features, bool)> {
-    let frames: Vec<usize> = (0..d.frames.len()).collect();
     in_order(
-        frames.par_chunks(FRAMES_PER_TASK),
-        |chunk| {
-            chunk
-                .iter()
-                .flat_map(|&i| {
-                    frame_samples(p, csba, [&d.cars[0][i], &d.cars[1][i]], &d.gt[i], iou)
-                })
+        source.parts().into_par_iter(),
+        |part| {
+            part.into_iter()
+                .filter_map(|i| source.frame(i))
+                .flat_map(|f| frame_samples(p, csba, [&f.agents[0], &f.agents[1]], &f.truth, iou))
                 .collect::<Vec<_>>()
         },
         |mut a, b| {

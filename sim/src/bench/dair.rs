@@ -129,13 +129,13 @@ pub fn run(
         seed,
         range,
     };
-    let kinds: Vec<RowBoxes<'_, _>> = (0..2)
+    let row_boxes: Vec<RowBoxes<'_, _>> = (0..2)
         .map(RowBoxes::Agent)
         .chain((0..methods.len()).map(RowBoxes::Method))
         .collect();
     let fusers = Fusers::new(methods, 2, None);
     let new = || (DetectionEval::new(), DairEval::new());
-    let totals = frames::score(&source, &kinds, &fusers, new, &|| ());
+    let totals = frames::score(&source, &row_boxes, &fusers, new, &|| ());
     let per_frame = |b: usize| b as f64 / totals.frames.max(1) as f64;
     let both = |b: Bytes| (per_frame(b.frame), per_frame(b.cpm));
     let [veh, inf] = totals.cost.bytes;

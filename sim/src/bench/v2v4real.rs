@@ -255,7 +255,7 @@ pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
                 as Box<Rule<'_, _>>
         })
         .collect();
-    let kinds: Vec<RowBoxes<'_, _>> = sources
+    let row_boxes: Vec<RowBoxes<'_, _>> = sources
         .iter()
         .zip(&rules)
         .map(|(src, rule)| match src {
@@ -265,7 +265,13 @@ pub fn run(d: &V2v4real, sources: &[Source]) -> Vec<V2v4realRow> {
         .collect();
     // The methods fuse as `v2x-fuser fuse --detector` does (`Source::boxes`), not by these.
     let fusers = Fusers::new(&[], 2, None);
-    let totals = frames::score(&CarFrames(d), &kinds, &fusers, V2v4realEval::new, &|| ());
+    let totals = frames::score(
+        &CarFrames(d),
+        &row_boxes,
+        &fusers,
+        V2v4realEval::new,
+        &|| (),
+    );
     let frames = d.frames.len().max(1) as f64;
     sources
         .iter()

@@ -55,7 +55,8 @@ pub fn run(args: FitScoreArgs) -> anyhow::Result<()> {
         min_score: 0.0,
         ..DetectorParams::default()
     };
-    let samples = existence_fit::samples(&d, &p, &csba, iou);
+    let cars = v2x_sim::bench::v2v4real::CarFrames(&d);
+    let samples = existence_fit::samples(&cars, &p, &csba, iou);
     let real = samples.iter().filter(|s| s.1).count();
     let model =
         existence_fit::fit(&samples).with_context(|| format!("{} fused boxes", samples.len()))?;
