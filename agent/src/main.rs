@@ -111,6 +111,7 @@ fn timestamps(path: &PathBuf) -> anyhow::Result<HashMap<String, u64>> {
 }
 
 fn main() -> std::process::ExitCode {
+    v2x_protocol::cli::quiet_on_closed_stdout();
     let cli = Cli::parse();
     v2x_protocol::net::exit_code(
         v2x_protocol::net::runtime()

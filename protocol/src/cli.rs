@@ -1,5 +1,5 @@
 //! Command-line options that commands of several binaries share and that are not Zenoh's, each
-//! declared once.
+//! declared once, and how every binary ends when its standard output is closed.
 
 use std::path::PathBuf;
 
@@ -92,6 +92,24 @@ pub struct ReplayArg {
     /// agents' value to map a recording back to the data. E.g. speed=2,start_at=1767225600.
     #[arg(long, value_name = "KEY=VALUE,...", default_value = "", hide_default_value = true, value_parser = parse_replay, allow_hyphen_values = true)]
     pub replay: Replay,
+}
+
+/// Ends the program quietly when its standard output is closed (`... | head`), as Unix tools
+/// do, instead of with a panic from `println!`; the exit status is a broken pipe's (141).
+pub fn quiet_on_closed_stdout() {
+    let report = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        report(info)
+    }));
 }
 
 #[cfg(test)]

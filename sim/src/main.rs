@@ -61,6 +61,7 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    v2x_protocol::cli::quiet_on_closed_stdout();
     v2x_protocol::net::exit_code(run(Cli::parse()))
 }
 

@@ -508,3 +508,31 @@ fn dair_v2x_gen_fuse_eval_bench_and_spd_tracks() {
     assert_eq!(m["IDS"], 0, "{m}");
     assert_eq!(m["tp"], 9, "{m}");
 }
+
+#[test]
+fn a_closed_standard_output_ends_a_command_quietly() {
+    use std::io::Read;
+    use std::process::Stdio;
+    // Over 64 KiB of JSON, more than a pipe holds, so the writer meets the closed pipe.
+    let mut child = Command::new(bin("v2x-sim"))
+        .args([
+            "bench",
+            "--methods",
+            "all",
+            "--noise",
+            "all",
+            "--format",
+            "json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut head = [0u8; 16];
+    child.stdout.take().unwrap().read_exact(&mut head).unwrap();
+    assert_eq!(head[0], b'[');
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+}
