@@ -5,7 +5,7 @@
 use crate::dataset::{GroundTruth, GtObject};
 use crate::detection_eval::{DetectionEval, DetectionMetrics};
 use crate::metrics::{Accumulator, Metrics};
-use crate::noise::{detect, place_agents, Capture, NoiseSetting};
+use crate::noise::{detect, place_agents, Capture, NoiseSetting, Placement};
 use crate::table::{
     cell, markdown, Align,
     Align::{Left, Right},
@@ -72,8 +72,20 @@ pub fn agent_detections(
     seed: u64,
     range: Option<f64>,
 ) -> Vec<Vec<Detection>> {
+    let places = place_agents(&gt.frames[i], setting.agents.len(), seed);
+    detections_from(gt, i, setting, seed, range, &places)
+}
+
+/// [`agent_detections`] with the agents at `places`.
+fn detections_from(
+    gt: &GroundTruth,
+    i: usize,
+    setting: &NoiseSetting,
+    seed: u64,
+    range: Option<f64>,
+    places: &[Placement],
+) -> Vec<Vec<Detection>> {
     let frame = &gt.frames[i];
-    let places = place_agents(frame, setting.agents.len(), seed);
     let objects = gt.in_draw_order(frame.objects.clone());
     setting
         .agents
@@ -142,9 +154,10 @@ impl Frames for Simulated<'_> {
     fn frame(&self, i: usize) -> Option<BenchFrame<Vec<GtObject>>> {
         let frame = &self.gt.frames[i];
         let places = place_agents(frame, self.setting.agents.len(), self.seed);
+        let (gt, setting, seed, range) = (self.gt, self.setting, self.seed, self.range);
         Some(BenchFrame {
             index: i,
-            agents: agent_detections(self.gt, i, self.setting, self.seed, self.range),
+            agents: detections_from(gt, i, setting, seed, range, &places),
             kinds: places.iter().map(|p| p.kind).collect(),
             t_us: frame.timestamp_us,
             truth: frame.objects.clone(),
@@ -159,10 +172,7 @@ pub fn run(gt: &GroundTruth, cfg: &BenchConfig, tick: &(dyn Fn() + Sync)) -> Vec
     let mut rows = Vec::new();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let row_boxes: Vec<RowBoxes<'_, _>> = (0..n_agents)
-            .map(RowBoxes::Agent)
-            .chain((0..cfg.methods.len()).map(RowBoxes::Method))
-            .collect();
+        let row_boxes = RowBoxes::agents_then_methods(n_agents, cfg.methods.len());
         // Frame by frame, without history: no step of this table carries any.
         let fusers = Fusers::new(&cfg.methods, n_agents, None);
         let source = Simulated::new(gt, cfg, setting);
@@ -286,10 +296,7 @@ pub fn run_detection(
     let steps: Vec<Steps> = plain.chain(aligned).collect();
     for setting in &cfg.settings {
         let n_agents = setting.agents.len();
-        let row_boxes: Vec<RowBoxes<'_, _>> = (0..n_agents)
-            .map(RowBoxes::Agent)
-            .chain((0..steps.len()).map(RowBoxes::Method))
-            .collect();
+        let row_boxes = RowBoxes::agents_then_methods(n_agents, steps.len());
         let fusers = Fusers::of_steps(steps.iter().cloned(), n_agents);
         let source = Simulated::new(gt, cfg, setting).by_scene();
         let evals = frames::score(&source, &row_boxes, &fusers, DetectionEval::new, tick).rows;

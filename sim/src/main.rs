@@ -69,7 +69,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     v2x_protocol::net::init_logging("warn,zenoh=error");
     match cli.command {
         Command::Gen(args) => sources::open(&args.data).gen(&args)?,
-        Command::Eval(args) => sources::open(&args.data).eval(&args)?,
+        Command::Eval(args) => sources::eval(&args)?,
         Command::Calibrate(args) => commands::calibrate::run(args)?,
         Command::FitScore(args) => commands::fit_score::run(args)?,
         Command::Bench(args) => sources::bench(*args)?,

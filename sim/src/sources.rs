@@ -20,11 +20,26 @@ pub(crate) trait Source {
     fn gen(&self, args: &GenArgs) -> anyhow::Result<()>;
     /// `v2x-sim eval`: a results file (or folder) scored by the source's protocols.
     fn eval(&self, args: &EvalArgs) -> anyhow::Result<()>;
+    /// `v2x-sim eval --tracking`: tracking results scored by the tracking benchmark, over the
+    /// ground truth's tracks.
+    fn eval_tracking(&self, args: &EvalArgs) -> anyhow::Result<()> {
+        crate::commands::eval::tracking_table(args)
+    }
     /// `v2x-sim bench` without a mode: the source's own tables.
     fn bench(&self, args: &TableArgs) -> anyhow::Result<()>;
     /// Whether the bench's modes apply: agents simulated over the source's ground truth.
     fn simulated(&self) -> bool {
         false
+    }
+}
+
+/// `v2x-sim eval`: the source's detection protocols, or with `--tracking` its tracking one.
+pub(crate) fn eval(args: &EvalArgs) -> anyhow::Result<()> {
+    let source = open(&args.data);
+    if args.tracking {
+        source.eval_tracking(args)
+    } else {
+        source.eval(args)
     }
 }
 

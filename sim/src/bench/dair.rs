@@ -129,10 +129,7 @@ pub fn run(
         seed,
         range,
     };
-    let row_boxes: Vec<RowBoxes<'_, _>> = (0..2)
-        .map(RowBoxes::Agent)
-        .chain((0..methods.len()).map(RowBoxes::Method))
-        .collect();
+    let row_boxes = RowBoxes::agents_then_methods(2, methods.len());
     let fusers = Fusers::new(methods, 2, None);
     let new = || (DetectionEval::new(), DairEval::new());
     let totals = frames::score(&source, &row_boxes, &fusers, new, &|| ());

@@ -66,6 +66,14 @@ pub enum RowBoxes<'a, T> {
     Rule(&'a Rule<'a, T>),
 }
 
+impl<T> RowBoxes<'_, T> {
+    /// Each of `agents` agents alone, then each of `methods` methods.
+    pub fn agents_then_methods(agents: usize, methods: usize) -> Vec<Self> {
+        let agents = (0..agents).map(RowBoxes::Agent);
+        agents.chain((0..methods).map(RowBoxes::Method)).collect()
+    }
+}
+
 /// Each row's figures, what the frames cost and how many were scored.
 #[derive(Clone, Debug)]
 pub struct Totals<P, C> {

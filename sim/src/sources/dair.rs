@@ -46,12 +46,8 @@ impl Source for Dair<'_> {
         Ok(())
     }
 
-    /// The devkit-style figures and DAIR-V2X's protocol for one results file (`--tracking`: the
-    /// tracking benchmark's, over the cooperative labels).
+    /// The devkit-style figures and DAIR-V2X's protocol for one results file.
     fn eval(&self, args: &EvalArgs) -> anyhow::Result<()> {
-        if args.tracking {
-            return eval::tracking_table(args);
-        }
         let d = self.0.load_dair()?;
         let (pred, format) = (args.pred.as_path(), args.format.format);
         let evaluation = eval::evaluate(args, &d.gt)?;

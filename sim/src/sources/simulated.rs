@@ -45,11 +45,8 @@ impl Source for Simulated<'_> {
     }
 
     /// The nuScenes detection benchmark's figures (by distance), or the id-matched ones, of a
-    /// results file; `--tracking`: the tracking benchmark's.
+    /// results file.
     fn eval(&self, args: &EvalArgs) -> anyhow::Result<()> {
-        if args.tracking {
-            return eval::tracking_table(args);
-        }
         let gt = self.0.load()?;
         let (pred, format) = (args.pred.as_path(), args.format.format);
         let evaluation = eval::evaluate(args, &gt)?;

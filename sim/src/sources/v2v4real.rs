@@ -24,6 +24,24 @@ impl V2v4real<'_> {
     }
 }
 
+impl V2v4real<'_> {
+    /// The split, and the folder `eval` scores, refused unless it is a folder.
+    fn load_with_folder<'a>(
+        &self,
+        args: &'a EvalArgs,
+    ) -> anyhow::Result<(v2x_truth::v2v4real::V2v4real, &'a std::path::Path)> {
+        let d = self.load()?;
+        let dir = args.pred.as_path();
+        if !dir.is_dir() {
+            bail!(
+                "{}: --dataset v2v4real scores a folder of KITTI rows (one NNNN.txt per sequence)",
+                dir.display()
+            );
+        }
+        Ok((d, dir))
+    }
+}
+
 impl Source for V2v4real<'_> {
     /// The two cars' own detections, written as they are.
     fn gen(&self, args: &GenArgs) -> anyhow::Result<()> {
@@ -64,25 +82,10 @@ impl Source for V2v4real<'_> {
         Ok(())
     }
 
-    /// A folder of KITTI rows scored by V2V4Real's detection protocol, or with `--tracking` by
-    /// AB3DMOT's tracking evaluation.
+    /// A folder of KITTI rows scored by V2V4Real's detection protocol.
     fn eval(&self, args: &EvalArgs) -> anyhow::Result<()> {
-        let d = self.load()?;
-        let (dir, format) = (args.pred.as_path(), args.format.format);
-        if !dir.is_dir() {
-            bail!(
-                "{}: --dataset v2v4real scores a folder of KITTI rows (one NNNN.txt per sequence)",
-                dir.display()
-            );
-        }
-        if args.tracking {
-            let row = rows::score_track_dir(&d, dir)?;
-            match format {
-                Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
-                _ => print!("{}", [row][..].table()),
-            }
-            return Ok(());
-        }
+        let (d, dir) = self.load_with_folder(args)?;
+        let format = args.format.format;
         let m = rows::score_detection_dir(&d, dir)?;
         match format {
             Format::Json => println!("{}", serde_json::to_string_pretty(&m)?),
@@ -99,6 +102,17 @@ impl Source for V2v4real<'_> {
                 m.gt,
                 m.predictions
             ),
+        }
+        Ok(())
+    }
+
+    /// A folder of KITTI tracking rows scored by AB3DMOT's tracking evaluation.
+    fn eval_tracking(&self, args: &EvalArgs) -> anyhow::Result<()> {
+        let (d, dir) = self.load_with_folder(args)?;
+        let row = rows::score_track_dir(&d, dir)?;
+        match args.format.format {
+            Format::Json => println!("{}", serde_json::to_string_pretty(&row)?),
+            _ => print!("{}", [row][..].table()),
         }
         Ok(())
     }
